@@ -1,0 +1,1 @@
+"""The ``sidprep`` command.  Each sub-command is one module here with ``register(subparsers)``."""

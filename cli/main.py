@@ -1,0 +1,62 @@
+"""Entry point of the ``sidprep`` command: discovers the sub-command modules of this package.
+
+Each module ``cli/<name>.py`` that defines ``register(subparsers)`` adds one sub-command; the
+parser it adds must set ``func=run`` with ``run(args) -> int``.  Modules import their heavy
+dependencies inside ``run`` so that ``sidprep --help`` stays fast.
+Errors: ``InputError`` -> one line on stderr, exit 2; anything else -> one line naming the
+internal error, exit 3 (``--debug`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+import cli
+from sidprep import __version__
+from sidprep.errors import InputError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sidprep",
+        description="Tetrahedral FE model -> reduced flexible body (SID), and an FFR multibody solver.",
+    )
+    parser.add_argument("--version", action="version", version=f"sidprep {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(cli.__path__), key=lambda m: m.name):
+        if info.name == "main":
+            continue
+        module = importlib.import_module(f"cli.{info.name}")
+        if hasattr(module, "register"):
+            module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"sidprep: error: {exc}", file=sys.stderr)
+        return InputError.exit_code
+    except KeyboardInterrupt:
+        print("sidprep: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal error, not bad input
+        if args.debug:
+            raise
+        print(f"sidprep: internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)",
+              file=sys.stderr)
+        return 3
+
+
+if __name__ == "__main__":
+    sys.exit(main())
