@@ -82,6 +82,21 @@ class SIDNode:
 
 
 @dataclass(frozen=True)
+class SurfaceModes:
+    """Mode shapes on the outer surface, for animation.
+
+    points : (ns, 3) undeformed surface node positions in K; triangles : (nf, 3) int64 rows of
+    ``points`` (outward normals); shapes : (ns, 3, nq) displacement of each surface node per
+    unit modal coordinate; node_ids : (ns,) FE node numbers.
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    shapes: np.ndarray
+    node_ids: np.ndarray
+
+
+@dataclass(frozen=True)
 class SID:
     """A reduced flexible body.
 
@@ -107,6 +122,8 @@ class SID:
         (e.g. read from an ASCII file, which stores only the sums).
     metadata : mapping
         Provenance, options, checks, library versions (JSON-serialisable values).
+    surface : SurfaceModes or None
+        Mode shapes on the outer surface (HDF5 files only), for animation.
     """
 
     mass: float
@@ -128,6 +145,7 @@ class SID:
     units: str = "SI"
     stiffening: Mapping[str, np.ndarray] = field(default_factory=dict)
     metadata: Mapping[str, object] = field(default_factory=dict)
+    surface: SurfaceModes | None = None
 
     @property
     def nq(self) -> int:
