@@ -1,0 +1,18 @@
+"""The solver reads SID files only: importing it must not import sidprep's FE side."""
+
+import subprocess
+import sys
+
+FE_MODULES = ("sidprep.mesh", "sidprep.assemble", "sidprep.linalg", "sidprep.reduce",
+              "sidprep.modes", "sidprep.interfaces", "sidprep.stiffening", "sidprep.pipeline", "skfem")
+
+
+def test_solver_does_not_import_fe_side():
+    code = (
+        "import sys, importlib, pkgutil, solver\n"
+        "for m in pkgutil.iter_modules(solver.__path__):\n"
+        "    importlib.import_module('solver.' + m.name)\n"
+        f"print(','.join(m for m in {FE_MODULES!r} if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
