@@ -1,0 +1,112 @@
+"""Animation export: a ParaView series (``.pvd``) of one ``.vtu`` file per output time.
+
+Each VTU holds the surfaces of all bodies at that time: a flexible body's deformed surface
+x = r_O + A (c + S q) from ``SID.surface`` (points c, shapes S (ns, 3, nq)), with the point field
+``displacement`` = A S q (elastic part, inertial components, m); a rigid body's OBJ surface
+x = r_O + A p (displacement 0).  A flexible body without surface modes (e.g. read from an ASCII
+SID_FEM file) is shown by its SID node points, as vertex cells.  The cell field ``body`` numbers
+the bodies in scene order.  Open the ``.pvd`` in ParaView and press play.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from sidprep.errors import InputError
+from sidprep.io.atomic import atomic_path
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Body-frame surface of one body.
+
+    points (ns, 3) m in K; triangles (nf, 3) int64 (may be empty: then the points are drawn as
+    vertices); shapes (ns, 3, nq) displacement per unit modal coordinate (nq = 0 for rigid bodies).
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    shapes: np.ndarray
+
+
+def sid_surface(sid) -> Surface:
+    """The animation surface of a flexible body (``sidprep.sid.SID``)."""
+    if sid.surface is not None:
+        s = sid.surface
+        return Surface(np.asarray(s.points, float), np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float))
+    points = np.array([n.origin.M0[:, 0] for n in sid.nodes]).reshape(-1, 3)
+    shapes = np.array([n.phi.M0 for n in sid.nodes]).reshape(-1, 3, sid.nq)
+    return Surface(points, np.zeros((0, 3), np.int64), shapes)
+
+
+def obj_surface(path: str | os.PathLike) -> Surface:
+    """The animation surface of a rigid body from a Wavefront OBJ file (body-frame coordinates, m)."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the OBJ surface ({exc}); give a triangulated Wavefront OBJ file")
+    points = np.asarray(mesh.vertices, float)
+    return Surface(points, np.asarray(mesh.faces, np.int64), np.zeros((len(points), 3, 0)))
+
+
+def deformed_points(surface: Surface, r: np.ndarray, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inertial positions (ns, 3) and elastic displacements (ns, 3) of the surface points.
+
+    x = r_O + A (c + S q); u = A S q (sid-spec section 5.2, node kinematics).
+    """
+    local_u = surface.shapes @ q if surface.shapes.shape[2] else np.zeros_like(surface.points)
+    u = local_u @ A.T
+    return r + surface.points @ A.T + u, u
+
+
+def frame_mesh(results, surfaces: dict[str, Surface], i: int):
+    """meshio.Mesh of all bodies at output index ``i``."""
+    import meshio
+
+    points, disp, cells, body_ids = [], [], [], []
+    offset = 0
+    for k, (name, surf) in enumerate(surfaces.items()):
+        b = results.bodies[name]
+        x, u = deformed_points(surf, b.position[i], b.rotation[i], b.q[i])
+        points.append(x)
+        disp.append(u)
+        if len(surf.triangles):
+            cells.append(("triangle", surf.triangles + offset))
+        else:
+            cells.append(("vertex", np.arange(len(x), dtype=np.int64)[:, None] + offset))
+        body_ids.append(np.full(len(cells[-1][1]), k, dtype=np.int32))
+        offset += len(x)
+    return meshio.Mesh(np.vstack(points), cells, point_data={"displacement": np.vstack(disp)},
+                       cell_data={"body": body_ids})
+
+
+def write_animation(results, surfaces: dict[str, Surface], pvd_path: str | os.PathLike) -> Path:
+    """Write ``<stem>.pvd`` and ``<stem>_vtu/<stem>_NNNNN.vtu`` (one per output time); returns the .pvd path."""
+    import meshio
+
+    pvd_path = Path(pvd_path)
+    if not surfaces:
+        raise InputError(f"{pvd_path}: no body has a surface to animate; give rigid bodies an `obj` "
+                         "or flexible bodies a SID file with surface modes")
+    folder = pvd_path.with_name(pvd_path.stem + "_vtu")
+    folder.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for i, t in enumerate(results.time):
+        vtu = folder / f"{pvd_path.stem}_{i:05d}.vtu"
+        with atomic_path(vtu) as tmp:
+            meshio.write(tmp, frame_mesh(results, surfaces, i), file_format="vtu")
+        rel = vtu.relative_to(pvd_path.parent).as_posix()
+        entries.append(f'    <DataSet timestep="{float(t)!r}" group="" part="0" file={quoteattr(rel)}/>')
+    text = "\n".join(['<?xml version="1.0"?>',
+                      '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                      "  <Collection>", *entries, "  </Collection>", "</VTKFile>", ""])
+    with atomic_path(pvd_path) as tmp:
+        Path(tmp).write_text(text)
+    return pvd_path
