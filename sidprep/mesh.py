@@ -13,6 +13,8 @@ from typing import Mapping
 
 import numpy as np
 
+from .errors import InputError
+
 #: mid-edge node k (k = 4..9 of a tet10) lies on the edge between these two vertices
 TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
 
@@ -69,3 +71,515 @@ class FEMesh:
     def scaled(self, factor: float, length_unit: str = "m") -> "FEMesh":
         """The same mesh with coordinates multiplied by ``factor`` (e.g. 1e-3 for mm -> m)."""
         return replace(self, points=self.points * factor, length_unit=length_unit)
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------------
+#: nodes closer than this fraction of the bounding-box diagonal are merged as duplicates
+DUPLICATE_NODE_RTOL = 1e-9
+#: an element with |V| / l_rms**3 below this is flat (a regular tetrahedron has 0.118)
+FLAT_ELEMENT_TOL = 1e-8
+#: allowed relative gap between the sum of element volumes and the volume enclosed by the
+#: boundary; a larger gap means overlapping (tangled) elements
+ENCLOSED_VOLUME_RTOL = 1e-6
+
+#: files meshed through the gmsh API (geometry); ``.msh`` is read through the gmsh API too
+GEOMETRY_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".brp", ".iges", ".igs")
+#: gmsh element type numbers of the linear and quadratic tetrahedron
+_GMSH_TET = {4: 1, 11: 2}
+#: gmsh tet10 node k -> canonical node: gmsh numbers the last two edges (2,3), (1,3)
+_GMSH_TET10_TO_CANONICAL = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
+#: re-ordering that reverses a cell's orientation (swap vertices 1 and 2 with their edges)
+_FLIP = {4: np.array([0, 2, 1, 3]), 10: np.array([0, 2, 1, 3, 6, 5, 4, 7, 9, 8])}
+#: corner-node faces of a positively oriented tetrahedron, numbered so the normals point out
+TET_FACES = np.array([(0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2)])
+
+
+@dataclass(frozen=True)
+class _RawMesh:
+    """Tetrahedra as read, before the checks: canonical node order, any orientation."""
+
+    points: np.ndarray
+    node_ids: np.ndarray
+    cells: np.ndarray
+    cell_ids: np.ndarray
+    node_sets: dict
+    cell_sets: dict
+    notes: tuple = ()
+    length_unit: str = "m"
+
+
+def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
+    """Read a tetrahedral mesh (or mesh a geometry file) and validate it.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.msh`` (gmsh 2.2 / 4.1, ASCII or binary; read through the gmsh API), any volume format
+        meshio reads (``.inp``, ``.bdf``/``.nas``, ``.vtu``, ``.vtk``, ``.med``, ...), or a
+        geometry file (``.geo``, ``.step``/``.stp``, ``.brep``, ``.iges``) meshed by gmsh.
+    size : float, optional
+        Target element size for geometry files (their unit; STEP/IGES are converted to metres).
+        ``None`` keeps the sizes the file or gmsh choose.  Ignored for mesh files.
+    order : {1, 2}
+        Element order for geometry files (tet4 / tet10).  Mesh files keep their own order.
+
+    Returns
+    -------
+    FEMesh
+        Tetrahedra in canonical VTK node order with positive volume.  Surface, line and point
+        physical groups (gmsh) / node sets and surface element sets (meshio) become
+        ``node_sets``; volume groups / element sets become ``cell_sets``.  Other elements are
+        dropped.  Repairs (negative-volume cells re-ordered, duplicate nodes merged, unreferenced
+        nodes dropped) and disconnected parts are listed in ``notes``.
+
+    Raises
+    ------
+    InputError
+        Missing / unreadable / truncated file, unknown extension, no tetrahedra, non-tet volume
+        elements, mixed tet4/tet10, NaN or inf coordinates, flat elements, overlapping elements.
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: file not found; check the path")
+    suffix = path.suffix.lower()
+    if order not in (1, 2):
+        raise InputError(f"--order {order}: element order must be 1 (tet4) or 2 (tet10)")
+    if suffix == ".msh" or suffix in GEOMETRY_SUFFIXES:
+        raw = _read_gmsh(path, size=size, order=order)
+    else:
+        raw = _read_meshio(path)
+    return _validated(raw, path)
+
+
+def _file_sha256(path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _index_of(tags: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Row indices of ``wanted`` tags in the (unsorted, unique) array ``tags``."""
+    sorter = np.argsort(tags, kind="stable")
+    pos = np.searchsorted(tags, wanted, sorter=sorter)
+    return sorter[np.clip(pos, 0, len(tags) - 1)]
+
+
+def _gmsh_session():
+    """Context manager: a quiet gmsh session with an empty model of its own.
+
+    Reuses a session the caller already started (its models stay untouched), else starts one
+    and finalizes it afterwards.
+    """
+    import contextlib
+
+    import gmsh
+
+    @contextlib.contextmanager
+    def session():
+        own = not gmsh.isInitialized()
+        if own:
+            gmsh.initialize(readConfigFiles=False, interruptible=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.Verbosity", 0)
+        previous = gmsh.model.getCurrent() if not own else None
+        gmsh.model.add("sidprep_read_mesh")
+        try:
+            yield gmsh
+        finally:
+            if own:
+                gmsh.finalize()
+            else:
+                gmsh.model.setCurrent("sidprep_read_mesh")
+                gmsh.model.remove()
+                if previous:
+                    gmsh.model.setCurrent(previous)
+
+    return session()
+
+
+def _read_gmsh(path, *, size, order) -> _RawMesh:
+    """Open a .msh file or mesh a geometry file with the gmsh API."""
+    suffix = path.suffix.lower()
+    with _gmsh_session() as gmsh:
+        try:
+            if suffix in (".step", ".stp", ".iges", ".igs"):
+                gmsh.option.setString("Geometry.OCCTargetUnit", "M")
+            gmsh.merge(str(path))
+            if suffix != ".msh" and not _gmsh_volume_types(gmsh):
+                if size is not None:
+                    gmsh.option.setNumber("Mesh.MeshSizeMax", float(size))
+                    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
+                gmsh.option.setNumber("Mesh.ElementOrder", order)
+                gmsh.model.mesh.generate(3)
+                gmsh.model.mesh.setOrder(order)
+            return _gmsh_arrays(gmsh, path)
+        except InputError:
+            raise
+        except Exception as exc:  # gmsh raises a bare Exception with its last error message
+            what = "mesh" if suffix != ".msh" else "read"
+            raise InputError(
+                f"{path}: gmsh could not {what} it ({str(exc).strip() or 'unknown error'}); "
+                "check that the file is complete and valid"
+            ) from None
+
+
+def _gmsh_volume_types(gmsh) -> list[int]:
+    return list(gmsh.model.mesh.getElementTypes(dim=3))
+
+
+def _gmsh_arrays(gmsh, path) -> _RawMesh:
+    """Tetrahedra, nodes and physical groups of the current gmsh model."""
+    types = _gmsh_volume_types(gmsh)
+    other = [gmsh.model.mesh.getElementProperties(t)[0] for t in types if t not in _GMSH_TET]
+    if other:
+        raise InputError(
+            f"{path}: contains volume elements other than tetrahedra ({', '.join(other)}); "
+            "re-mesh the volume with tetrahedra only"
+        )
+    tet_types = [t for t in types if t in _GMSH_TET]
+    if not tet_types:
+        raise InputError(f"{path}: contains no tetrahedra; mesh the volume (3D) with tet4 or tet10")
+    if len(tet_types) > 1:
+        raise InputError(f"{path}: mixes tet4 and tet10 elements; re-mesh with one element order")
+    etype = tet_types[0]
+    cell_ids, cell_tags = gmsh.model.mesh.getElementsByType(etype)
+    n_per = 4 if etype == 4 else 10
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    points = np.asarray(coords, dtype=float).reshape(-1, 3)
+    cells = _index_of(node_tags, np.asarray(cell_tags, dtype=np.int64)).reshape(-1, n_per)
+    if n_per == 10:
+        cells = cells[:, _GMSH_TET10_TO_CANONICAL]
+    cell_ids = np.asarray(cell_ids, dtype=np.int64)
+    node_sets, cell_sets = {}, {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, tag) or f"group_{tag}"
+        if dim < 3:
+            tags, _ = gmsh.model.mesh.getNodesForPhysicalGroup(dim, tag)
+            node_sets[name] = np.unique(_index_of(node_tags, np.asarray(tags, dtype=np.int64)))
+        else:
+            ids = [
+                np.asarray(gmsh.model.mesh.getElements(3, ent)[1][k], dtype=np.int64)
+                for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
+                for k, t in enumerate(gmsh.model.mesh.getElements(3, ent)[0])
+                if t == etype
+            ]
+            ids = np.concatenate(ids) if ids else np.zeros(0, np.int64)
+            cell_sets[name] = np.unique(_index_of(cell_ids, ids))
+    return _RawMesh(points, node_tags, cells, cell_ids, node_sets, cell_sets)
+
+
+def _read_meshio(path) -> _RawMesh:
+    """Any volume format meshio reads; its tet10 node order is VTK's for every format."""
+    import meshio
+
+    suffix = path.suffix.lower()
+    if suffix not in meshio.extension_to_filetypes:
+        known = ".msh, " + ", ".join(GEOMETRY_SUFFIXES) + ", " + ", ".join(
+            sorted(meshio.extension_to_filetypes)
+        )
+        raise InputError(f"{path}: unknown mesh file extension '{suffix}'; use one of {known}")
+    try:
+        m = meshio.read(path)
+    except Exception as exc:  # meshio raises many kinds (ReadError, ValueError, IndexError, ...)
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(
+            f"{path}: meshio could not read it ({msg}); check that the file is complete and valid"
+        ) from None
+    volume = {"tetra", "tetra10", "hexahedron", "hexahedron20", "hexahedron27", "wedge",
+              "wedge15", "pyramid", "pyramid13", "tetra20"}  # fmt: skip
+    types = {b.type for b in m.cells}
+    other = sorted(types & volume - {"tetra", "tetra10"})
+    if other:
+        raise InputError(
+            f"{path}: contains volume elements other than tetrahedra ({', '.join(other)}); "
+            "re-mesh the volume with tetrahedra only"
+        )
+    tet = types & {"tetra", "tetra10"}
+    if not tet:
+        raise InputError(f"{path}: contains no tetrahedra; mesh the volume (3D) with tet4 or tet10")
+    if len(tet) > 1:
+        raise InputError(f"{path}: mixes tet4 and tet10 elements; re-mesh with one element order")
+    tet_type = tet.pop()
+    blocks = [k for k, b in enumerate(m.cells) if b.type == tet_type]
+    cells = np.concatenate([m.cells[k].data for k in blocks]).astype(np.int64)
+    offsets = np.cumsum([0] + [len(m.cells[k].data) for k in blocks])
+    node_sets = {name: np.unique(np.asarray(idx, np.int64)) for name, idx in m.point_sets.items()}
+    cell_sets = {}
+    for name, per_block in m.cell_sets.items():
+        in_tets = [
+            np.asarray(per_block[k], np.int64) + offsets[j]
+            for j, k in enumerate(blocks)
+            if per_block[k] is not None and len(per_block[k])
+        ]
+        if in_tets:
+            cell_sets[name] = np.unique(np.concatenate(in_tets))
+            continue
+        faces = [
+            m.cells[k].data[np.asarray(idx, np.int64)].ravel()
+            for k, idx in enumerate(per_block)
+            if idx is not None and len(idx)
+        ]
+        if faces and name not in node_sets:
+            node_sets[name] = np.unique(np.concatenate(faces)).astype(np.int64)
+    points = np.asarray(m.points, dtype=float)
+    if points.shape[1] == 2:
+        raise InputError(f"{path}: has 2D coordinates; a tetrahedral mesh needs x, y, z")
+    return _RawMesh(
+        points,
+        np.arange(1, len(points) + 1, dtype=np.int64),
+        cells,
+        np.arange(1, len(cells) + 1, dtype=np.int64),
+        node_sets,
+        cell_sets,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Checks and repairs
+# ---------------------------------------------------------------------------------------------
+def _validated(raw: _RawMesh, path) -> FEMesh:
+    """Run the checks on a raw mesh; raise ``InputError`` or repair and note."""
+    notes = list(raw.notes)
+    keep_nodes, cells = _drop_unreferenced(raw.points, raw.cells)
+    n_dropped = len(raw.points) - len(keep_nodes)
+    if n_dropped:
+        notes.append(f"{n_dropped} nodes not used by any tetrahedron were dropped")
+    points, node_ids = raw.points[keep_nodes], raw.node_ids[keep_nodes]
+    node_map = np.full(len(raw.points), -1, dtype=np.int64)
+    node_map[keep_nodes] = np.arange(len(keep_nodes))
+
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise InputError(
+            f"{path}: {int(bad.sum())} nodes have NaN or infinite coordinates "
+            f"(first: node {node_ids[bad][0]}); fix the coordinates in the mesh file"
+        )
+
+    merge = _duplicate_node_map(points)
+    n_merged = len(points) - (merge.max() + 1 if len(merge) else 0)
+    if n_merged:
+        first = np.flatnonzero(np.bincount(merge) > 1)[0]
+        notes.append(
+            f"{n_merged} duplicate nodes (closer than {DUPLICATE_NODE_RTOL:g} x bounding-box "
+            f"diagonal) were merged (first: node {node_ids[merge == first][0]})"
+        )
+        keep = np.unique(merge, return_index=True)[1]
+        points, node_ids, cells = points[keep], node_ids[keep], merge[cells]
+        node_map = np.where(node_map >= 0, merge[np.maximum(node_map, 0)], -1)
+
+    cells = _positively_oriented(points, cells, raw.cell_ids, path, notes)
+    if cells.shape[1] == 10:
+        _check_midnode_order(points, cells, raw.cell_ids, path)
+    _check_no_overlap(points, cells, path)
+
+    node_sets = {}
+    for name, idx in raw.node_sets.items():
+        mapped = node_map[idx]
+        node_sets[name] = np.unique(mapped[mapped >= 0])
+    mesh = FEMesh(
+        points=points,
+        cells=cells,
+        node_ids=node_ids,
+        node_sets=node_sets,
+        cell_sets=dict(raw.cell_sets),
+        source=str(path),
+        sha256=_file_sha256(path),
+        notes=tuple(notes),
+        length_unit=raw.length_unit,
+    )
+    n_parts, _ = connected_parts(mesh)
+    if n_parts > 1:
+        mesh = replace(
+            mesh,
+            notes=mesh.notes
+            + (f"mesh has {n_parts} disconnected parts; each adds 6 rigid-body modes",),
+        )
+    return mesh
+
+
+def _drop_unreferenced(points: np.ndarray, cells: np.ndarray):
+    """(indices of the nodes used by ``cells``, cells renumbered onto them)."""
+    used = np.zeros(len(points), dtype=bool)
+    used[cells.ravel()] = True
+    keep = np.flatnonzero(used)
+    renumber = np.cumsum(used) - 1
+    return keep, renumber[cells]
+
+
+def _duplicate_node_map(points: np.ndarray) -> np.ndarray:
+    """(n,) index of each node's merged node: clusters of nodes closer than the tolerance."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    pairs = cKDTree(points).query_pairs(DUPLICATE_NODE_RTOL * diag, output_type="ndarray")
+    if len(pairs) == 0:
+        return np.arange(n, dtype=np.int64)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    # renumber clusters in the order of their first node, so the mesh keeps its node order
+    _, first, inverse = np.unique(labels, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inverse]
+
+
+def cell_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(ne,) signed volumes of the straight tetrahedra spanned by the corner nodes (unit^3)."""
+    x = points[cells[:, :4]]
+    return np.einsum("ij,ij->i", np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), x[:, 3] - x[:, 0]) / 6
+
+
+def _positively_oriented(points, cells, cell_ids, path, notes) -> np.ndarray:
+    """Reject flat cells; re-order negative ones (the other orientation convention)."""
+    vol = cell_volumes(points, cells)
+    x = points[cells[:, :4]]
+    edges = [x[:, b] - x[:, a] for a, b in TET10_EDGES]
+    l_rms = np.sqrt(sum(np.einsum("ij,ij->i", e, e) for e in edges) / 6)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shape = np.abs(vol) / l_rms**3
+    flat = ~(shape >= FLAT_ELEMENT_TOL)
+    if flat.any():
+        worst = cell_ids[np.argmin(np.where(np.isnan(shape), -1, shape))]
+        raise InputError(
+            f"{path}: {int(flat.sum())} elements have zero or near-zero volume "
+            f"(worst: element {worst}); re-mesh or remove the flat elements"
+        )
+    negative = vol < 0
+    if negative.any():
+        worst = cell_ids[np.argmin(vol / l_rms**3)]
+        notes.append(
+            f"{int(negative.sum())} of {len(cells)} elements had negative volume (worst: element "
+            f"{worst}); their node order was reversed (the other orientation convention)"
+        )
+        cells = cells.copy()
+        cells[negative] = cells[negative][:, _FLIP[cells.shape[1]]]
+    return cells
+
+
+def _check_midnode_order(points, cells, cell_ids, path) -> None:
+    """Each mid-edge node must be nearer its own edge's midpoint than any other edge's."""
+    mid = np.stack([(points[cells[:, a]] + points[cells[:, b]]) / 2 for a, b in TET10_EDGES], 1)
+    node = points[cells[:, 4:]]
+    dist = np.linalg.norm(node[:, :, None, :] - mid[:, None, :, :], axis=-1)  # (ne, node, edge)
+    wrong = (dist.argmin(axis=2) != np.arange(6)).any(axis=1)
+    if wrong.any():
+        raise InputError(
+            f"{path}: {int(wrong.sum())} tet10 elements have mid-edge nodes on the wrong edges "
+            f"(first: element {cell_ids[np.argmax(wrong)]}); the file's tet10 node order is not "
+            "the format's standard one — export with the standard order"
+        )
+
+
+def _check_no_overlap(points, cells, path) -> None:
+    """Element volumes must add up to the volume enclosed by the boundary (no tangled cells)."""
+    _, counts, first = _face_table(cells)
+    if (counts > 2).any():
+        raise InputError(
+            f"{path}: {int((counts > 2).sum())} faces are shared by more than two elements "
+            "(duplicate or overlapping elements); fix the mesh"
+        )
+    faces = _corner_faces(cells, first[counts == 1])
+    centre = points.mean(axis=0)
+    x = points[faces] - centre
+    enclosed = np.einsum("ij,ij->i", x[:, 0], np.cross(x[:, 1], x[:, 2])).sum() / 6
+    total = cell_volumes(points, cells).sum()
+    if abs(enclosed - total) > ENCLOSED_VOLUME_RTOL * total:
+        raise InputError(
+            f"{path}: element volumes add up to {total:.6g} but the boundary encloses "
+            f"{enclosed:.6g} (overlapping or inverted elements); fix the mesh"
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# Topology
+# ---------------------------------------------------------------------------------------------
+def _face_table(cells: np.ndarray):
+    """Corner faces of all cells grouped by their node set.
+
+    Returns
+    -------
+    group : (4 ne,) int64
+        Group number of face ``4 c + f`` (face f of cell c, ``TET_FACES`` order).
+    counts : (n_groups,) int64
+        How many cells share each group's face (1 = boundary, 2 = interior).
+    first : (n_groups,)
+        Index ``4 c + f`` of one face of each group.
+    """
+    faces = np.sort(cells[:, TET_FACES].reshape(-1, 3), axis=1)
+    order = np.lexsort(faces.T[::-1])
+    sorted_faces = faces[order]
+    new = np.ones(len(order), dtype=bool)
+    new[1:] = (sorted_faces[1:] != sorted_faces[:-1]).any(axis=1)
+    group_sorted = np.cumsum(new) - 1
+    group = np.empty_like(group_sorted)
+    group[order] = group_sorted
+    counts = np.bincount(group_sorted)
+    return group, counts, order[new]
+
+
+def _boundary_face_rows(cells: np.ndarray) -> np.ndarray:
+    """(nf,) indices ``4 c + f`` of the faces that belong to one cell only."""
+    _, counts, first = _face_table(cells)
+    return first[counts == 1]
+
+
+def _corner_faces(cells: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(len(rows), 3) corner nodes of the faces ``4 c + f``, outward for positive cells."""
+    return np.take_along_axis(cells[rows // 4], TET_FACES[rows % 4], axis=1)
+
+
+def boundary_faces(mesh: FEMesh) -> np.ndarray:
+    """(nf, 3) int64 corner-node triangles of the outer surface, normals pointing outward.
+
+    Faces that belong to exactly one tetrahedron; the node order follows ``TET_FACES`` of the
+    positively oriented cell, so ``(x1 - x0) x (x2 - x0)`` points out of the body.
+    """
+    return _corner_faces(mesh.cells, _boundary_face_rows(mesh.cells))
+
+
+def surface_node_indices(mesh: FEMesh) -> np.ndarray:
+    """Sorted indices of all nodes on the outer surface (corner and, for tet10, mid-edge nodes)."""
+    rows = _boundary_face_rows(mesh.cells)
+    local = TET_FACES[rows % 4]
+    if mesh.order == 2:
+        edge_node = {frozenset(e): 4 + k for k, e in enumerate(TET10_EDGES)}
+        face_mids = np.array(
+            [[edge_node[frozenset((f[i], f[(i + 1) % 3]))] for i in range(3)] for f in TET_FACES]
+        )
+        local = np.hstack([local, face_mids[rows % 4]])
+    return np.unique(np.take_along_axis(mesh.cells[rows // 4], local, axis=1))
+
+
+def connected_parts(mesh: FEMesh) -> tuple[int, np.ndarray]:
+    """Connected components of the mesh.
+
+    Returns
+    -------
+    n_parts : int
+    labels : (n_nodes,) int64
+        Part number of each node (nodes used by no cell form parts of their own).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    c = mesh.cells
+    rows = np.repeat(c[:, 0], c.shape[1] - 1)
+    cols = c[:, 1:].ravel()
+    n = mesh.n_nodes
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    n_parts, labels = connected_components(graph, directed=False)
+    return int(n_parts), labels.astype(np.int64)
