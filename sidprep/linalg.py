@@ -1,0 +1,307 @@
+"""Sparse factorisations and the generalized eigenproblem K phi = lambda M phi.
+
+One interface, interchangeable backends:
+
+* ``factorize(A, backend)``: "cholmod" (supernodal Cholesky of the ``sksparse_minimal`` wheel,
+  SPD matrices, fill-reducing ordering), "superlu" (scipy, any nonsingular matrix), "auto"
+  (CHOLMOD when importable, else SuperLU).
+* ``eigen_modes(K, M, ...)``: shift-invert Lanczos (ARPACK through ``scipy.sparse.linalg.eigsh``)
+  with the factorisation of K - sigma M as OPinv, or ``backend="lobpcg"``: LOBPCG preconditioned
+  with smoothed-aggregation AMG (pyamg) on K - sigma M, for models beyond direct-solver memory.
+
+Shift: sigma is negative (K - sigma M is then SPD even for free-floating bodies, so Cholesky
+applies) and scaled to the problem: sigma = -SHIFT_REL * s with s = median(diag K / diag M),
+an element-level eigenvalue scale ~ (c/h)^2.  sigma = -1 (rad/s)^2 made K - sigma M nearly
+singular and lost up to 2e-4 relative accuracy on a 262k-DOF free bar
+(../shared/validation/README.md section 3.2); a shift of this size does not.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.csgraph as csgraph
+import scipy.sparse.linalg as spla
+
+from sidprep.errors import InputError
+
+#: sigma = -SHIFT_REL * median(diag K / diag M)
+SHIFT_REL = 1e-6
+#: a mode is rigid when lambda < RIGID_REL * median(diag K / diag M) (~ 1e-10 of the spectrum top)
+RIGID_REL = 1e-10
+#: ARPACK convergence tolerance (relative accuracy of the Ritz values); 0 = machine precision
+ARPACK_TOL = 0.0
+#: seed of the deterministic Lanczos start vector (bit-identical repeat runs)
+START_SEED = 20261121
+#: LOBPCG stopping tolerance on the residual norm and iteration limit
+LOBPCG_TOL = 1e-7
+LOBPCG_MAXITER = 400
+#: first block size of the fmax search, and its growth factor
+FMAX_FIRST_COUNT = 20
+FMAX_GROWTH = 2
+
+
+class Factorization:
+    """A factorised square matrix; ``solve(b)`` for b of shape (n,) or (n, k)."""
+
+    backend = ""
+
+    def solve(self, b: np.ndarray) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class CholmodFactorization(Factorization):
+    """Supernodal Cholesky L L^T of an SPD matrix (CHOLMOD via sksparse_minimal)."""
+
+    backend = "cholmod"
+
+    def __init__(self, A: sp.spmatrix):
+        from sksparse_minimal import SparseCholesky
+
+        # CHOLMOD reads the lower triangle of a CSC matrix; the CSR arrays of triu(A) are exactly
+        # the CSC arrays of tril(A) (A symmetric), so no transpose copy is made.
+        U = sp.triu(A, format="csr")
+        U.sort_indices()
+        L = sp.csc_matrix((U.data, U.indices, U.indptr), shape=A.shape)
+        try:
+            self._chol = SparseCholesky(L)
+        except Exception as exc:  # CHOLMOD raises a plain exception for non-SPD input
+            raise np.linalg.LinAlgError(f"CHOLMOD: {exc}") from None
+
+    def solve(self, b):
+        return self._chol.solve_A(np.asarray(b, dtype=np.float64))
+
+
+class SuperLUFactorization(Factorization):
+    """LU factorisation (scipy SuperLU, COLAMD ordering) of any nonsingular sparse matrix."""
+
+    backend = "superlu"
+
+    def __init__(self, A: sp.spmatrix):
+        self._lu = spla.splu(sp.csc_matrix(A))
+
+    def solve(self, b):
+        return self._lu.solve(np.asarray(b, dtype=np.float64))
+
+
+def cholmod_available() -> bool:
+    try:
+        import sksparse_minimal  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def factorize(A: sp.spmatrix, backend: str = "auto") -> Factorization:
+    """Factorise the square sparse matrix ``A`` (symmetric positive definite for "cholmod").
+
+    backend: "auto" (CHOLMOD if installed, else SuperLU), "cholmod" or "superlu".
+    """
+    if backend == "auto":
+        backend = "cholmod" if cholmod_available() else "superlu"
+    if backend == "cholmod":
+        return CholmodFactorization(A)
+    if backend == "superlu":
+        return SuperLUFactorization(A)
+    raise InputError(f"--backend {backend}: unknown factorisation backend; use auto, cholmod or superlu")
+
+
+@dataclass(frozen=True)
+class EigenResult:
+    """Solution of K phi = lambda M phi, rigid-body modes first.
+
+    Attributes
+    ----------
+    eigenvalues : (k,) lambda = omega^2 in (rad/s)^2, ascending (rigid ones ~ 0)
+    vectors : (n, k) M-normalised modes (phi^T M phi = 1)
+    residuals : (k,) ||K phi - lambda M phi|| / ||K phi|| (elastic), / (s ||M phi||) (rigid,
+        s = median(diag K / diag M))
+    n_rigid : number of leading rigid-body (zero-frequency) modes
+    sigma : the shift used, (rad/s)^2
+    backend : "cholmod", "superlu" or "lobpcg"
+    """
+
+    eigenvalues: np.ndarray
+    vectors: np.ndarray
+    residuals: np.ndarray
+    n_rigid: int
+    sigma: float
+    backend: str
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """f = sqrt(lambda) / 2 pi, Hz (signed: a slightly negative rigid lambda gives -f)."""
+        lam = self.eigenvalues
+        return np.sign(lam) * np.sqrt(np.abs(lam)) / (2.0 * np.pi)
+
+
+def spectral_scale(K: sp.spmatrix, M: sp.spmatrix) -> float:
+    """median(diag K / diag M): an element-level eigenvalue scale (rad/s)^2 ~ (c/h)^2."""
+    dk, dm = K.diagonal(), M.diagonal()
+    ok = dm > 0
+    if not ok.any():
+        raise InputError("mass matrix has no positive diagonal entry; check the density")
+    return float(np.median(dk[ok] / dm[ok]))
+
+
+def rigid_body_modes(points: np.ndarray) -> np.ndarray:
+    """The 6 rigid-body displacement fields (3 translations, 3 small rotations about the
+    centroid) of nodes ``points`` (n, 3), as a (3n, 6) array in node-interleaved DOF order."""
+    x = points - points.mean(axis=0)
+    n = len(points)
+    R = np.zeros((n, 3, 6))
+    R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
+    # rotation about axis e_k: u = e_k x r
+    R[:, 1, 3], R[:, 2, 3] = -x[:, 2], x[:, 1]
+    R[:, 0, 4], R[:, 2, 4] = x[:, 2], -x[:, 0]
+    R[:, 0, 5], R[:, 1, 5] = -x[:, 1], x[:, 0]
+    return R.reshape(3 * n, 6)
+
+
+def n_components(K: sp.spmatrix) -> int:
+    """Number of connected parts of the sparsity graph of K."""
+    return int(csgraph.connected_components(K, directed=False)[0])
+
+
+@dataclass(frozen=True)
+class Restriction:
+    """Selects free DOFs: ``restrict(A)`` -> A[free][:, free], ``expand(v)`` puts zeros back."""
+
+    free: np.ndarray
+    n: int
+
+    def restrict(self, A: sp.spmatrix) -> sp.csr_matrix:
+        A = sp.csr_matrix(A)
+        return A[self.free][:, self.free].tocsr()
+
+    def expand(self, v: np.ndarray) -> np.ndarray:
+        out = np.zeros((self.n,) + v.shape[1:], dtype=v.dtype)
+        out[self.free] = v
+        return out
+
+
+def clamp_dofs(n_dof: int, fixed: np.ndarray) -> Restriction:
+    """The restriction to all DOFs except ``fixed`` (DOF indices)."""
+    mask = np.ones(n_dof, dtype=bool)
+    mask[np.asarray(fixed, dtype=np.int64)] = False
+    return Restriction(free=np.flatnonzero(mask), n=n_dof)
+
+
+def node_dofs(nodes: np.ndarray) -> np.ndarray:
+    """All three DOFs 3*i + c of the nodes ``nodes``."""
+    nodes = np.asarray(nodes, dtype=np.int64)
+    return (3 * nodes[:, None] + np.arange(3)[None]).ravel()
+
+
+def _residuals(K, M, lam, phi, scale, rigid):
+    Kphi = K @ phi
+    Mphi = M @ phi
+    r = np.linalg.norm(Kphi - Mphi * lam[None], axis=0)
+    denom = np.where(rigid, scale * np.linalg.norm(Mphi, axis=0), np.linalg.norm(Kphi, axis=0))
+    return r / denom
+
+
+def _finish(K, M, lam, phi, sigma, scale, backend) -> EigenResult:
+    order = np.argsort(lam)
+    lam, phi = lam[order], phi[:, order]
+    phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))[None]
+    # deterministic sign: largest-magnitude entry positive
+    idx = np.argmax(np.abs(phi), axis=0)
+    phi = phi * np.sign(phi[idx, np.arange(phi.shape[1])])[None]
+    rigid = lam < RIGID_REL * scale
+    return EigenResult(eigenvalues=lam, vectors=phi, residuals=_residuals(K, M, lam, phi, scale, rigid),
+                       n_rigid=int(rigid.sum()), sigma=sigma, backend=backend)
+
+
+def _start_vector(n: int) -> np.ndarray:
+    return np.random.default_rng(START_SEED).standard_normal(n)
+
+
+def _lanczos(K, M, k, sigma, solver) -> tuple[np.ndarray, np.ndarray]:
+    n = K.shape[0]
+    OPinv = spla.LinearOperator((n, n), matvec=solver.solve, dtype=np.float64)
+    k = min(k, n - 1)
+    lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=OPinv, tol=ARPACK_TOL,
+                          v0=_start_vector(n))
+    return lam, phi
+
+
+def _lobpcg(K, M, k, sigma, near_null) -> tuple[np.ndarray, np.ndarray]:
+    import pyamg
+
+    A = (K - sigma * M).tocsr()
+    B = near_null if near_null is not None else None
+    ml = pyamg.smoothed_aggregation_solver(A, B=B, symmetry="symmetric", strength="symmetric",
+                                           max_coarse=500)
+    precond = ml.aspreconditioner(cycle="V")
+    X = np.random.default_rng(START_SEED).standard_normal((K.shape[0], k))
+    if near_null is not None:  # rigid-body fields span the lowest modes of a free body well
+        X[:, : min(k, near_null.shape[1])] = near_null[:, :k]
+    mu, phi = spla.lobpcg(A, X, B=M, M=precond, largest=False, tol=LOBPCG_TOL, maxiter=LOBPCG_MAXITER)
+    return mu + sigma, phi
+
+
+def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fmax: float | None = None,
+                backend: str = "auto", sigma: float | None = None, n_rigid_max: int | None = None,
+                near_null: np.ndarray | None = None) -> EigenResult:
+    """Lowest modes of K phi = lambda M phi (symmetric K >= 0, M > 0, both (n, n) sparse).
+
+    Parameters
+    ----------
+    count : number of ELASTIC modes wanted; rigid-body modes (lambda ~ 0) are returned in
+        addition, first.  Exactly one of ``count`` / ``fmax`` must be given.
+    fmax : Hz; all modes with f <= fmax (the block grows until a mode above fmax is found).
+    backend : "auto" | "cholmod" | "superlu" (shift-invert Lanczos) | "lobpcg" (AMG-LOBPCG).
+    sigma : shift (rad/s)^2, negative; default -SHIFT_REL * spectral_scale(K, M).
+    n_rigid_max : upper bound of the rigid-mode count used to size the block; default
+        6 x connected parts of K (too small only costs a second pass).
+    near_null : (n, m) rigid-body fields for the AMG near-null space (lobpcg backend only).
+    """
+    if (count is None) == (fmax is None):
+        raise InputError("modes: give exactly one of --count N or --fmax HZ")
+    if count is not None and count < 1:
+        raise InputError(f"--count {count}: must be >= 1")
+    if fmax is not None and not fmax > 0:
+        raise InputError(f"--fmax {fmax}: must be > 0 Hz")
+    K, M = sp.csr_matrix(K), sp.csr_matrix(M)
+    n = K.shape[0]
+    scale = spectral_scale(K, M)
+    if sigma is None:
+        sigma = -SHIFT_REL * scale
+    if not sigma < 0:
+        raise InputError(f"--sigma {sigma}: the shift must be negative (K - sigma M must be positive definite)")
+    extra = 6 * n_components(K) if n_rigid_max is None else n_rigid_max
+
+    if backend == "lobpcg":
+        def solve(k):
+            return _lobpcg(K, M, k, sigma, near_null)
+        used = "lobpcg"
+    else:
+        try:
+            solver = factorize(K - sigma * M, backend)
+        except np.linalg.LinAlgError as exc:
+            raise InputError(f"K - sigma M is not positive definite ({exc}); the stiffness or mass "
+                             "matrix is not symmetric positive semi-definite - check the mesh") from None
+        used = solver.backend
+
+        def solve(k):
+            return _lanczos(K, M, k, sigma, solver)
+
+    k = (count if count is not None else FMAX_FIRST_COUNT) + extra
+    while True:
+        lam, phi = solve(min(k, n - 1))
+        res = _finish(K, M, lam, phi, sigma, scale, used)
+        n_elastic = len(lam) - res.n_rigid
+        if k >= n - 1:
+            break
+        if count is not None and n_elastic >= count:
+            break
+        if fmax is not None and res.frequencies_hz[-1] > fmax:
+            break
+        k = k + (count - n_elastic if count is not None else k * (FMAX_GROWTH - 1))
+    keep = res.n_rigid + (count if count is not None else int((res.frequencies_hz[res.n_rigid:] <= fmax).sum()))
+    keep = min(keep, len(res.eigenvalues))
+    return EigenResult(eigenvalues=res.eigenvalues[:keep], vectors=res.vectors[:, :keep],
+                       residuals=res.residuals[:keep], n_rigid=res.n_rigid, sigma=sigma, backend=used)
