@@ -1,0 +1,133 @@
+"""Component-mode reduction of a sparse FE model onto boundary DOFs: Guyan and Craig-Bampton.
+
+With the DOFs split into boundary b and interior i,
+
+    u = Phi z,   Phi = [[Psi_ib, Phi_im], [E, 0]],   Psi_ib = -K_ii^-1 K_ib
+
+(constraint modes Psi: static shapes for unit boundary displacements; fixed-interface normal
+modes Phi_im: K_ii phi = lambda M_ii phi, M_ii-normalised).  Guyan keeps the constraint modes
+only.  K_ii is factorised once (sidprep.linalg.factorize) and that factor serves every
+constraint-mode right-hand side and the shift-invert eigen solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from sidprep.errors import InputError
+
+#: ceiling of fixed-interface modes requested when growing towards ``fmax``
+MAX_FIXED_INTERFACE_MODES = 400
+#: ARPACK relative tolerance of the fixed-interface eigen solve
+EIGSH_TOL = 1e-10
+
+
+@dataclass(frozen=True)
+class ReducedModel:
+    """A Guyan / Craig-Bampton reduced model.
+
+    basis : (n, nb + nm) Phi in the unreduced DOFs; columns = boundary DOFs (in the order given),
+    then fixed-interface modes.  K, M : (nb + nm, nb + nm) dense Phi^T K Phi, Phi^T M Phi.
+    boundary_dofs : (nb,) unreduced DOF indices; fixed_interface_hz : (nm,) Hz.
+    """
+
+    basis: np.ndarray
+    K: np.ndarray
+    M: np.ndarray
+    boundary_dofs: np.ndarray
+    fixed_interface_hz: np.ndarray
+
+    @property
+    def n_boundary(self) -> int:
+        return len(self.boundary_dofs)
+
+
+def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
+    """(boundary (nb,), interior (ni,)) DOF indices; boundary keeps the given order."""
+    b = np.asarray(boundary_dofs, dtype=np.int64)
+    if len(np.unique(b)) != len(b) or (len(b) and (b.min() < 0 or b.max() >= n)):
+        raise ValueError("boundary_dofs must be distinct indices in [0, n)")
+    interior = np.setdiff1d(np.arange(n), b)
+    return b, interior
+
+
+def constraint_modes(K: sp.spmatrix, factor, b: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb)."""
+    K = K.tocsc()
+    rhs = -K[i][:, b].toarray()
+    return np.asarray(factor.solve(np.ascontiguousarray(rhs))).reshape(len(i), len(b))
+
+
+def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
+    """Lowest eigenpairs of K_ii phi = lambda M_ii phi by shift-invert at 0 with the given factor.
+
+    Returns (frequencies Hz (nm,), vectors (ni, nm) M_ii-normalised).  With ``fmax``, the count
+    grows (doubling) until the highest computed frequency passes fmax, then is cut at fmax.
+    """
+    n = K_ii.shape[0]
+    if n_modes is None and fmax is None:
+        raise ValueError("give n_modes or fmax")
+    if n_modes is not None and n_modes <= 0:
+        return np.zeros(0), np.zeros((n, 0))
+    op = spla.LinearOperator((n, n), matvec=lambda x: factor.solve(np.ascontiguousarray(x)), dtype=float)
+    k = n_modes if n_modes is not None else 12
+    while True:
+        k = min(k, n - 1)
+        lam, vec = spla.eigsh(K_ii, k=k, M=M_ii, sigma=0.0, which="LM", OPinv=op, tol=EIGSH_TOL)
+        order = np.argsort(lam)
+        lam, vec = lam[order], vec[:, order]
+        f = np.sqrt(np.abs(lam)) / (2 * np.pi)
+        if n_modes is not None or f[-1] > fmax or k >= min(n - 1, MAX_FIXED_INTERFACE_MODES):
+            break
+        k *= 2
+    if fmax is not None and n_modes is None:
+        keep = f <= fmax
+        f, vec = f[keep], vec[:, keep]
+    vec = vec / np.sqrt(np.einsum("ij,ij->j", vec, M_ii @ vec))
+    return f, vec
+
+
+def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
+    """Craig-Bampton reduction (module docstring); n_modes fixed-interface modes or all below fmax Hz.
+
+    Parameters
+    ----------
+    K, M : (n, n) sparse symmetric, N/m and kg
+    boundary_dofs : (nb,) int; K_ii must be positive definite (the boundary holds the body).
+    n_modes : int, optional; fmax : float, optional (Hz)
+    """
+    from sidprep.linalg import factorize
+
+    K, M = sp.csr_matrix(K), sp.csr_matrix(M)
+    b, i = split_dofs(K.shape[0], boundary_dofs)
+    K_ii, M_ii = K[i][:, i], M[i][:, i]
+    try:
+        factor = factorize(K_ii.tocsc())
+    except Exception as exc:  # singular interior: the boundary does not hold the body
+        raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
+                         "statically — add an interface or use the free frame") from exc
+    Psi = constraint_modes(K, factor, b, i)
+    if n_modes == 0 or (n_modes is None and fmax is None):
+        f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
+    else:
+        f, Phi_m = fixed_interface_modes(K_ii, M_ii, factor, n_modes, fmax)
+    basis = np.zeros((K.shape[0], len(b) + len(f)))
+    basis[i, :len(b)] = Psi
+    basis[b, np.arange(len(b))] = 1.0
+    basis[i, len(b):] = Phi_m
+    return ReducedModel(basis, project(K, basis), project(M, basis), b, f)
+
+
+def guyan(K, M, boundary_dofs) -> ReducedModel:
+    """Guyan (static) condensation: Craig-Bampton without fixed-interface modes."""
+    return craig_bampton(K, M, boundary_dofs, n_modes=0)
+
+
+def project(A, basis: np.ndarray) -> np.ndarray:
+    """Symmetrised basis^T A basis, dense (nr, nr)."""
+    P = basis.T @ (A @ basis)
+    return 0.5 * (P + P.T)
