@@ -177,8 +177,11 @@ def ge_tensor(ge: np.ndarray, nq: int) -> np.ndarray:
 # Invariants from FE data (sid-spec.md section 4)
 # ------------------------------------------------------------------------------------------------
 
-#: relative tolerance below which Me counts as the identity and Ke/De as diagonal (structure codes)
-STRUCTURE_TOL = 1e-10
+#: relative tolerance below which Me counts as the identity and Ke/De as diagonal (structure codes;
+#: the ASCII writer then drops the rest, so it stays below the 12-digit precision of the file)
+STRUCTURE_TOL = 1e-12
+#: relative off-diagonal size of Me and Ke below which coordinates count as eigen-type (frequencies)
+DIAGONAL_BASIS_TOL = 1e-8
 
 
 def rigid_body_fields(points: np.ndarray) -> np.ndarray:
@@ -304,8 +307,8 @@ def frequencies_from_stiffness(Me: np.ndarray, Ke: np.ndarray) -> np.ndarray:
     if nq == 0:
         return f
     scale = max(np.max(np.abs(Ke)), np.max(np.abs(Me)))
-    diag_ok = (np.max(np.abs(Ke - np.diag(np.diag(Ke))), initial=0.0) <= STRUCTURE_TOL * scale and
-               np.max(np.abs(Me - np.diag(np.diag(Me))), initial=0.0) <= STRUCTURE_TOL * scale)
+    diag_ok = (np.max(np.abs(Ke - np.diag(np.diag(Ke))), initial=0.0) <= DIAGONAL_BASIS_TOL * scale
+               and np.max(np.abs(Me - np.diag(np.diag(Me))), initial=0.0) <= DIAGONAL_BASIS_TOL * scale)
     if diag_ok:
         lam = np.diag(Ke) / np.diag(Me)
         f = np.where(lam >= 0, np.sqrt(np.abs(lam)) / (2 * np.pi), np.nan)
