@@ -396,7 +396,7 @@ def sid_invariants(points, Ms, Phi, nodes, *, labels=None, frequencies_hz=None, 
         frequencies_hz = frequencies_from_stiffness(Me, Ke)
     frequencies_hz = np.asarray(frequencies_hz, dtype=float)
     if mode_kinds is None:
-        mode_kinds = tuple("eigen" if np.isfinite(f) else "static" for f in frequencies_hz)
+        mode_kinds = tuple("eigen" if np.isfinite(f) else "other" for f in frequencies_hz)
     if labels is None:
         labels = tuple(eigen_label(k + 1, f) if np.isfinite(f) else f"Mode {k + 1}"
                        for k, f in enumerate(frequencies_hz))

@@ -1,0 +1,38 @@
+"""Wavefront OBJ surface export (body frame K), e.g. for the geometry of a SID body in a viewer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from sidprep.errors import InputError
+from sidprep.io.atomic import atomic_path
+
+
+def write_obj(path, points, triangles, *, length_unit: str = "m", comment: str = "") -> Path:
+    """Write a triangle surface as Wavefront OBJ, atomically.
+
+    Parameters
+    ----------
+    points : (ns, 3) float
+        Vertex positions in the body frame K, in ``length_unit``.
+    triangles : (nf, 3) int
+        0-based vertex indices, counter-clockwise seen from outside (outward normals).
+    """
+    points = np.asarray(points, dtype=float)
+    triangles = np.asarray(triangles, dtype=np.int64)
+    if points.ndim != 2 or points.shape[1] != 3 or triangles.ndim != 2 or triangles.shape[1] != 3:
+        raise InputError(f"{path}: OBJ export needs points (n, 3) and triangles (m, 3), got "
+                         f"{points.shape} and {triangles.shape}; pass a triangulated surface")
+    if triangles.size and (triangles.min() < 0 or triangles.max() >= len(points)):
+        raise InputError(f"{path}: triangle indices outside 0..{len(points) - 1}; fix the surface")
+    header = [f"# sidprep surface, body frame K, units: {length_unit}",
+              f"# {len(points)} vertices, {len(triangles)} triangles"]
+    if comment:
+        header.append(f"# {comment}")
+    lines = header + [f"v {x:.12g} {y:.12g} {z:.12g}" for x, y, z in points]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
+    return Path(path)
