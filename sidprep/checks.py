@@ -190,3 +190,16 @@ def sid_checks(sid: SID) -> dict:
 def failed_checks(checks: dict) -> list[str]:
     """Names of the failed checks of severity "error"."""
     return [name for name, c in checks.items() if not c["passed"] and c["severity"] == "error"]
+
+
+def format_checks(checks: dict) -> str:
+    """One line per check: status, name, value, tolerance."""
+    def number(v):
+        return f"{v:10.3e}" if isinstance(v, (int, float)) else f"{str(v):>10s}"
+
+    status = {True: "ok  ", False: "FAIL"}
+    lines = []
+    for name, c in checks.items():
+        flag = status[c["passed"]] if c["passed"] or c["severity"] == "error" else "warn"
+        lines.append(f"  {flag} {name:<42s} {number(c['value'])} (tol {number(c['tolerance'])})")
+    return "\n".join(lines)

@@ -1,0 +1,27 @@
+"""``sidprep check FILE``: re-run the model checks of a SID file; exit 1 when one fails."""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "check", help="re-run the model checks of a SID file (.sid.h5 or .SID_FEM); exit 1 on failure",
+        description="Checks the self-consistency identities of sid-spec.md 4.8, the modal matrices and the "
+                    "label frequencies, plus the FE comparisons stored by 'sidprep reduce'. Exit status 0: "
+                    "all checks of severity 'error' pass; 1: one fails; 2: the file cannot be read.")
+    p.add_argument("file", metavar="FILE", help=".sid.h5 or .SID_FEM file")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from sidprep.checks import failed_checks, format_checks, sid_checks
+    from sidprep.io import read_sid
+
+    checks = sid_checks(read_sid(args.file))
+    print(format_checks(checks))
+    failed = failed_checks(checks)
+    if failed:
+        print(f"{args.file}: {len(failed)} check(s) failed: {', '.join(failed)}")
+        return 1
+    print(f"{args.file}: all {sum(c['severity'] == 'error' for c in checks.values())} checks passed")
+    return 0
