@@ -120,8 +120,9 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
         meshio reads (``.inp``, ``.bdf``/``.nas``, ``.vtu``, ``.vtk``, ``.med``, ...), or a
         geometry file (``.geo``, ``.step``/``.stp``, ``.brep``, ``.iges``) meshed by gmsh.
     size : float, optional
-        Target element size for geometry files (their unit; STEP/IGES are converted to metres).
-        ``None`` keeps the sizes the file or gmsh choose.  Ignored for mesh files.
+        Target element size for geometry files (their unit; STEP/IGES are converted to metres);
+        it replaces the sizes the file sets at its points.  ``None`` keeps the sizes the file
+        or gmsh choose.  Ignored for mesh files.
     order : {1, 2}
         Element order for geometry files (tet4 / tet10).  Mesh files keep their own order.
 
@@ -214,9 +215,9 @@ def _read_gmsh(path, *, size, order) -> _RawMesh:
                 gmsh.option.setString("Geometry.OCCTargetUnit", "M")
             gmsh.merge(str(path))
             if suffix != ".msh" and not _gmsh_volume_types(gmsh):
-                if size is not None:
+                if size is not None:  # replaces the sizes the file gives its points
+                    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
                     gmsh.option.setNumber("Mesh.MeshSizeMax", float(size))
-                    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
                 gmsh.option.setNumber("Mesh.ElementOrder", order)
                 gmsh.model.mesh.generate(3)
                 gmsh.model.mesh.setOrder(order)
@@ -279,6 +280,9 @@ def _gmsh_arrays(gmsh, path) -> _RawMesh:
 
 def _read_meshio(path) -> _RawMesh:
     """Any volume format meshio reads; its tet10 node order is VTK's for every format."""
+    import contextlib
+    import io
+
     import meshio
 
     suffix = path.suffix.lower()
@@ -287,9 +291,10 @@ def _read_meshio(path) -> _RawMesh:
             sorted(meshio.extension_to_filetypes)
         )
         raise InputError(f"{path}: unknown mesh file extension '{suffix}'; use one of {known}")
-    try:
-        m = meshio.read(path)
-    except Exception as exc:  # meshio raises many kinds (ReadError, ValueError, IndexError, ...)
+    try:  # meshio prints warnings and errors itself, and exits on some broken files
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            m = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # ReadError, ValueError, IndexError, SystemExit, ...
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(
             f"{path}: meshio could not read it ({msg}); check that the file is complete and valid"

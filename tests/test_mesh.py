@@ -1,0 +1,235 @@
+"""Mesh import: node order per format, groups by name, the input checks, surface topology."""
+
+import meshio
+import numpy as np
+import pytest
+
+from sidprep.errors import InputError
+from sidprep.mesh import (
+    TET10_EDGES,
+    boundary_faces,
+    cell_volumes,
+    connected_parts,
+    read_mesh,
+    surface_node_indices,
+)
+
+#: mid-edge nodes of straight edges must sit at the midpoint to this fraction of the box size
+#: (formats that print coordinates with 8 significant digits limit it)
+MIDPOINT_RTOL = 1e-6
+#: closed-form areas / volumes of the unit cube, to round-off
+GEOMETRY_RTOL = 1e-12
+
+
+def _gmsh_cube(path, *, order=2, msh_version=4.1, binary=True, size=0.5):
+    """Unit cube meshed by gmsh with straight edges; groups ``x0`` (face x=0), ``solid``."""
+    import gmsh
+
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.model.occ.addBox(0, 0, 0, 1, 1, 1)
+        gmsh.model.occ.synchronize()
+        x0 = [t for _, t in gmsh.model.getEntitiesInBoundingBox(-0.1, -0.1, -0.1, 0.1, 1.1, 1.1, 2)]
+        gmsh.model.addPhysicalGroup(2, x0, name="x0")
+        gmsh.model.addPhysicalGroup(3, [1], name="solid")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.option.setNumber("Mesh.ElementOrder", order)
+        gmsh.option.setNumber("Mesh.MshFileVersion", msh_version)
+        gmsh.option.setNumber("Mesh.Binary", int(binary))
+        gmsh.model.mesh.generate(3)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+    return path
+
+
+@pytest.fixture(scope="module")
+def cube(tmp_path_factory):
+    """The tet10 unit cube as read from gmsh 4.1 binary (the canonical reference)."""
+    return read_mesh(_gmsh_cube(tmp_path_factory.mktemp("cube") / "cube.msh"))
+
+
+def _midpoint_error(mesh):
+    p, c = mesh.points, mesh.cells
+    return max(np.abs(p[c[:, 4 + k]] - (p[c[:, a]] + p[c[:, b]]) / 2).max() for k, (a, b) in enumerate(TET10_EDGES))
+
+
+@pytest.mark.parametrize("version,binary", [(2.2, False), (2.2, True), (4.1, False), (4.1, True)])
+def test_gmsh_msh_tet10_midnodes_and_groups(tmp_path, version, binary):
+    mesh = read_mesh(_gmsh_cube(tmp_path / "c.msh", msh_version=version, binary=binary))
+    assert mesh.order == 2
+    assert _midpoint_error(mesh) < MIDPOINT_RTOL
+    assert (cell_volumes(mesh.points, mesh.cells) > 0).all()
+    assert np.isclose(cell_volumes(mesh.points, mesh.cells).sum(), 1.0, rtol=GEOMETRY_RTOL)
+    x0 = mesh.node_sets["x0"]
+    assert np.array_equal(x0, np.flatnonzero(np.abs(mesh.points[:, 0]) < 1e-12))
+    assert np.array_equal(mesh.cell_sets["solid"], np.arange(len(mesh.cells)))
+    assert mesh.notes == ()
+
+
+@pytest.mark.parametrize("suffix", [".inp", ".vtu", ".bdf", ".med", ".vtk", ".msh"])
+def test_meshio_formats_keep_tet10_node_order(tmp_path, cube, suffix):
+    """Written by meshio in each format (its own tet10 permutation) and read back."""
+    path = tmp_path / f"cube{suffix}"
+    kwargs = {"file_format": "gmsh22", "binary": False} if suffix == ".msh" else {}
+    meshio.write_points_cells(path, cube.points, [("tetra10", cube.cells)], **kwargs)
+    mesh = read_mesh(path)
+    assert mesh.cells.shape == cube.cells.shape
+    assert _midpoint_error(mesh) < MIDPOINT_RTOL
+    assert np.isclose(cell_volumes(mesh.points, mesh.cells).sum(), 1.0, rtol=MIDPOINT_RTOL)
+
+
+def test_abaqus_sets_by_name(tmp_path, cube):
+    path = tmp_path / "cube.inp"
+    x0 = cube.node_sets["x0"]
+    half = np.arange(len(cube.cells) // 2)
+    meshio.write_points_cells(
+        path, cube.points, [("tetra10", cube.cells)], point_sets={"X0": x0}, cell_sets={"HALF": [half]}
+    )
+    mesh = read_mesh(path)
+    assert np.array_equal(mesh.node_sets["X0"], x0)
+    assert np.array_equal(mesh.cell_sets["HALF"], half)
+
+
+def test_wrong_tet10_order_is_detected(tmp_path, cube):
+    """gmsh's tet10 order written into a VTK file (last two edge nodes swapped)."""
+    path = tmp_path / "swapped.vtu"
+    meshio.write_points_cells(path, cube.points, [("tetra10", cube.cells[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]])])
+    with pytest.raises(InputError, match="mid-edge nodes on the wrong edges"):
+        read_mesh(path)
+
+
+def test_tet4_and_geo_file(tmp_path):
+    mesh = read_mesh(_gmsh_cube(tmp_path / "c.msh", order=1))
+    assert mesh.order == 1 and mesh.cells.shape[1] == 4
+    geo = tmp_path / "box.geo"
+    geo.write_text(
+        'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 2, 1, 1};\n'
+        'Physical Surface("bottom") = {5};\nPhysical Volume("body") = {1};\n'
+    )
+    coarse, fine = read_mesh(geo, size=0.5, order=2), read_mesh(geo, size=0.25, order=1)
+    assert coarse.order == 2 and fine.order == 1 and len(fine.cells) > len(coarse.cells)
+    assert _midpoint_error(coarse) < MIDPOINT_RTOL
+    assert np.isclose(cell_volumes(fine.points, fine.cells).sum(), 2.0, rtol=GEOMETRY_RTOL)
+    assert np.allclose(coarse.points[coarse.node_sets["bottom"], 2], 0.0)
+    assert len(coarse.cell_sets["body"]) == len(coarse.cells)
+
+
+def test_boundary_faces_are_outward_and_closed(cube):
+    faces = boundary_faces(cube)
+    x = cube.points[faces]
+    area_vectors = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]) / 2
+    assert np.isclose(np.linalg.norm(area_vectors, axis=1).sum(), 6.0, rtol=GEOMETRY_RTOL)
+    assert np.abs(area_vectors.sum(axis=0)).max() < GEOMETRY_RTOL  # closed surface
+    enclosed = np.einsum("ij,ij->i", x[:, 0], area_vectors).sum() / 3  # divergence theorem
+    assert np.isclose(enclosed, 1.0, rtol=GEOMETRY_RTOL)
+    on_box = np.flatnonzero((np.abs(cube.points - 0.5) > 0.5 - 1e-12).any(axis=1))
+    assert np.array_equal(surface_node_indices(cube), on_box)
+    assert connected_parts(cube)[0] == 1
+
+
+# --- bad input ------------------------------------------------------------------------------
+def _two_tets():
+    """Two positively oriented tetrahedra sharing the face (1, 2, 3)."""
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    return p, np.array([[0, 1, 2, 3], [1, 4, 2, 3]])
+
+
+def _write(path, points, cells, kind="tetra"):
+    meshio.write_points_cells(path, points, [(kind, cells)], **(
+        {"file_format": "gmsh22", "binary": False} if path.suffix == ".msh" else {}
+    ))
+    return path
+
+
+def test_missing_unknown_truncated_garbage(tmp_path):
+    with pytest.raises(InputError, match="file not found"):
+        read_mesh(tmp_path / "nope.msh")
+    (tmp_path / "m.xyz").write_text("1 2 3\n")
+    with pytest.raises(InputError, match="unknown mesh file extension"):
+        read_mesh(tmp_path / "m.xyz")
+    whole = _gmsh_cube(tmp_path / "c.msh").read_bytes()
+    for name, data in [("cut.msh", whole[: len(whole) // 2]), ("junk.msh", b"not a mesh\n")]:
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(InputError, match=name):
+            read_mesh(tmp_path / name)
+    whole = _write(tmp_path / "c.vtu", *_two_tets()).read_bytes()
+    (tmp_path / "cut.vtu").write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(InputError, match="cut.vtu.*could not read"):
+        read_mesh(tmp_path / "cut.vtu")
+
+
+def test_gmsh_is_silent(tmp_path, capfd):
+    good = _gmsh_cube(tmp_path / "c.msh")
+    capfd.readouterr()
+    read_mesh(good)
+    (tmp_path / "junk.msh").write_text("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2")
+    with pytest.raises(InputError):
+        read_mesh(tmp_path / "junk.msh")
+    assert capfd.readouterr() == ("", "")
+
+
+def test_nan_coordinate(tmp_path):
+    p, c = _two_tets()
+    p[4, 1] = np.nan
+    with pytest.raises(InputError, match="1 nodes have NaN or infinite coordinates.*node 5"):
+        read_mesh(_write(tmp_path / "nan.vtu", p, c))
+
+
+def test_flat_element(tmp_path):
+    p, c = _two_tets()
+    p[4] = (p[1] + p[2] + p[3]) / 3  # on the shared face: element 2 is flat
+    with pytest.raises(InputError, match="1 elements have zero or near-zero volume.*element 2"):
+        read_mesh(_write(tmp_path / "flat.msh", p, c))
+
+
+def test_inverted_elements_are_reordered_and_noted(tmp_path):
+    p, c = _two_tets()
+    mesh = read_mesh(_write(tmp_path / "inv.msh", p, c[:, [0, 2, 1, 3]]))
+    assert (cell_volumes(mesh.points, mesh.cells) > 0).all()
+    assert any("2 of 2 elements had negative volume" in n for n in mesh.notes)
+
+
+def test_tet10_reordering_keeps_midnodes(tmp_path, cube):
+    """Every cell written with the other orientation (vertices 1, 2 and their edges swapped)."""
+    flipped = cube.cells[:, [0, 2, 1, 3, 6, 5, 4, 7, 9, 8]]
+    mesh = read_mesh(_write(tmp_path / "flip.vtu", cube.points, flipped, "tetra10"))
+    assert (cell_volumes(mesh.points, mesh.cells) > 0).all()
+    assert _midpoint_error(mesh) < MIDPOINT_RTOL
+    assert any("negative volume" in n for n in mesh.notes)
+
+
+def test_tangled_elements(tmp_path):
+    """Node 4 pushed through the shared face: element 2 overlaps element 1."""
+    p, c = _two_tets()
+    p[4] = [0.1, 0.1, 0.1]
+    with pytest.raises(InputError, match="overlapping or inverted"):
+        read_mesh(_write(tmp_path / "tangled.msh", p, c))
+
+
+def test_no_tetrahedra(tmp_path):
+    p, _ = _two_tets()
+    with pytest.raises(InputError, match="contains no tetrahedra"):
+        read_mesh(_write(tmp_path / "tri.msh", p, np.array([[0, 1, 2], [1, 2, 3]]), "triangle"))
+
+
+def test_duplicate_and_unreferenced_nodes(tmp_path):
+    p, c = _two_tets()
+    # element 2 uses copies of the shared-face nodes; two more nodes are used by no element
+    p = np.vstack([p, p[[1, 2, 3]] + 1e-13, [[5, 5, 5], [6, 6, 6]]])
+    c = np.array([[0, 1, 2, 3], [5, 4, 6, 7]])
+    mesh = read_mesh(_write(tmp_path / "dup.vtu", p, c))  # gmsh drops unused nodes itself
+    assert mesh.n_nodes == 5 and connected_parts(mesh)[0] == 1
+    assert any("2 nodes not used" in n for n in mesh.notes)
+    assert any("3 duplicate nodes" in n for n in mesh.notes)
+    assert np.isclose(cell_volumes(mesh.points, mesh.cells).sum(), 0.5)
+
+
+def test_disconnected_parts(tmp_path):
+    p, c = _two_tets()
+    mesh = read_mesh(_write(tmp_path / "two.msh", np.vstack([p, p + 3.0]), np.vstack([c, c + 5])))
+    n_parts, labels = connected_parts(mesh)
+    assert n_parts == 2 and np.array_equal(labels, np.repeat([0, 1], 5))
+    assert any("2 disconnected parts; each adds 6 rigid-body modes" in n for n in mesh.notes)
