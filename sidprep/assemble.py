@@ -62,17 +62,17 @@ def shape_functions(order: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return N, dN
 
 
-def _geometry(X: np.ndarray, dN: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _geometry(X: np.ndarray, dN: np.ndarray, weights: np.ndarray, first: int) -> tuple[np.ndarray, np.ndarray]:
     """Physical shape-function gradients and integration weights.
 
-    X : (ne, nn, 3) element node coordinates; dN : (nq, nn, 3); weights : (nq,).
+    X : (ne, nn, 3) coordinates of elements first, first + 1, ...; dN : (nq, nn, 3); weights : (nq,).
     Returns G (ne, nq, nn, 3) = dN/dx, and wdet (ne, nq) = w_q det J (volume element).
     """
     J = np.einsum("eak,qal->eqkl", X, dN, optimize=True)  # dx_k / dxi_l
     det = np.linalg.det(J)
     if not (det > 0.0).all():
-        bad = int(np.argmin(det.min(axis=1)))
-        raise InputError(f"mesh: element {bad} (0-based in this batch) has a non-positive Jacobian "
+        bad = first + int(np.argmin(det.min(axis=1)))
+        raise InputError(f"mesh: element {bad + 1} (1-based cell index) has a non-positive Jacobian "
                          f"({det.min():.3g}); fix the node order or the mid-edge node positions")
     Jinv = np.linalg.inv(J)  # (ne, nq, 3, 3): d xi_l / d x_k
     G = np.matmul(dN[None], Jinv)  # (ne, nq, nn, 3): sum_l dN_al dxi_l/dx_k
@@ -128,14 +128,14 @@ def block_pattern(cells: np.ndarray, n_nodes: int) -> BlockPattern:
                         slot=inverse.reshape(-1, nn, nn))
 
 
-def _element_stiffness_blocks(X: np.ndarray, order: int, lam: float, mu: float) -> np.ndarray:
+def _element_stiffness_blocks(X: np.ndarray, order: int, lam: float, mu: float, first: int) -> np.ndarray:
     """Element stiffness in node blocks (ne, nn, nn, 3, 3): K[a, b, i, j] couples u_a,i and u_b,j.
 
     K_ai,bj = int lam G_ai G_bj + mu G_aj G_bi + mu delta_ij G_a . G_b  (isotropic elasticity,
     a(u, v) = int lam div u div v + 2 mu eps(u) : eps(v)).
     """
     _, dN, w = _rule(order, STIFFNESS_QUAD_DEGREE)
-    G, wdet = _geometry(X, dN, w)
+    G, wdet = _geometry(X, dN, w, first)
     ne, nq, nn, _ = G.shape
     g = G.reshape(ne, nq, nn * 3)
     C = np.matmul((g * wdet[:, :, None]).transpose(0, 2, 1), g).reshape(ne, nn, 3, nn, 3)
@@ -147,10 +147,10 @@ def _element_stiffness_blocks(X: np.ndarray, order: int, lam: float, mu: float) 
     return K
 
 
-def _element_scalar_mass(X: np.ndarray, order: int, rho: float) -> np.ndarray:
+def _element_scalar_mass(X: np.ndarray, order: int, rho: float, first: int) -> np.ndarray:
     """Element scalar mass matrices (ne, nn, nn): int rho N_a N_b dV."""
     N, dN, w = _rule(order, MASS_QUAD_DEGREE)
-    _, wdet = _geometry(X, dN, w)
+    _, wdet = _geometry(X, dN, w, first)
     NN = np.einsum("qa,qb->qab", N, N).reshape(len(w), -1)
     nn = N.shape[1]
     return (rho * wdet @ NN).reshape(-1, nn, nn)
@@ -165,7 +165,7 @@ def _assemble_scalar(mesh: FEMesh, pattern: BlockPattern, element_fn) -> sp.csr_
     nn = mesh.cells.shape[1]
     out = np.empty((mesh.cells.shape[0], nn, nn))
     for s in _chunks(mesh.cells.shape[0]):
-        out[s] = element_fn(mesh.points[mesh.cells[s]])
+        out[s] = element_fn(mesh.points[mesh.cells[s]], s.start)
     return pattern.scalar(out)
 
 
@@ -179,7 +179,7 @@ def stiffness_matrix(mesh: FEMesh, material: Material, pattern: BlockPattern | N
     nnz = pattern.indices.size
     data = np.zeros((nnz, 9))
     for s in _chunks(mesh.cells.shape[0]):
-        Ke = _element_stiffness_blocks(mesh.points[mesh.cells[s]], mesh.order, lam, mu).reshape(-1, 9)
+        Ke = _element_stiffness_blocks(mesh.points[mesh.cells[s]], mesh.order, lam, mu, s.start).reshape(-1, 9)
         slot = pattern.slot[s].ravel()
         for c in range(9):
             data[:, c] += np.bincount(slot, Ke[:, c], minlength=nnz)
@@ -189,7 +189,7 @@ def stiffness_matrix(mesh: FEMesh, material: Material, pattern: BlockPattern | N
 def scalar_mass_matrix(mesh: FEMesh, rho: float, pattern: BlockPattern | None = None) -> sp.csr_matrix:
     """Scalar consistent mass matrix Ms (n, n), Ms_ab = int rho N_a N_b dV (kg); M = Ms (x) I3."""
     pattern = pattern or block_pattern(mesh.cells, mesh.n_nodes)
-    return _assemble_scalar(mesh, pattern, lambda X: _element_scalar_mass(X, mesh.order, rho))
+    return _assemble_scalar(mesh, pattern, lambda X, first: _element_scalar_mass(X, mesh.order, rho, first))
 
 
 def lumped_scalar_mass(mesh: FEMesh, rho: float) -> np.ndarray:
@@ -201,7 +201,7 @@ def lumped_scalar_mass(mesh: FEMesh, rho: float) -> np.ndarray:
     """
     m = np.zeros(mesh.n_nodes)
     for s in _chunks(mesh.cells.shape[0]):
-        Me = _element_scalar_mass(mesh.points[mesh.cells[s]], mesh.order, rho)
+        Me = _element_scalar_mass(mesh.points[mesh.cells[s]], mesh.order, rho, s.start)
         if mesh.order == 1:
             lumped = Me.sum(axis=2)
         else:
