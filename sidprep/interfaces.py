@@ -125,25 +125,24 @@ def tributary_areas(mesh, nodes: np.ndarray) -> np.ndarray:
     corner (tet4); for tet10 each face is split into its 4 sub-triangles through the mid-edge
     nodes first (corners get A/12, mid-edge nodes A/4).
     """
-    from sidprep.mesh import boundary_faces
-
-    faces = boundary_faces(mesh)
+    faces = linear_surface_triangles(mesh)
     in_patch = np.zeros(mesh.n_nodes, bool)
     in_patch[nodes] = True
     faces = faces[in_patch[faces].all(axis=1)]
-    if mesh.order == 2 and len(faces):
-        faces = _split_quadratic_faces(mesh, faces)
-        faces = faces[in_patch[faces].all(axis=1)]
     x = mesh.points
     area = 0.5 * np.linalg.norm(np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]]), axis=1)
     node_area = np.bincount(faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=mesh.n_nodes)
     return node_area[nodes]
 
 
-def _split_quadratic_faces(mesh, faces):
-    """The 4 linear sub-triangles of each 6-node boundary face (corner triangles in, (4nf, 3) out)."""
-    from sidprep.mesh import TET10_EDGES
+def linear_surface_triangles(mesh) -> np.ndarray:
+    """Outer-surface triangles, outward: the corner triangles (tet4), or each 6-node face split
+    into its 4 sub-triangles through the mid-edge nodes (tet10); (nf or 4nf, 3) int64."""
+    from sidprep.mesh import TET10_EDGES, boundary_faces
 
+    faces = boundary_faces(mesh)
+    if mesh.order == 1:
+        return faces
     n = mesh.n_nodes
     cells = mesh.cells
     ends = np.array(TET10_EDGES)

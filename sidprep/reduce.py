@@ -77,7 +77,8 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
     k = n_modes if n_modes is not None else 12
     while True:
         k = min(k, n - 1)
-        lam, vec = spla.eigsh(K_ii, k=k, M=M_ii, sigma=0.0, which="LM", OPinv=op, tol=EIGSH_TOL)
+        lam, vec = spla.eigsh(K_ii, k=k, M=M_ii, sigma=0.0, which="LM", OPinv=op, tol=EIGSH_TOL,
+                              v0=np.ones(n))          # deterministic start: reproducible files
         order = np.argsort(lam)
         lam, vec = lam[order], vec[:, order]
         f = np.sqrt(np.abs(lam)) / (2 * np.pi)
@@ -104,7 +105,7 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
 
     K, M = sp.csr_matrix(K), sp.csr_matrix(M)
     b, i = split_dofs(K.shape[0], boundary_dofs)
-    K_ii, M_ii = K[i][:, i], M[i][:, i]
+    K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
     try:
         factor = factorize(K_ii.tocsc())
     except Exception as exc:  # singular interior: the boundary does not hold the body

@@ -1,0 +1,66 @@
+"""``sidprep reduce MESH|JOB.toml``: tetrahedral FE model -> reduced flexible body (SID files)."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import fields, replace
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "reduce", help="reduce a tetrahedral FE model to a flexible body (SID .sid.h5, .SID_FEM, .obj)",
+        description="Craig-Bampton on the interface masters, then eigenmodes of interest + frequency-response "
+                    "modes (FEMBS style). MESH may be a mesh/geometry file or a TOML job file with the same "
+                    "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
+                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 6 eigenmodes + FRMs.")
+    p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
+    mat = p.add_argument_group("material (default steel)")
+    mat.add_argument("--E", type=float, help="Young's modulus (Pa, or MPa with --units mm-t-s)")
+    mat.add_argument("--nu", type=float, help="Poisson's ratio")
+    mat.add_argument("--rho", type=float, help="density (kg/m^3, or t/mm^3 with --units mm-t-s)")
+    mat.add_argument("--material", help="built-in material name (steel, aluminium, titanium, cast_iron, ...)")
+    p.add_argument("--units", choices=("si", "mm-t-s"), help="unit system of the mesh and material (default si)")
+    p.add_argument("--interface", dest="interfaces", action="append", metavar="NAME[:rbe2|rbe3]",
+                   help="node set coupled to a 6-DOF master (repeat); default: all node sets that can carry 6 DOF")
+    p.add_argument("--frame", help="reference frame: free (default) or the name of an interface to attach it to")
+    n = p.add_mutually_exclusive_group()
+    n.add_argument("--modes", type=int, help="number of elastic eigenmodes of interest (default 6)")
+    n.add_argument("--fmax", type=float, help="keep all eigenmodes up to this frequency (Hz)")
+    p.add_argument("--frm", action=argparse.BooleanOptionalAction, default=None,
+                   help="frequency-response modes at the interface masters (default on)")
+    p.add_argument("--cutoff-factor", type=float, help="FRM cut-off / highest frequency of interest (default 5)")
+    p.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
+    p.add_argument("--stiffening", action="store_true", default=None,
+                   help="compute the geometric-stiffening unit load cases (sid-spec 6)")
+    p.add_argument("-o", "--output", metavar="OUT.sid.h5", help="output HDF5 file (default ./<mesh>.sid.h5)")
+    p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None,
+                   help="also write <out>.SID_FEM (default on)")
+    p.add_argument("--obj", action=argparse.BooleanOptionalAction, default=None,
+                   help="also write the surface <out>.obj (default on)")
+    p.add_argument("--json", action="store_true", default=None, help="print a JSON summary on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def options_from_args(args):
+    """ReduceOptions from the command line; a .toml MESH is a job file that the options override."""
+    from sidprep.pipeline import ReduceOptions, options_from_job
+
+    base = options_from_job(args.mesh) if args.mesh.lower().endswith(".toml") else ReduceOptions(mesh=args.mesh)
+    given = {f.name: getattr(args, f.name) for f in fields(ReduceOptions)
+             if f.name not in ("mesh", "verbose") and getattr(args, f.name, None) is not None}
+    if "interfaces" in given:
+        given["interfaces"] = tuple(given["interfaces"])
+    return replace(base, verbose=not args.quiet, **given)
+
+
+def run(args) -> int:
+    from sidprep.pipeline import reduce_job, summary_json
+
+    summary = reduce_job(options_from_args(args))
+    if args.json:
+        print(summary_json(summary))
+    else:
+        for path in summary["files"].values():
+            print(path)
+    return 0

@@ -1,0 +1,402 @@
+"""A reduction job: mesh + material + interfaces -> SID files (what FEMBS does for SIMPACK).
+
+Steps (each a phase with progress and timing):
+
+1. read the mesh, assemble K, M, Ms (sidprep.assemble);
+2. couple every interface patch to a 6-DOF master (RBE2 / RBE3, sidprep.interfaces);
+3. first reduction: Craig-Bampton on the master DOFs (sidprep.reduce), fixed-interface modes up
+   to max(2, cutoff_factor) x fmax, or max(CB_MIN_MODES, 3 x --modes) of them;
+4. second step (sidprep.modes): eigenmodes of interest + frequency-response modes, cut-off,
+   orthonormalisation; reference frame free (default) or attached to an interface master;
+5. optional geometric stiffening (sidprep.stiffening);
+6. SID invariants (sidprep.sid), FE-comparison checks, files (.sid.h5, .SID_FEM, .obj).
+
+Defaults (``sidprep reduce MESH`` alone): steel; interfaces = every node set of the mesh that can
+carry 6 DOF, as RBE2 (for the piston rod: big_end and small_end); frame ``free`` - the body
+frame stays at the FE origin, the modes are free-free elastic modes (mean axes to first order),
+which is what a SIMPACK user gets from FEMBS for a body connected by joints at several points;
+6 eigenmodes + FRMs at every interface master DOF, cut-off 5x; 2 % modal damping; all three files.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from sidprep.errors import InputError
+
+#: default number of elastic eigenmodes of interest
+DEFAULT_MODES = 6
+#: default modal damping ratio (typical of bolted steel parts)
+DEFAULT_DAMPING = 0.02
+#: fewest fixed-interface modes of the Craig-Bampton step when --modes is given
+CB_MIN_MODES = 20
+#: relative tolerance of the mass / CM / inertia check (spec: equal to round-off)
+MASS_CHECK_TOL = 1e-10
+#: FEMBS promise for static deflection of the reduced body vs the full FE model
+STATIC_CHECK_TOL = 0.01
+FRAMES_HINT = "free or the name of an interface"
+
+
+@dataclass(frozen=True)
+class ReduceOptions:
+    """Everything a reduction job needs (CLI options or a TOML job file, same names)."""
+
+    mesh: str
+    E: float | None = None
+    nu: float | None = None
+    rho: float | None = None
+    material: str | None = None
+    units: str = "si"
+    interfaces: tuple[str, ...] = ()
+    frame: str = "free"
+    modes: int | None = None
+    fmax: float | None = None
+    frm: bool = True
+    cutoff_factor: float = 5.0
+    damping: float | tuple | dict = DEFAULT_DAMPING
+    stiffening: bool = False
+    output: str | None = None
+    sid_fem: bool = True
+    obj: bool = True
+    json: bool = False
+    verbose: bool = True
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """The result of steps 2-4.
+
+    im : InterfaceModel; K_model, M_model : sparse model matrices; cb : ReducedModel;
+    basis : ModalBasis; Phi_model (n_model, nq); Phi_fe (3n, nq); held : frame master model DOFs
+    or None (free frame); rigid : (n_model, 6) rigid motions in model DOFs.
+    """
+
+    im: object
+    K_model: object
+    M_model: object
+    cb: object
+    basis: object
+    Phi_model: np.ndarray
+    Phi_fe: np.ndarray
+    held: np.ndarray | None
+    rigid: np.ndarray
+
+
+# ---------------------------------------------------------------------------------------------
+# options
+# ---------------------------------------------------------------------------------------------
+
+def parse_interface(spec: str) -> tuple[str, str]:
+    """"NAME[:rbe2|rbe3]" -> (name, kind)."""
+    from sidprep.interfaces import KINDS
+
+    name, _, kind = spec.partition(":")
+    kind = (kind or "rbe2").lower()
+    if not name or kind not in KINDS:
+        raise InputError(f"--interface {spec}: expected NAME[:rbe2|rbe3]; valid kinds: {', '.join(KINDS)}")
+    return name, kind
+
+
+def options_from_job(path) -> ReduceOptions:
+    """Read a TOML job file holding the ReduceOptions fields (paths relative to the file)."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"{path}: cannot read the job file ({exc}); fix the TOML syntax") from None
+    valid = set(ReduceOptions.__dataclass_fields__)
+    unknown = sorted(set(data) - valid)
+    if unknown:
+        raise InputError(f"{path}: unknown key(s) {', '.join(unknown)}; valid: {', '.join(sorted(valid))}")
+    if "mesh" not in data:
+        raise InputError(f"{path}: the job file needs mesh = \"FILE\"")
+    data["mesh"] = str((path.parent / data["mesh"]).resolve()) if not Path(data["mesh"]).is_absolute() else data["mesh"]
+    if isinstance(data.get("damping"), list):
+        data["damping"] = tuple(data["damping"])
+    data["interfaces"] = tuple(data.get("interfaces", ()))
+    return ReduceOptions(**data)
+
+
+def check_options(o: ReduceOptions) -> None:
+    """One-line InputErrors for inconsistent options."""
+    if o.modes is not None and o.fmax is not None:
+        raise InputError("--modes and --fmax: give one of them, not both")
+    if o.modes is not None and o.modes < 1:
+        raise InputError(f"--modes {o.modes}: must be >= 1")
+    if o.fmax is not None and not o.fmax > 0:
+        raise InputError(f"--fmax {o.fmax}: must be > 0 Hz")
+    if not o.cutoff_factor >= 1:
+        raise InputError(f"--cutoff-factor {o.cutoff_factor}: must be >= 1 (FEMBS default 5)")
+
+
+# ---------------------------------------------------------------------------------------------
+# the reduction
+# ---------------------------------------------------------------------------------------------
+
+def default_interfaces(mesh) -> list[tuple[str, str]]:
+    """Node sets that look like interfaces: patches able to carry 6 DOF, as RBE2."""
+    from sidprep.interfaces import check_patch
+
+    out = []
+    for name, nodes in mesh.node_sets.items():
+        try:
+            check_patch(name, mesh.points[nodes], np.ones(len(nodes)))
+        except InputError:
+            continue
+        if len(nodes) < 0.5 * mesh.n_nodes:
+            out.append((name, "rbe2"))
+    return out
+
+
+def reduce_body(mesh, material, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fmax=None,
+                frm=True, cutoff_factor=5.0, phases=None) -> Reduction:
+    """Steps 2-4 of the module docstring for an assembled FE model.
+
+    interfaces : list of sidprep.interfaces.Interface; frame : "free" or an interface name.
+    """
+    from sidprep.interfaces import interface_model, rigid_modes_model
+    from sidprep.modes import modal_basis
+    from sidprep.progress import Phases
+    from sidprep.reduce import craig_bampton
+    from sidprep.stiffening import support_dofs
+
+    ph = phases or Phases(verbose=False)
+    if n_modes is None and fmax is None:
+        n_modes = DEFAULT_MODES
+    names = [i.name for i in interfaces]
+    if frame != "free" and frame not in names:
+        raise InputError(f"--frame {frame}: no such interface; valid: free, {', '.join(names) or '(no interfaces)'}")
+    with ph("interfaces", f"{len(interfaces)} master node(s)"):
+        im = interface_model(mesh.n_nodes, interfaces, mesh.points)
+        K_model, M_model = im.project(K_fe), im.project(M_fe)
+        rigid = rigid_modes_model(im, mesh.points)
+    boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(im, mesh.points)
+    with ph("craig-bampton", f"{len(boundary)} boundary DOF"):
+        if fmax is not None:
+            cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax)
+        else:
+            cb = craig_bampton(K_model, M_model, boundary, n_modes=max(CB_MIN_MODES, 3 * n_modes))
+    held = None if frame == "free" else im.master_dofs[names.index(frame)]
+    held_r = () if held is None else np.flatnonzero(np.isin(boundary, held))
+    with ph("modes", "eigen + frequency-response modes"):
+        z_rigid = np.zeros((cb.K.shape[0], 6))
+        z_rigid[:len(boundary)] = rigid[boundary]
+        basis = modal_basis(cb.K, cb.M, rigid=z_rigid if held is None else None, held=held_r,
+                            load_dofs=np.arange(im.master_dofs.size), n_modes=n_modes, fmax=fmax,
+                            frm=frm, cutoff_factor=cutoff_factor)
+        Phi_model = cb.basis @ basis.Z
+        Phi_fe = np.asarray(im.T @ Phi_model)
+    return Reduction(im, K_model, M_model, cb, basis, Phi_model, Phi_fe, held, rigid)
+
+
+# ---------------------------------------------------------------------------------------------
+# FE-comparison checks
+# ---------------------------------------------------------------------------------------------
+
+def master_compliance_full(red: Reduction, points) -> tuple[np.ndarray, np.ndarray]:
+    """Static deflection of the full model at the master DOFs under unit master loads.
+
+    Returns (load DOFs (nl,) model indices, C (nl, nl) deflection of DOF i under load j).  Free
+    bodies: inertia relief, then the rigid part removed (mean-axis deflection).
+    """
+    from sidprep.stiffening import static_fields, support_dofs
+
+    loads = np.setdiff1d(red.im.master_dofs.ravel(), [] if red.held is None else red.held)
+    P = np.zeros((red.im.n_model, len(loads)))
+    P[loads, np.arange(len(loads))] = 1.0
+    R, M = red.rigid, red.M_model
+    if red.held is None:
+        P = P - M @ (R @ np.linalg.solve(R.T @ (M @ R), R.T @ P))
+    u = -static_fields(red.K_model, P, support_dofs(red.im, points, red.held))
+    if red.held is None:
+        u = u - R @ np.linalg.solve(R.T @ (M @ R), R.T @ (M @ u))
+    return loads, u[loads]
+
+
+def fe_checks(red: Reduction, mesh, M_fe, sid, full_frequencies=True) -> dict:
+    """Reduced body vs full FE model (module docstring step 6); JSON-ready dict."""
+    from sidprep.interfaces import rigid_rows
+    from sidprep.linalg import eigen_modes
+    from sidprep.modes import eigen_pairs, zero_energy_count
+    from sidprep.sid import inertia_matrix
+
+    R = rigid_rows(mesh.points).reshape(-1, 6)
+    A = R.T @ (M_fe @ R)                                  # sid-spec 4.3 Form A
+    mass = A[0, 0]
+    md = np.array([A[5, 1], A[3, 2], A[4, 0]])           # skew(md) = Sr^T M St
+    checks = {
+        "mass_fe_kg": float(mass),
+        "mass_rel_error": abs(sid.mass - mass) / mass,
+        "cm_rel_error": float(np.linalg.norm(sid.mdCM.M0.ravel() - md) / max(np.linalg.norm(md), mass * np.ptp(mesh.points))),
+        "inertia_rel_error": float(np.abs(inertia_matrix(sid.J.M0) - A[3:, 3:]).max() / np.abs(A[3:, 3:]).max()),
+    }
+    free = np.flatnonzero(~np.isin(red.cb.boundary_dofs, [] if red.held is None else red.held))
+    free = np.concatenate([free, np.arange(red.cb.n_boundary, red.cb.K.shape[0])])
+    checks["zero_energy_modes"] = zero_energy_count(eigen_pairs(red.cb.K[np.ix_(free, free)],
+                                                                red.cb.M[np.ix_(free, free)])[0])
+    checks["zero_energy_modes_expected"] = 6 if red.held is None else 0
+    loads, C_full = master_compliance_full(red, mesh.points)
+    Pm = red.Phi_model[loads]
+    C_red = Pm @ np.diag(1.0 / (2 * np.pi * red.basis.frequencies_hz) ** 2) @ Pm.T
+    err = np.abs(np.diag(C_red) - np.diag(C_full)) / np.abs(np.diag(C_full))
+    force = np.isin(loads, red.im.master_dofs[:, :3])
+    checks["static_deflection_max_rel_error"] = float(err[force].max()) if force.any() else 0.0
+    checks["static_rotation_max_rel_error"] = float(err[~force].max()) if (~force).any() else 0.0
+    checks["static_deflection_rel_error_by_interface"] = {
+        itf.name: float(err[np.isin(loads, m[:3])].max()) for itf, m in zip(red.im.interfaces, red.im.master_dofs)
+        if np.isin(loads, m[:3]).any()}
+    if full_frequencies:
+        f_top = red.basis.cutoff_hz if np.isfinite(red.basis.cutoff_hz) else red.basis.frequencies_hz.max()
+        keep = np.setdiff1d(np.arange(red.im.n_model), [] if red.held is None else red.held)
+        K = red.K_model[keep][:, keep]
+        M = red.M_model[keep][:, keep]
+        ev = eigen_modes(K, M, fmax=float(f_top))
+        f_full = ev.frequencies_hz[ev.n_rigid:]
+        f_red = np.sort(red.basis.frequencies_hz)
+        k = min(len(f_full), len(f_red))
+        checks["frequencies_full_hz"] = f_full.tolist()
+        checks["frequencies_reduced_hz"] = f_red.tolist()
+        eig = np.array(red.basis.kinds) == "eigen"
+        f_e = red.basis.frequencies_hz[eig]
+        checks["eigen_frequency_max_rel_error"] = float(np.max(np.abs(f_e - f_full[:len(f_e)]) / f_full[:len(f_e)]))
+        checks["frequency_rel_error_up_to_cutoff"] = (np.abs(f_red[:k] - f_full[:k]) / f_full[:k]).tolist()
+    checks["passed"] = bool(checks["mass_rel_error"] < MASS_CHECK_TOL and checks["cm_rel_error"] < MASS_CHECK_TOL
+                            and checks["inertia_rel_error"] < MASS_CHECK_TOL
+                            and checks["zero_energy_modes"] == checks["zero_energy_modes_expected"]
+                            and checks["static_deflection_max_rel_error"] < STATIC_CHECK_TOL)
+    return checks
+
+
+def format_checks(checks: dict) -> str:
+    """The check table printed at export."""
+    lines = ["FE comparison (reduced body vs full FE model):",
+             f"  mass {checks['mass_fe_kg']:.6g} kg, rel. error mass {checks['mass_rel_error']:.1e}, "
+             f"CM {checks['cm_rel_error']:.1e}, inertia {checks['inertia_rel_error']:.1e} (tol {MASS_CHECK_TOL:g})",
+             f"  zero-energy modes {checks['zero_energy_modes']} (expected {checks['zero_energy_modes_expected']})",
+             f"  static deflection at the masters under unit forces: max rel. error "
+             f"{100 * checks['static_deflection_max_rel_error']:.3f} % (FEMBS promise < {100 * STATIC_CHECK_TOL:g} %); "
+             f"rotation under unit moments {100 * checks['static_rotation_max_rel_error']:.2f} %"]
+    if "eigen_frequency_max_rel_error" in checks:
+        lines.append(f"  eigenfrequencies: max rel. error {checks['eigen_frequency_max_rel_error']:.1e}; full model "
+                     + ", ".join(f"{f:.1f}" for f in checks["frequencies_full_hz"]) + " Hz")
+    lines.append("  checks " + ("passed" if checks["passed"] else "FAILED"))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# SID and files
+# ---------------------------------------------------------------------------------------------
+
+def surface_modes(mesh, Phi_fe):
+    """SurfaceModes of the outer surface (tet10 faces split into 4 linear triangles)."""
+    from sidprep.interfaces import linear_surface_triangles
+    from sidprep.sid import SurfaceModes
+
+    tri = linear_surface_triangles(mesh)
+    nodes, tri = np.unique(tri, return_inverse=True)
+    nq = Phi_fe.shape[1]
+    shapes = Phi_fe.reshape(mesh.n_nodes, 3, nq)[nodes]
+    return SurfaceModes(mesh.points[nodes], tri.reshape(-1, 3).astype(np.int64), shapes, mesh.node_ids[nodes])
+
+
+def build_sid(red: Reduction, mesh, Ms, *, damping=DEFAULT_DAMPING, stiffening=None, metadata=None):
+    """The SID of the reduced body: one node per interface master, surface modes attached."""
+    from dataclasses import replace as dc_replace
+
+    from sidprep.modes import modal_damping, mode_labels
+    from sidprep.sid import sid_invariants
+
+    f = red.basis.frequencies_hz
+    first_id = int(mesh.node_ids.max()) + 1 if len(mesh.node_ids) else 1
+    nodes = [(first_id + i, itf.master_point, red.Phi_model[m[:3]], red.Phi_model[m[3:]], itf.name)
+             for i, (itf, m) in enumerate(zip(red.im.interfaces, red.im.master_dofs))]
+    labels = mode_labels(f, first=7 if red.held is None else 1)
+    sid = sid_invariants(mesh.points, Ms, red.Phi_fe, nodes, labels=labels, frequencies_hz=f,
+                         mode_kinds=red.basis.kinds, Ke=np.diag((2 * np.pi * f) ** 2),
+                         De=modal_damping(f, damping), stiffening=stiffening, metadata=metadata or {})
+    return dc_replace(sid, surface=surface_modes(mesh, red.Phi_fe))
+
+
+def output_paths(o: ReduceOptions) -> dict[str, Path]:
+    """{"hdf5": ..., "sid_fem": ..., "obj": ...} for the enabled outputs (default: ./<mesh stem>.*)."""
+    h5 = Path(o.output) if o.output else Path(Path(o.mesh).stem + ".sid.h5")
+    stem = h5.name[:-len(".sid.h5")] if h5.name.endswith(".sid.h5") else h5.stem
+    out = {"hdf5": h5}
+    if o.sid_fem:
+        out["sid_fem"] = h5.with_name(stem + ".SID_FEM")
+    if o.obj:
+        out["obj"] = h5.with_name(stem + ".obj")
+    return out
+
+
+def reduce_job(options: ReduceOptions) -> dict:
+    """Run a reduction job and write its files; returns a JSON-ready summary (paths, checks, timings)."""
+    from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
+    from sidprep.interfaces import make_interface
+    from sidprep.io.obj import write_obj
+    from sidprep.io.sid_fem import write_sid_fem
+    from sidprep.io.sid_hdf5 import write_sid_hdf5
+    from sidprep.material import material_from_options, unit_system
+    from sidprep.mesh import read_mesh
+    from sidprep.progress import Phases, peak_memory_mb
+    from sidprep.stiffening import stiffening_parts
+
+    o = options
+    check_options(o)
+    ph = Phases(verbose=o.verbose)
+    units = unit_system(o.units)
+    material_name = o.material if (o.material or o.E is not None or o.nu is not None or o.rho is not None) else "steel"
+    material = material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=material_name, units=o.units)
+    with ph("mesh", o.mesh):
+        mesh = read_mesh(o.mesh)
+        if units.length_to_m != 1.0:
+            mesh = mesh.scaled(units.length_to_m)
+    specs = [parse_interface(s) for s in o.interfaces] or default_interfaces(mesh)
+    interfaces = [make_interface(mesh, name, kind=kind) for name, kind in specs]
+    with ph("assemble", f"{mesh.n_dof} DOF"):
+        K_fe = stiffness_matrix(mesh, material)
+        M_fe = mass_matrix(mesh, material)
+        Ms = scalar_mass_matrix(mesh, material.rho)
+    red = reduce_body(mesh, material, K_fe, M_fe, interfaces, frame=o.frame, n_modes=o.modes, fmax=o.fmax,
+                      frm=o.frm, cutoff_factor=o.cutoff_factor, phases=ph)
+    stiff = None
+    if o.stiffening:
+        with ph("stiffening", "unit load cases"):
+            stiff = stiffening_parts(mesh, material, red.K_model, M_fe, red.im, red.Phi_fe, red.held)
+    metadata = {"source": str(o.mesh), "mesh_sha256": mesh.sha256, "material": material.as_dict(),
+                "options": {k: v for k, v in asdict(o).items() if k != "verbose"},
+                "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
+                                "master_point_m": i.master_point.tolist()} for i in interfaces],
+                "frame": o.frame, "frm_omega_hz": red.basis.frm_omega_hz, "cutoff_hz": red.basis.cutoff_hz,
+                "rejected_frm_hz": red.basis.rejected_frm_hz.tolist(),
+                "fixed_interface_modes": int(len(red.cb.fixed_interface_hz))}
+    sid = build_sid(red, mesh, Ms, damping=o.damping, stiffening=stiff, metadata=metadata)
+    with ph("checks", "reduced vs full FE model"):
+        checks = fe_checks(red, mesh, M_fe, sid)
+    sid = replace(sid, metadata={**sid.metadata, "checks": checks})
+    paths = output_paths(o)
+    with ph("write", ", ".join(str(p) for p in paths.values())):
+        write_sid_hdf5(sid, paths["hdf5"])
+        if "sid_fem" in paths:
+            write_sid_fem(sid, paths["sid_fem"], comment=f"sidprep reduce {Path(o.mesh).name}")
+        if "obj" in paths:
+            write_obj(paths["obj"], sid.surface.points, sid.surface.triangles)
+    summary = {"files": {k: str(v) for k, v in paths.items()}, "nq": sid.nq, "labels": list(sid.labels),
+               "kinds": list(sid.mode_kinds), "checks": checks, "timings_s": ph.timings_s,
+               "peak_memory_mb": peak_memory_mb()}
+    if o.verbose:
+        print(format_checks(checks), file=sys.stderr)
+    return summary
+
+
+def summary_json(summary: dict) -> str:
+    return json.dumps(summary, indent=2, default=float)
