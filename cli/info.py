@@ -65,7 +65,7 @@ def format_table(summary: dict) -> str:
     for n in summary["nodes"]:
         lines.append(f"  {n['id']:>8d}  {row(n['position'])} m  {n['name']}")
     if summary["geometric_stiffness"]:
-        lines.append(f"geometric stiffness parts: {', '.join(summary['geometric_stiffness'])}")
+        lines.append(f"stiffening parts (raw): {', '.join(summary['geometric_stiffness'])}")
     if summary["sid_fem_dialect"]:
         d = summary["sid_fem_dialect"]
         lines.append(f"SID_FEM dialect: {d['name']} (m1 {d['m1_index_order']}, J {d['J']}, "

@@ -143,15 +143,27 @@ def modal_checks(sid: SID) -> dict:
     return out
 
 
+def _reduction_report(meta) -> dict:
+    """``metadata["checks"]`` when written as one flat report (scalars + a "passed" flag)."""
+    report = meta.get("checks") if isinstance(meta, dict) else None
+    return report if isinstance(report, dict) and isinstance(report.get("passed"), bool) else {}
+
+
 def free_body_checks(sid: SID) -> dict:
-    """Six zero-energy modes of the FE model and free-free modes orthogonal to them (spec 4.7)."""
+    """Six zero-energy modes of the FE model and free-free modes orthogonal to them (spec 4.7).
+
+    A free body is flagged by ``metadata["free_body"]`` or by a reduction report expecting 6
+    zero-energy modes; their count comes from ``n_rigid_modes`` or the report's ``zero_energy_modes``.
+    """
     meta = sid.metadata if isinstance(sid.metadata, dict) else {}
-    if not meta.get("free_body"):
+    report = _reduction_report(meta)
+    free = meta.get("free_body", report.get("zero_energy_modes_expected") == FREE_BODY_RIGID_MODES)
+    if not free:
         return {}
     out = {}
-    if "n_rigid_modes" in meta:
-        n = int(meta["n_rigid_modes"])
-        out["6 zero-energy modes"] = _entry(abs(n - FREE_BODY_RIGID_MODES), 0,
+    n = meta.get("n_rigid_modes", report.get("zero_energy_modes"))
+    if n is not None:
+        out["6 zero-energy modes"] = _entry(abs(int(n) - FREE_BODY_RIGID_MODES), 0,
                                             f"the unconstrained FE model has {n} zero-energy modes "
                                             f"(value = |n - 6|)")
     if sid.nq:
@@ -166,9 +178,25 @@ def free_body_checks(sid: SID) -> dict:
 
 
 def normalise_external(checks) -> dict:
-    """Checks from ``metadata["checks"]`` in the common form (accepts passed/pass/ok)."""
+    """Checks from ``metadata["checks"]`` in the common form.
+
+    Two forms are accepted: ``{name: {value, tolerance, passed|pass|ok, ...}}``, or one flat report
+    of the reduction (scalars plus an overall ``passed`` flag): the flag becomes the check
+    "FE comparison", each scalar an "info" entry.
+    """
+    checks = dict(checks or {})
+    if isinstance(checks.get("passed"), bool):
+        scalars = {k: v for k, v in checks.items()
+                   if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        out = {"FE comparison": {
+            "value": float(not checks["passed"]), "tolerance": 0.0, "passed": checks["passed"],
+            "severity": "error", "description": "reduction vs full FE model (mass, CM, inertia, "
+                                                "zero-energy modes, static deflection)"}}
+        out.update({f"FE {k}": {"value": v, "tolerance": None, "passed": True, "severity": "info",
+                                "description": "reported by the reduction"} for k, v in scalars.items()})
+        return out
     out = {}
-    for name, c in dict(checks or {}).items():
+    for name, c in checks.items():
         if not isinstance(c, dict):
             continue
         passed = c.get("passed", c.get("pass", c.get("ok")))
@@ -197,9 +225,9 @@ def format_checks(checks: dict) -> str:
     def number(v):
         return f"{v:10.3e}" if isinstance(v, (int, float)) else f"{str(v):>10s}"
 
-    status = {True: "ok  ", False: "FAIL"}
     lines = []
     for name, c in checks.items():
-        flag = status[c["passed"]] if c["passed"] or c["severity"] == "error" else "warn"
+        flag = ("info" if c["severity"] == "info" else "ok  " if c["passed"]
+                else "FAIL" if c["severity"] == "error" else "warn")
         lines.append(f"  {flag} {name:<42s} {number(c['value'])} (tol {number(c['tolerance'])})")
     return "\n".join(lines)

@@ -64,11 +64,21 @@ def test_check_fails_on_inconsistent_sid(tmp_path, capsys):
     assert code == 1 and "AP.M1 = skew(psi) AP0" in out and "FAIL" in out
 
 
-def test_check_fails_on_failed_fe_comparison(tmp_path, capsys):
-    sid = replace(random_sid(), metadata={"checks": {"mass vs FE": {"value": 0.1, "tolerance": 1e-9,
-                                                                    "passed": False}}})
+REPORT = {"mass_rel_error": 1e-16, "zero_energy_modes": 6, "zero_energy_modes_expected": 0,
+          "static_deflection_rel_error_by_interface": {"end": 0.003}}
+
+
+@pytest.mark.parametrize("checks,name", [
+    ({"mass vs FE": {"value": 0.1, "tolerance": 1e-9, "passed": False}}, "mass vs FE"),
+    ({**REPORT, "passed": False}, "FE comparison"),          # the flat report of sidprep reduce
+])
+def test_check_fails_on_failed_fe_comparison(tmp_path, capsys, checks, name):
+    sid = replace(random_sid(), metadata={"checks": checks})
     code, out, _ = run(capsys, "check", write_sid_hdf5(sid, tmp_path / "fe.sid.h5"))
-    assert code == 1 and "mass vs FE" in out
+    assert code == 1 and f"FAIL {name}" in out
+    sid = replace(random_sid(), metadata={"checks": {**REPORT, "passed": True}})
+    code, out, _ = run(capsys, "check", write_sid_hdf5(sid, tmp_path / "ok.sid.h5"))
+    assert code == 0 and "info FE mass_rel_error" in out
 
 
 @pytest.mark.parametrize("name", ["missing.sid.h5", "missing.SID_FEM", "body.xyz"])
