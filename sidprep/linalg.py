@@ -18,6 +18,7 @@ singular and lost up to 2e-4 relative accuracy on a 262k-DOF free bar
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -248,7 +249,7 @@ def _lobpcg(K, M, k, sigma, near_null) -> tuple[np.ndarray, np.ndarray]:
 
 def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fmax: float | None = None,
                 backend: str = "auto", sigma: float | None = None, n_rigid_max: int | None = None,
-                near_null: np.ndarray | None = None) -> EigenResult:
+                near_null: np.ndarray | None = None, phases=None) -> EigenResult:
     """Lowest modes of K phi = lambda M phi (symmetric K >= 0, M > 0, both (n, n) sparse).
 
     Parameters
@@ -261,6 +262,7 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     n_rigid_max : upper bound of the rigid-mode count used to size the block; default
         6 x connected parts of K (too small only costs a second pass).
     near_null : (n, m) rigid-body fields for the AMG near-null space (lobpcg backend only).
+    phases : sidprep.progress.Phases, optional; times "factorize" and "eigen" (progress on stderr).
     """
     if (count is None) == (fmax is None):
         raise InputError("modes: give exactly one of --count N or --fmax HZ")
@@ -276,6 +278,7 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     if not sigma < 0:
         raise InputError(f"--sigma {sigma}: the shift must be negative (K - sigma M must be positive definite)")
     extra = 6 * n_components(K) if n_rigid_max is None else n_rigid_max
+    phase = phases if phases is not None else (lambda name, detail="": contextlib.nullcontext())
 
     if backend == "lobpcg":
         def solve(k):
@@ -283,7 +286,8 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
         used = "lobpcg"
     else:
         try:
-            solver = factorize(K - sigma * M, backend)
+            with phase("factorize", f"K - sigma M, {n} DOF"):
+                solver = factorize(K - sigma * M, backend)
         except np.linalg.LinAlgError as exc:
             raise InputError(f"K - sigma M is not positive definite ({exc}); the stiffness or mass "
                              "matrix is not symmetric positive semi-definite - check the mesh") from None
@@ -294,7 +298,8 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
 
     k = (count if count is not None else FMAX_FIRST_COUNT) + extra
     while True:
-        lam, phi = solve(min(k, n - 1))
+        with phase("eigen", f"{min(k, n - 1)} modes, {used}"):
+            lam, phi = solve(min(k, n - 1))
         res = _finish(K, M, lam, phi, sigma, scale, used)
         n_elastic = len(lam) - res.n_rigid
         if k >= n - 1:
