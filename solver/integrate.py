@@ -1,0 +1,530 @@
+"""Time integration of the constrained FFR equations (system.py docstring).
+
+* ``genalpha`` (default): Lie-group generalised-alpha of Arnold & Bruls (2007) / Bruls, Cardona
+  & Arnold (2012) for the index-3 DAE, on R^3 x SO(3) x R^nq per body:
+
+      x_{n+1} = x_n (+) h dx,  dx = u_n + h (1/2 - beta) a_n + h beta a_{n+1}
+      u_{n+1} = u_n + h (1 - gamma) a_n + h gamma a_{n+1}
+      (1 - alpha_m) a_{n+1} + alpha_m a_n = (1 - alpha_f) ud_{n+1} + alpha_f ud_n
+      M ud_{n+1} - f + B_F^T lambda = 0,   g(x_{n+1}, t_{n+1}) / (h^2 beta') = 0
+
+  (Chung-Hulbert parameters from rho_inf; beta' = beta (1-alpha_f)/(1-alpha_m) scales the
+  constraint rows so that the iteration matrix is O(1)).  Unknowns ud_{n+1}, lambda; modified
+  Newton with a finite-difference iteration matrix (exact tangent operator of the update)
+  re-used over steps until convergence slows.  Local error estimate
+  e = h^2 |beta - 1/6| |ud_{n+1} - ud_n| (Geradin & Cardona) drives the optional step-size
+  control.  Constraints hold at position level exactly (no drift).
+* ``rk45`` / ``dop853``: explicit scipy ``solve_ivp`` on the index-1 ODE with quaternions and
+  Baumgarte stabilisation, for non-stiff scenes.
+
+Consistent initial conditions: Gauss-Newton projection of the positions onto g = 0, removal of
+redundant constraint rows, mass-weighted projection of the velocities onto g_dot = 0, then the
+index-1 accelerations and multipliers; optional quasi-static elastic start.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg
+
+from solver.bodies import FlexibleBody, RigidBody
+from solver.effects import EFFECTS, build_report, choose_effects, estimate_sizes, parse_effects
+from solver.kinematics import matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
+from solver.system import REDUNDANCY_TOL, BodyHistory, Context, JointHistory, Pose, Result
+
+#: Gauss-Newton tolerance of the initial position projection (constraint residual, m or rad)
+POSITION_TOL = 1e-12
+#: maximum Newton iterations of one generalised-alpha step before the iteration matrix is renewed
+MAX_NEWTON = 6
+#: contraction factor above which the iteration matrix is renewed
+SLOW_CONTRACTION = 0.3
+#: step-size factor limits of the error control
+H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
+
+
+# ---------------------------------------------------------------------------- set-up helpers
+def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
+    """(alpha_m, alpha_f, gamma, beta) of Chung & Hulbert (1993) for spectral radius rho_inf."""
+    if not 0.0 <= rho_inf <= 1.0:
+        raise ValueError(f"rho_inf must be in [0, 1], got {rho_inf}")
+    am = (2 * rho_inf - 1) / (rho_inf + 1)
+    af = rho_inf / (rho_inf + 1)
+    gamma = 0.5 + af - am
+    return am, af, gamma, 0.25 * (gamma + 0.5) ** 2
+
+
+def length_weights(system) -> tuple[np.ndarray, float]:
+    """Per-coordinate factors converting coordinate errors to lengths, and the system length L.
+
+    Translations 1, rotations L, modal coordinate k: max over SID nodes of |Phi_n[:, k]|.
+    """
+    radii = [1e-3]
+    for b in system.bodies:
+        model = b.model
+        radii.append(float(np.sqrt(np.trace(model.I0) / (2 * model.mass))))
+        radii += [float(np.linalg.norm(m.position)) for m in b.markers]
+    length = max(radii)
+    w = np.ones(system.n)
+    for i, b in enumerate(system.bodies):
+        sl = system._slices[i]
+        w[sl][3:6] = length
+        if b.nq:
+            nodes = b.sid.nodes
+            if nodes:
+                phi = np.array([np.linalg.norm(n.phi.M0, axis=0) for n in nodes]).max(axis=0)
+            else:
+                phi = 1.0 / np.sqrt(np.diag(b.model.Me) + 1e-300)
+            w[sl.start + 6:sl.stop] = np.maximum(phi, 1e-300)
+    return w, length
+
+
+def configure_effects(system, spec) -> dict:
+    """Resolve and switch the effects of every body; returns {name: (body, chosen, reasons)}."""
+    parsed = parse_effects(spec)
+    gravity_on = parsed == "auto" or "gravity" in parsed
+    choices = {}
+    for b in system.bodies:
+        if isinstance(b, RigidBody):
+            b.configure(set(EFFECTS), gravity=gravity_on and bool(np.any(system.gravity)))
+            continue
+        own = parse_effects(b.effects) if b.effects is not None else parsed
+        chosen, reasons = choose_effects(system, b, own)
+        b.configure(chosen, gravity="gravity" in chosen)
+        choices[b.name] = (b, chosen, reasons)
+    return choices
+
+
+def independent_rows(B: np.ndarray, tol: float = REDUNDANCY_TOL) -> np.ndarray:
+    """Boolean mask of the rows of B kept by Gram-Schmidt in order (earlier rows win)."""
+    kept = np.zeros(B.shape[0], bool)
+    basis: list[np.ndarray] = []
+    for i, row in enumerate(B):
+        norm = np.linalg.norm(row)
+        if norm == 0.0:
+            continue
+        v = row.copy()
+        for e in basis:
+            v -= (e @ v) * e
+        for e in basis:  # second pass for orthogonality
+            v -= (e @ v) * e
+        rn = np.linalg.norm(v)
+        if rn > tol * norm:
+            basis.append(v / rn)
+            kept[i] = True
+    return kept
+
+
+def project_positions(system, pose: Pose, t: float) -> Pose:
+    """Minimum-norm Gauss-Newton projection onto g(x, t) = 0 (all rows)."""
+    for _ in range(50):
+        ctx = Context(system, pose, np.zeros(system.n), t, None)
+        g, B, _, _ = system.constraint_rows(ctx, force_rows=False)
+        k = system.kept
+        if g[k].size == 0 or np.max(np.abs(g[k])) < POSITION_TOL:
+            return pose
+        delta = np.linalg.lstsq(B[k], -g[k], rcond=None)[0]
+        pose = system.advance(pose, delta)
+    raise RuntimeError(f"initial positions cannot satisfy the joints (max |g| = {np.max(np.abs(g[k])):.3g}); "
+                       "check marker positions / axes")
+
+
+def solve_kkt(mass, rhs_f, B, BF, rhs_g):
+    """[M B_F^T; B 0] [ud; lambda] = [f; rhs_g]."""
+    n, m = mass.shape[0], B.shape[0]
+    if m == 0:
+        return np.linalg.solve(mass, rhs_f), np.zeros(0)
+    kkt = np.zeros((n + m, n + m))
+    kkt[:n, :n] = mass
+    kkt[:n, n:] = BF.T
+    kkt[n:, :n] = B
+    sol = np.linalg.solve(kkt, np.concatenate([rhs_f, rhs_g]))
+    return sol[:n], sol[n:]
+
+
+def accelerations(system, pose: Pose, u: np.ndarray, t: float, lam=None, iterations: int = 3):
+    """Index-1 accelerations and multipliers (iterated when forces depend on lambda, friction)."""
+    gam = system.gamma(pose, u, t)
+    for _ in range(iterations if system.m_all else 1):
+        mass, f, _, B, BF, _ = system.evaluate(pose, u, t, lam)
+        ud, lam = solve_kkt(mass, f, B, BF, -gam)
+    return ud, lam
+
+
+def project_velocities(system, pose: Pose, u: np.ndarray, t: float) -> np.ndarray:
+    """Mass-weighted projection of u onto B u + b_t = 0."""
+    if not system.kept.any():
+        return u
+    mass, _, _, B, _, _ = system.evaluate(pose, u, t)
+    err = system.velocity_constraint(pose, u, t)
+    minv_bt = np.linalg.solve(mass, B.T)
+    return u - minv_bt @ np.linalg.solve(B @ minv_bt, err)
+
+
+def quasi_static_elastic(system, pose: Pose, u: np.ndarray, t: float, iterations: int = 30) -> Pose:
+    """Modal coordinates in equilibrium with the initial rigid-body accelerations (q_ddot = 0)."""
+    flex = [(i, b) for i, b in enumerate(system.bodies) if b.nq]
+    for _ in range(iterations):
+        ud, _ = accelerations(system, pose, u, t)
+        worst = 0.0
+        for i, b in flex:
+            sl = system._slices[i]
+            qdd = ud[sl][6:]
+            dq = np.linalg.solve(b.model.Ke, b.model.Me @ qdd)
+            pose.q[i] = pose.q[i] + dq
+            worst = max(worst, np.linalg.norm(dq) / max(np.linalg.norm(pose.q[i]), 1e-300))
+        pose = project_positions(system, pose, t)
+        if worst < 1e-10:
+            break
+    return pose
+
+
+def consistent_initial_state(system, static_start: bool):
+    """(pose, u, ud, lambda) satisfying the constraints at position, velocity, acceleration level."""
+    pose, u = system.initial_pose()
+    pose = project_positions(system, pose, 0.0)
+    ctx = Context(system, pose, u, 0.0, None)
+    _, B, _, _ = system.constraint_rows(ctx, force_rows=False)
+    system.kept = independent_rows(B)
+    system.accept(pose)
+    if static_start:
+        pose = quasi_static_elastic(system, pose, project_velocities(system, pose, u, 0.0), 0.0)
+    u = project_velocities(system, pose, u, 0.0)
+    ud, lam = accelerations(system, pose, u, 0.0)
+    return pose, u, ud, lam
+
+
+# ---------------------------------------------------------------------------- generalised alpha
+class _Recorder:
+    """Samples (t, pose, u, ud, lambda) at the output times, plus the energy-flow integrals."""
+
+    def __init__(self, output_dt: float | None):
+        self.dt = output_dt
+        self.next = 0.0
+        self.samples = []
+        self.dissipated = self.external = 0.0
+        self.flows = []
+        self._last_power = None
+
+    def power_step(self, system, ctx, h: float) -> None:
+        """Trapezoidal integration of dissipated / external power over the last step."""
+        p = power(system, ctx)
+        if self._last_power is not None:
+            self.external += 0.5 * h * (p[0] + self._last_power[0])
+            self.dissipated += 0.5 * h * (p[1] + self._last_power[1])
+        self._last_power = p
+
+    def offer(self, t, pose, u, ud, lam, force: bool = False) -> None:
+        if force or self.dt is None or t >= self.next - 1e-12 * max(1.0, abs(t)):
+            self.samples.append((t, pose.copy(), u.copy(), ud.copy(), lam.copy()))
+            self.flows.append((self.dissipated, self.external))
+            if self.dt is not None:
+                while self.next <= t + 1e-12 * max(1.0, abs(t)):
+                    self.next += self.dt
+
+
+def power(system, ctx) -> tuple[float, float]:
+    """(external power in, power dissipated), W, at an evaluated context (modal damping,
+    force elements, drivers)."""
+    p_in = p_diss = 0.0
+    for i, b in enumerate(system.bodies):
+        if b.nq and b.model.De is not None:
+            qd = ctx.u[system._slices[i]][6:]
+            p_diss += float(qd @ b.model.De @ qd)
+    for fe in system.forces:
+        a, d = fe.power(ctx)
+        p_in += a
+        p_diss += d
+    if system.drivers and ctx.lam is not None:
+        full = np.zeros(system.m_all)
+        full[system.kept] = ctx.lam
+        for d in system.drivers:
+            lam = full[system._row_slices[id(d)]][0]
+            p_in += -lam * ctx.joint_coordinate(d.joint)[1]
+    return p_in, p_diss
+
+
+def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps):
+    am, af, gamma, beta = genalpha_parameters(rho_inf)
+    ca = (1 - af) / (1 - am)
+    w, length = length_weights(system)
+    n = system.n
+    m = int(system.kept.sum())
+    t = 0.0
+    a = ud.copy()
+    stats = {"steps": 0, "rejected": 0, "newton_iterations": 0, "jacobians": 0, "h_min": np.inf, "h_max": 0.0}
+    lu = None
+    lu_h = None
+    adaptive = rtol is not None
+    ctx0 = system.evaluate(pose, u, t, lam)[5]
+    rec.power_step(system, ctx0, 0.0)
+    rec.offer(t, pose, u, ud, lam, force=True)
+
+    def state(udn):
+        an = (af * ud + (1 - af) * udn - am * a) / (1 - am)
+        dx = h * u + h * h * ((0.5 - beta) * a + beta * an)
+        return an, system.advance(pose, dx), u + h * ((1 - gamma) * a + gamma * an)
+
+    def residual(udn, lamn, tn):
+        an, pn, un = state(udn)
+        mass, f, g, B, BF, ctx = system.evaluate(pn, un, tn, lamn)
+        r = np.empty(n + m)
+        r[:n] = mass @ udn - f + BF.T @ lamn
+        r[n:] = g / (h * h * beta * ca)
+        return r, an, pn, un, BF, ctx
+
+    def jacobian(udn, lamn, tn):
+        r0, _, _, _, BF, _ = residual(udn, lamn, tn)
+        jac = np.zeros((n + m, n + m))
+        eps_pos = np.sqrt(np.finfo(float).eps) / (h * h * beta * ca)
+        for i in range(n):
+            e = max(1e-7 * abs(udn[i]), eps_pos)
+            x = udn.copy()
+            x[i] += e
+            jac[:, i] = (residual(x, lamn, tn)[0] - r0) / e
+        jac[:n, n:] = BF.T
+        stats["jacobians"] += 1
+        return scipy.linalg.lu_factor(jac)
+
+    steps = 0
+    while t < t_end - 1e-12 * max(1.0, t_end):
+        if steps >= max_steps:
+            raise RuntimeError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s")
+        h = min(h, t_end - t)
+        tn = t + h
+        udn, lamn = ud.copy(), lam.copy()
+        converged, renewed = False, False
+        if lu is None or lu_h != h:
+            lu, lu_h, renewed = jacobian(udn, lamn, tn), h, True
+        last = np.inf
+        it = 0
+        while True:
+            r, an, pn, un, _, ctx = residual(udn, lamn, tn)
+            dz = -scipy.linalg.lu_solve(lu, r)
+            udn += dz[:n]
+            lamn += dz[n:]
+            it += 1
+            err = np.max(np.abs(dz[:n]) * w) * h * h * beta * ca / length
+            if err <= newton_tol:
+                converged = True
+                break
+            if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
+                if renewed:
+                    break
+                lu, lu_h, renewed = jacobian(udn, lamn, tn), h, True
+                it, last = 0, np.inf
+                continue
+            last = err
+        stats["newton_iterations"] += it
+        if not converged:
+            stats["rejected"] += 1
+            h *= 0.5
+            lu = None
+            if h < 1e-14 * max(1.0, t_end):
+                raise RuntimeError(f"generalised-alpha: Newton failed at t = {t:.6g} s (step size underflow)")
+            continue
+        an, pn, un = state(udn)
+        if adaptive:
+            e = h * h * abs(beta - 1.0 / 6.0) * np.abs(udn - ud) * w
+            est = float(np.sqrt(np.mean((e / (atol + rtol * length)) ** 2))) if n else 0.0
+            factor = SAFETY * est ** (-1.0 / 3.0) if est > 0 else H_GROW
+            if est > 1.0:
+                stats["rejected"] += 1
+                h *= max(H_SHRINK, factor)
+                continue
+        t, pose, u, ud, a, lam = tn, pn, un, udn, an, lamn
+        steps += 1
+        stats["steps"] = steps
+        stats["h_min"] = min(stats["h_min"], h)
+        stats["h_max"] = max(stats["h_max"], h)
+        system.accept(pose)
+        rec.power_step(system, ctx, h)
+        rec.offer(t, pose, u, ud, lam, force=t >= t_end - 1e-12 * max(1.0, t_end))
+        if adaptive:
+            h *= min(H_GROW, max(H_SHRINK, factor))
+    return stats
+
+
+# ---------------------------------------------------------------------------- explicit
+def _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec):
+    """scipy solve_ivp on y = [per body r, quaternion, q | u] with Baumgarte stabilisation."""
+    from scipy.integrate import solve_ivp
+
+    nb = len(system.bodies)
+    sizes = [7 + b.nq for b in system.bodies]
+    offs = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    npos = int(offs[-1])
+    alpha = baumgarte
+    stats = {"rhs_evaluations": 0}
+
+    def unpack(y):
+        r, A, q = [], [], []
+        for i in range(nb):
+            yi = y[offs[i]:offs[i + 1]]
+            r.append(yi[:3])
+            A.append(quaternion_to_matrix(yi[3:7]))
+            q.append(yi[7:])
+        return Pose(r, A, q), y[npos:]
+
+    def rhs(t, y):
+        stats["rhs_evaluations"] += 1
+        pose_, u_ = unpack(y)
+        ydot = np.empty_like(y)
+        for i in range(nb):
+            sl = system._slices[i]
+            ui = u_[sl]
+            e = y[offs[i] + 3:offs[i] + 7]
+            ydot[offs[i]:offs[i] + 3] = ui[:3]
+            ydot[offs[i] + 3:offs[i] + 7] = quaternion_rate(e / np.linalg.norm(e), ui[3:6])
+            ydot[offs[i] + 7:offs[i + 1]] = ui[6:]
+        mass, f, g, B, BF, _ = system.evaluate(pose_, u_, t)
+        if B.shape[0]:
+            gd = system.velocity_constraint(pose_, u_, t)
+            rhs_g = -system.gamma(pose_, u_, t) - 2 * alpha * gd - alpha**2 * g
+        else:
+            rhs_g = np.zeros(0)
+        ydot[npos:] = solve_kkt(mass, f, B, BF, rhs_g)[0]
+        return ydot
+
+    y0 = np.concatenate([np.concatenate([pose.r[i], matrix_to_quaternion(pose.A[i]), pose.q[i]])
+                         for i in range(nb)] + [u])
+    dt = rec.dt if rec.dt is not None else t_end / 1000
+    t_eval = np.append(np.arange(0.0, t_end, dt), t_end)
+    sol = solve_ivp(rhs, (0.0, t_end), y0, method=method.upper().replace("DOP853", "DOP853"),
+                    t_eval=t_eval, rtol=rtol if rtol is not None else 1e-8, atol=atol)
+    if not sol.success:
+        raise RuntimeError(f"{method}: {sol.message}")
+    for k, t in enumerate(sol.t):
+        p, uk = unpack(sol.y[:, k])
+        p = Pose(p.r, [a.copy() for a in p.A], p.q)
+        system.accept(p)
+        ud, lam = accelerations(system, p, uk, t)
+        rec.samples.append((t, p, uk.copy(), ud, lam))
+        rec.flows.append((np.nan, np.nan))
+    stats["steps"] = int(sol.t.size)
+    return stats
+
+
+# ---------------------------------------------------------------------------- driver
+def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=None, atol=1e-9, effects="auto",
+              output_dt=None, static_start=False, newton_tol=1e-10, max_steps=10_000_000,
+              baumgarte=20.0) -> Result:
+    """Run a simulation (see System.simulate for the parameters) and build the Result."""
+    if t_end <= 0 or h <= 0:
+        raise ValueError("t_end and h must be positive")
+    cpu0 = time.process_time()
+    system._compile()
+    choices = configure_effects(system, effects)
+    pose, u, ud, lam = consistent_initial_state(system, static_start)
+    rec = _Recorder(output_dt)
+    if method == "genalpha":
+        stats = _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps)
+    elif method in ("rk45", "dop853"):
+        stats = _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec)
+    else:
+        raise ValueError(f"unknown method {method!r}; use 'genalpha', 'rk45' or 'dop853'")
+    cpu_integration = time.process_time() - cpu0
+    result = postprocess(system, rec, choices)
+    dropped = [f"{c.name} row {r - system._row_slices[id(c)].start}" for c in system.constraints
+               for r in range(system._row_slices[id(c)].start, system._row_slices[id(c)].stop)
+               if not system.kept[r]]
+    result.stats.update(stats, method=method, h=h, rho_inf=rho_inf if method == "genalpha" else None,
+                        cpu_time=time.process_time() - cpu0, cpu_integration=cpu_integration,
+                        dropped_constraint_rows=dropped, n_coordinates=system.n,
+                        n_constraints=int(system.kept.sum()))
+    return result
+
+
+def postprocess(system, rec: _Recorder, choices) -> Result:
+    """Histories, reactions, energies and the effects report from the recorded samples."""
+    nt = len(rec.samples)
+    bodies = {}
+    for i, b in enumerate(system.bodies):
+        sl = system._slices[i]
+        bodies[b.name] = BodyHistory(
+            b.name,
+            np.array([s[1].r[i] for s in rec.samples]),
+            np.array([s[1].A[i] for s in rec.samples]),
+            np.array([s[2][sl][:3] for s in rec.samples]),
+            np.array([s[2][sl][3:6] for s in rec.samples]),
+            np.array([s[1].q[i] for s in rec.samples]).reshape(nt, b.nq),
+            np.array([s[2][sl][6:] for s in rec.samples]).reshape(nt, b.nq),
+            np.array([s[3][sl] for s in rec.samples]),
+        )
+    markers = {m.name: np.zeros((nt, 3)) for b in [system.ground] + system.bodies for m in b.markers}
+    joints = {c.name: JointHistory(c.name, getattr(c, "kind", "driver"), *(np.zeros((nt, 3)) for _ in range(4)),
+                                   np.full(nt, np.nan), np.full(nt, np.nan), np.full(nt, np.nan))
+              for c in system.constraints}
+    energy = {k: np.zeros(nt) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external")}
+    cerr = np.zeros(nt)
+    node_loads = {b.name: {} for b in system.bodies if b.nq}
+    for k, (t, pose, u, ud, lam) in enumerate(rec.samples):
+        mass, f, g, B, BF, ctx = system.evaluate(pose, u, t, lam)
+        cerr[k] = np.max(np.abs(g)) if g.size else 0.0
+        full = np.zeros(system.m_all)
+        full[system.kept] = lam
+        for b in [system.ground] + system.bodies:
+            for mk in b.markers:
+                markers[mk.name][k] = ctx.kin(mk)[0]
+        for c in system.constraints:
+            sl = system._row_slices[id(c)]
+            ct1, cr1, ct2, cr2 = ctx.coeffs[id(c)]
+            lc = full[sl]
+            jh = joints[c.name]
+            jh.force[k], jh.torque[k] = -lc @ ct2, -lc @ cr2
+            a1 = ctx.kin(c.marker1)[1]
+            jh.force_local[k], jh.torque_local[k] = a1.T @ jh.force[k], a1.T @ jh.torque[k]
+            joint = c.joint if hasattr(c, "joint") else c
+            if joint.coordinate_kind:
+                jh.coordinate[k], jh.rate[k] = ctx.joint_coordinate(joint)
+            if hasattr(c, "joint"):
+                jh.effort[k] = -lc[0]
+            for mk, ct, cr in ((c.marker1, ct1, cr1), (c.marker2, ct2, cr2)):
+                if mk.node is not None and mk.body.name in node_loads:
+                    ctx.loads[id(mk)] = (mk, ctx.loads.get(id(mk), (mk, 0, 0))[1] - lc @ ct,
+                                         ctx.loads.get(id(mk), (mk, 0, 0))[2] - lc @ cr)
+        for mk, force, torque in ctx.loads.values():
+            if mk.node is not None and mk.body.name in node_loads:
+                i = system._index[id(mk.body)]
+                at = pose.A[i].T
+                node_loads[mk.body.name].setdefault(id(mk), (mk, np.zeros((nt, 3)), np.zeros((nt, 3))))
+                rec_ = node_loads[mk.body.name][id(mk)]
+                rec_[1][k], rec_[2][k] = at @ force, at @ torque
+        kin, strain, grav = body_energies(system, pose, u)
+        energy["kinetic"][k], energy["strain"][k], energy["gravity"][k] = kin, strain, grav
+        energy["spring"][k] = sum(fe.potential(ctx) for fe in system.forces if hasattr(fe, "potential"))
+        energy["dissipated"][k], energy["external"][k] = rec.flows[k]
+    energy["total"] = (energy["kinetic"] + energy["strain"] + energy["gravity"] + energy["spring"]
+                       + energy["dissipated"] - energy["external"])
+    estimates = {}
+    for name, (b, _, _) in choices.items():
+        h = bodies[name]
+        estimates[name] = estimate_sizes(b, {"q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation,
+                                             "acceleration": h.acceleration,
+                                             "node_loads": list(node_loads[name].values())}, system.gravity)
+    report = build_report(choices, estimates)
+    t = np.array([s[0] for s in rec.samples])
+    return Result(t, bodies, joints, markers, energy, cerr, report, {})
+
+
+def body_energies(system, pose: Pose, u: np.ndarray) -> tuple[float, float, float]:
+    """(kinetic, strain, gravity potential) summed over the bodies, J."""
+    kin = strain = grav = 0.0
+    for i, b in enumerate(system.bodies):
+        sl = system._slices[i]
+        A, q, ub = pose.A[i], pose.q[i], u[sl]
+        model = b.model
+        uk = np.concatenate([A.T @ ub[:3], ub[3:]])
+        kin += 0.5 * uk @ model.mass_matrix(q) @ uk
+        if b.nq:
+            strain += 0.5 * q @ model.Ke @ q
+            if model.ks0 is not None:
+                strain += model.ks0 @ q + 0.5 * q @ model.ks1 @ q
+        if model.gravity:
+            g = system.gravity
+            md = model.md0 + model.Ct0.T @ q
+            grav -= g @ (model.mass * pose.r[i] + A @ md)
+            if model.Ct1 is not None:
+                grav -= 0.5 * q @ np.einsum("kja,a->kj", model.Ct1, A.T @ g) @ q
+    return kin, strain, grav

@@ -1,0 +1,98 @@
+"""Rotation kinematics: skew matrices, the SO(3) exponential map, quaternions.
+
+Rotation matrices A map body components to inertial components (sid-spec 5.1); angular
+velocities are body components, so the Lie-group update is A_{n+1} = A_n exp(skew(dtheta)).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: below this rotation angle (rad) the Rodrigues coefficients use their Taylor series
+SMALL_ANGLE = 1e-6
+
+
+def skew(a: np.ndarray) -> np.ndarray:
+    """The tilde operator, skew(a) @ b == cross(a, b); (3,) -> (3, 3)."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def exp_so3(theta: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
+    angle2 = float(theta @ theta)
+    t = skew(theta)
+    if angle2 < SMALL_ANGLE**2:
+        return np.eye(3) + t + 0.5 * (t @ t)
+    angle = np.sqrt(angle2)
+    return np.eye(3) + (np.sin(angle) / angle) * t + ((1.0 - np.cos(angle)) / angle2) * (t @ t)
+
+
+def log_so3(rot: np.ndarray) -> np.ndarray:
+    """Rotation vector of a rotation matrix (inverse of ``exp_so3`` for angles < pi); (3,)."""
+    return quaternion_to_vector(matrix_to_quaternion(rot))
+
+
+def quaternion_to_matrix(e: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the (normalised on the fly) quaternion e = [e0, e1, e2, e3]."""
+    e0, e1, e2, e3 = np.asarray(e, dtype=float) / np.linalg.norm(e)
+    return np.array(
+        [
+            [1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 - e0 * e3), 2 * (e1 * e3 + e0 * e2)],
+            [2 * (e1 * e2 + e0 * e3), 1 - 2 * (e1 * e1 + e3 * e3), 2 * (e2 * e3 - e0 * e1)],
+            [2 * (e1 * e3 - e0 * e2), 2 * (e2 * e3 + e0 * e1), 1 - 2 * (e1 * e1 + e2 * e2)],
+        ]
+    )
+
+
+def matrix_to_quaternion(rot: np.ndarray) -> np.ndarray:
+    """Unit quaternion [e0, e1, e2, e3] (e0 >= 0) of a rotation matrix (Shepperd's method)."""
+    tr = np.trace(rot)
+    diag = np.array([tr, rot[0, 0], rot[1, 1], rot[2, 2]])
+    i = int(np.argmax(diag))
+    if i == 0:
+        e0 = 0.5 * np.sqrt(1.0 + tr)
+        e = np.array([e0, (rot[2, 1] - rot[1, 2]) / (4 * e0), (rot[0, 2] - rot[2, 0]) / (4 * e0),
+                      (rot[1, 0] - rot[0, 1]) / (4 * e0)])
+    else:
+        a, b, c = (i - 1, i % 3, (i + 1) % 3)
+        ea = 0.5 * np.sqrt(1.0 + 2 * rot[a, a] - tr)
+        e = np.empty(4)
+        e[0] = (rot[c, b] - rot[b, c]) / (4 * ea)
+        e[1 + a] = ea
+        e[1 + b] = (rot[a, b] + rot[b, a]) / (4 * ea)
+        e[1 + c] = (rot[a, c] + rot[c, a]) / (4 * ea)
+    return e if e[0] >= 0 else -e
+
+
+def quaternion_to_vector(e: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle) of a unit quaternion."""
+    s = np.linalg.norm(e[1:])
+    if s < SMALL_ANGLE:
+        return 2.0 * e[1:] / e[0]
+    return 2.0 * np.arctan2(s, e[0]) * e[1:] / s
+
+
+def quaternion_rate(e: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
+    """de/dt for body-frame angular velocity omega: 0.5 * e (x) [0, omega]."""
+    e0, e1, e2, e3 = e
+    w1, w2, w3 = omega_body
+    return 0.5 * np.array(
+        [
+            -e1 * w1 - e2 * w2 - e3 * w3,
+            e0 * w1 + e2 * w3 - e3 * w2,
+            e0 * w2 - e1 * w3 + e3 * w1,
+            e0 * w3 + e1 * w2 - e2 * w1,
+        ]
+    )
+
+
+def as_rotation(value) -> np.ndarray:
+    """A rotation matrix from None (identity), a (3, 3) matrix or a rotation vector (3,)."""
+    if value is None:
+        return np.eye(3)
+    a = np.asarray(value, dtype=float)
+    if a.shape == (3, 3):
+        return a
+    if a.shape == (3,):
+        return exp_so3(a)
+    raise ValueError(f"rotation must be a 3x3 matrix or a rotation vector, got shape {a.shape}")

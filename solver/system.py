@@ -1,0 +1,396 @@
+"""A multibody system: bodies, joints, drivers, force elements; simulate() -> Result.
+
+Usage::
+
+    from solver.system import System, FlexibleBody, Revolute   # all public names re-exported
+    sys = System(gravity=(0, 0, -9.81))
+    bar = sys.add(FlexibleBody("bar.sid.h5", name="bar"))
+    pivot = sys.add(Revolute(sys.ground.marker(rotation=...), bar.node_marker(node_id=1)))
+    res = sys.simulate(1.0, h=1e-3, effects="auto")
+    res.bodies["bar"].q, res.joints[pivot.name].force, res.energy["total"], res.effects.text()
+
+Equations (docs/solver.md): for the generalised velocities u (per body [v_O inertial, omega
+body, qd]) and the multipliers lambda of the kept constraint rows,
+
+    M(x) u_dot - f(x, u, t) + B_F(x)^T lambda = 0,     g(x, t) = 0,
+
+with g_dot = B(x) u + b_t(t).  B_F differs from B only by the load-stiffening parts K0F, K0M
+of node markers (sid-spec 5.2).  Redundant constraint rows (e.g. a planar slider-crank built
+from 3D revolute joints) are detected at the consistent initial state and dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from solver.bodies import Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody
+from solver.effects import EFFECTS, EffectsReport
+from solver.forces import (JointForce, JointFriction, PointForce, PointTorque, SpringDamper, Table,
+                           bump_stop)
+from solver.joints import (ConstantSpeed, Cylindrical, Driver, Fixed, Joint, JOINT_TYPES, Planar,
+                           Prismatic, Revolute, SmoothStart, Spherical, TabulatedMotion)
+from solver.kinematics import exp_so3
+
+__all__ = [
+    "System", "Result", "BodyHistory", "JointHistory", "Ground", "RigidBody", "FlexibleBody", "Marker",
+    "Spherical", "Revolute", "Cylindrical", "Prismatic", "Planar", "Fixed", "JOINT_TYPES", "Driver",
+    "ConstantSpeed", "SmoothStart", "TabulatedMotion", "PointForce", "PointTorque", "SpringDamper",
+    "bump_stop", "JointForce", "JointFriction", "Table", "EFFECTS",
+]
+
+#: a constraint row is redundant when its component independent of the rows kept before it is
+#: below this fraction of its norm (Gram-Schmidt at the initial state)
+REDUNDANCY_TOL = 1e-8
+
+
+@dataclass
+class BodyHistory:
+    """Time series of one body; arrays have leading dimension nt (output samples).
+
+    position (nt, 3) r_O, m; rotation (nt, 3, 3) A (body -> inertial); velocity (nt, 3) v_O,
+    m/s inertial; omega (nt, 3) rad/s body components; q, qd (nt, nq); acceleration
+    (nt, 6 + nq) du/dt = [dv_O/dt, omega_dot, q_ddot].
+    """
+
+    name: str
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    omega: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    acceleration: np.ndarray
+
+
+@dataclass
+class JointHistory:
+    """Reaction of one joint / driver on body 2 at marker 2.
+
+    force, torque (nt, 3), N / N m, inertial components; force_local, torque_local (nt, 3) in
+    marker-1 components; coordinate, rate (nt,) joint angle (rad) or slide (m) and its rate
+    (NaN for joints without a coordinate); effort (nt,) driver torque/force along z1 (drivers).
+    """
+
+    name: str
+    kind: str
+    force: np.ndarray
+    torque: np.ndarray
+    force_local: np.ndarray
+    torque_local: np.ndarray
+    coordinate: np.ndarray
+    rate: np.ndarray
+    effort: np.ndarray
+
+
+@dataclass
+class Result:
+    """Everything a simulation produced (solver/results.py writes it to files).
+
+    t (nt,) s; bodies {name: BodyHistory}; joints {name: JointHistory} (joints and drivers);
+    markers {name: (nt, 3)} inertial marker positions; energy {kinetic, strain, gravity,
+    spring, dissipated, external, total} (nt,) J (total = kinetic + strain + gravity + spring
+    + dissipated - external: constant up to integration error); constraint_error (nt,) max |g|;
+    effects: EffectsReport; stats: method, cpu_time (s), steps, rejected, newton_iterations,
+    jacobians, dropped constraint rows, h_min/h_max used.
+    """
+
+    t: np.ndarray
+    bodies: dict
+    joints: dict
+    markers: dict
+    energy: dict
+    constraint_error: np.ndarray
+    effects: EffectsReport
+    stats: dict = field(default_factory=dict)
+
+
+class Pose:
+    """Positions of all bodies: lists r (3,), A (3, 3), q (nq,) indexed like System.bodies."""
+
+    __slots__ = ("r", "A", "q")
+
+    def __init__(self, r, A, q):
+        self.r, self.A, self.q = r, A, q
+
+    def copy(self) -> "Pose":
+        return Pose([x.copy() for x in self.r], [x.copy() for x in self.A], [x.copy() for x in self.q])
+
+
+class Context:
+    """One evaluation of the system at (pose, u, t, lambda): marker kinematics (cached), the
+    generalised forces of all elements and the constraint rows."""
+
+    def __init__(self, system: "System", pose: Pose, u: np.ndarray, t: float, lam: np.ndarray | None):
+        self.system, self.pose, self.u, self.t = system, pose, u, t
+        self.lam = lam
+        self.f = np.zeros(system.n)
+        self._kin: dict = {}
+        self.loads: dict = {}
+
+    def body_index(self, body: Body) -> int:
+        return self.system._index[id(body)]
+
+    def kin(self, marker: Marker):
+        """(p, A_marker, JT, JR, d) of a marker, inertial components (bodies.Marker.kinematics)."""
+        k = self._kin.get(id(marker))
+        if k is None:
+            b = marker.body
+            if isinstance(b, Ground):
+                k = marker.kinematics(np.zeros(3), np.eye(3), None)
+            else:
+                i = self.body_index(b)
+                k = marker.kinematics(self.pose.r[i], self.pose.A[i], self.pose.q[i])
+            self._kin[id(marker)] = k
+        return k
+
+    def body_u(self, body: Body) -> np.ndarray:
+        if isinstance(body, Ground):
+            return np.zeros(0)
+        sl = self.system._slices[self.body_index(body)]
+        return self.u[sl]
+
+    def marker_velocity(self, marker: Marker):
+        """(v, omega) of the marker, inertial components."""
+        k = self.kin(marker)
+        ub = self.body_u(marker.body)
+        return k[2] @ ub, k[3] @ ub
+
+    def add_load(self, marker: Marker, force=None, torque=None) -> None:
+        """Add a force (at the marker point) and/or torque, inertial components, N / N m."""
+        b = marker.body
+        f = np.zeros(3) if force is None else np.asarray(force, float)
+        tq = np.zeros(3) if torque is None else np.asarray(torque, float)
+        old = self.loads.get(id(marker))
+        self.loads[id(marker)] = (marker, f + old[1], tq + old[2]) if old else (marker, f, tq)
+        if isinstance(b, Ground):
+            return
+        i = self.body_index(b)
+        k = self.kin(marker)
+        jt, jr = marker.force_jacobians(self.pose.A[i], self.pose.q[i], k[2], k[3])
+        self.f[self.system._slices[i]] += jt.T @ f + jr.T @ tq
+
+    def joint_coordinate(self, joint: Joint):
+        """(value, rate) of a joint coordinate (rad or m)."""
+        k1, k2 = self.kin(joint.marker1), self.kin(joint.marker2)
+        value, row = joint.coordinate(k1, k2)
+        v1, w1 = self.marker_velocity(joint.marker1)
+        v2, w2 = self.marker_velocity(joint.marker2)
+        return value, float(row[0] @ v1 + row[1] @ w1 + row[2] @ v2 + row[3] @ w2)
+
+    def add_joint_load(self, joint: Joint, value: float) -> None:
+        """Generalised force along the joint coordinate (on body 2; reaction on body 1)."""
+        c = joint.coordinate(self.kin(joint.marker1), self.kin(joint.marker2))[1]
+        self.add_load(joint.marker1, force=value * c[0], torque=value * c[1])
+        self.add_load(joint.marker2, force=value * c[2], torque=value * c[3])
+
+    def joint_multipliers(self, joint: Joint) -> np.ndarray:
+        """Multipliers of all rows of a joint (0 for dropped rows or when unknown)."""
+        sl = self.system._row_slices[id(joint)]
+        if self.lam is None:
+            return np.zeros(sl.stop - sl.start)
+        full = np.zeros(self.system.m_all)
+        full[self.system.kept] = self.lam
+        return full[sl]
+
+
+class System:
+    """A multibody system.  Build it with ``add``; integrate with ``simulate``.
+
+    Parameters
+    ----------
+    gravity : (3,) m/s^2, inertial components (used when the gravity effect is on)
+    effects : "auto" (default), "all", or a list of effect names (solver/effects.py), used by
+        every flexible body that does not name its own
+    """
+
+    def __init__(self, gravity=(0.0, 0.0, -9.81), effects="auto"):
+        self.gravity = np.asarray(gravity, float)
+        self.effects = effects
+        self.ground = Ground()
+        self.bodies: list[_MassBody] = []
+        self.joints: list[Joint] = []
+        self.drivers: list[Driver] = []
+        self.forces: list = []
+
+    # ------------------------------------------------------------------ building
+    def add(self, item):
+        """Add a body, joint, driver or force element; returns it."""
+        if isinstance(item, (RigidBody, FlexibleBody)):
+            if any(b.name == item.name for b in self.bodies):
+                raise ValueError(f"duplicate body name '{item.name}'")
+            self.bodies.append(item)
+        elif isinstance(item, Joint):
+            self.joints.append(item)
+        elif isinstance(item, Driver):
+            self.drivers.append(item)
+        elif hasattr(item, "apply"):
+            self.forces.append(item)
+        else:
+            raise TypeError(f"cannot add {type(item).__name__} to a System")
+        return item
+
+    # ------------------------------------------------------------------ compiled layout
+    def _compile(self) -> None:
+        self._index = {id(b): i for i, b in enumerate(self.bodies)}
+        self._slices, off = [], 0
+        for b in self.bodies:
+            self._slices.append(slice(off, off + b.ndof))
+            off += b.ndof
+        self.n = off
+        self.constraints = list(self.joints) + list(self.drivers)
+        self._row_slices, r = {}, 0
+        for c in self.constraints:
+            for mk in (c.marker1, c.marker2):
+                if not isinstance(mk.body, Ground) and id(mk.body) not in self._index:
+                    raise ValueError(f"'{c.name}': marker '{mk.name}' is on a body not added to the system")
+            self._row_slices[id(c)] = slice(r, r + c.nrows)
+            r += c.nrows
+        self.m_all = r
+        self.kept = np.ones(r, bool)
+        self._mk_cache = [None] * len(self.bodies)
+
+    def initial_pose(self) -> tuple[Pose, np.ndarray]:
+        """Pose and velocities from the bodies' initial values (not yet consistent)."""
+        pose = Pose([b.position0.copy() for b in self.bodies], [b.rotation0.copy() for b in self.bodies],
+                    [b.initial_q()[0].copy() for b in self.bodies])
+        u = np.concatenate([np.concatenate([b.velocity0, b.omega0, b.initial_q()[1]]) for b in self.bodies]) \
+            if self.bodies else np.zeros(0)
+        return pose, u
+
+    def advance(self, pose: Pose, delta: np.ndarray) -> Pose:
+        """Pose moved by the increment delta (n,): r + dr, A exp(dtheta), q + dq (Lie group)."""
+        r, A, q = [], [], []
+        for i, sl in enumerate(self._slices):
+            d = delta[sl]
+            r.append(pose.r[i] + d[:3])
+            A.append(pose.A[i] @ exp_so3(d[3:6]))
+            q.append(pose.q[i] + d[6:])
+        return Pose(r, A, q)
+
+    # ------------------------------------------------------------------ evaluation
+    def mass_and_forces(self, ctx: Context) -> np.ndarray:
+        """Mass matrix M (n, n) and body forces added into ctx.f (sid-spec 5.2, rotated rows)."""
+        n = self.n
+        mass = np.zeros((n, n))
+        g = self.gravity
+        for i, b in enumerate(self.bodies):
+            sl = self._slices[i]
+            A = ctx.pose.A[i]
+            q = ctx.pose.q[i]
+            ub = ctx.u[sl]
+            model = b.model
+            mk = self._mass_k(i, model, q)
+            h = model.internal_forces(q, ub[6:], ub[3:6], A.T @ g, mk)
+            h[:3] = A @ h[:3]
+            ctx.f[sl] += h
+            m = mk.copy()
+            m[:3, 3:] = A @ mk[:3, 3:]
+            m[3:, :3] = m[:3, 3:].T
+            mass[sl, sl] = m
+        return mass
+
+    def _mass_k(self, i, model, q):
+        if model.constant_mass:
+            cached = self._mk_cache[i]
+            if cached is None:
+                cached = self._mk_cache[i] = model.mass_matrix(q)
+            return cached
+        return model.mass_matrix(q)
+
+    def constraint_rows(self, ctx: Context, force_rows: bool = True):
+        """g (m_all,), B (m_all, n), B_F (m_all, n) and the per-row marker coefficients."""
+        m, n = self.m_all, self.n
+        g = np.zeros(m)
+        B = np.zeros((m, n))
+        BF = np.zeros((m, n)) if force_rows else None
+        coeffs = {}
+        for c in self.constraints:
+            sl = self._row_slices[id(c)]
+            k1, k2 = ctx.kin(c.marker1), ctx.kin(c.marker2)
+            if isinstance(c, Driver):
+                gc, ct1, cr1, ct2, cr2 = c.constraint(k1, k2, ctx.t)
+            else:
+                gc, ct1, cr1, ct2, cr2 = c.constraint(k1, k2)
+            g[sl] = gc
+            coeffs[id(c)] = (ct1, cr1, ct2, cr2)
+            for mk, ct, cr in ((c.marker1, ct1, cr1), (c.marker2, ct2, cr2)):
+                if isinstance(mk.body, Ground):
+                    continue
+                i = self._index[id(mk.body)]
+                bs = self._slices[i]
+                k = ctx.kin(mk)
+                B[sl, bs] += ct @ k[2] + cr @ k[3]
+                if force_rows:
+                    jt, jr = mk.force_jacobians(ctx.pose.A[i], ctx.pose.q[i], k[2], k[3])
+                    BF[sl, bs] += ct @ jt + cr @ jr
+        return g, B, BF, coeffs
+
+    def rate_terms(self, t: float) -> np.ndarray:
+        """b_t (m_all,) in g_dot = B u + b_t (drivers only)."""
+        b = np.zeros(self.m_all)
+        for d in self.drivers:
+            b[self._row_slices[id(d)]] = d.rate_term(t)
+        return b
+
+    def evaluate(self, pose: Pose, u: np.ndarray, t: float, lam: np.ndarray | None = None):
+        """(M, f, g, B, B_F, ctx) at a state; g, B, B_F restricted to the kept rows."""
+        ctx = Context(self, pose, u, t, lam)
+        mass = self.mass_and_forces(ctx)
+        for fe in self.forces:
+            fe.apply(ctx)
+        g, B, BF, coeffs = self.constraint_rows(ctx)
+        ctx.coeffs = coeffs
+        k = self.kept
+        return mass, ctx.f, g[k], B[k], BF[k], ctx
+
+    def velocity_constraint(self, pose: Pose, u: np.ndarray, t: float) -> np.ndarray:
+        """g_dot = B u + b_t on the kept rows."""
+        ctx = Context(self, pose, u, t, None)
+        _, B, _, _ = self.constraint_rows(ctx, force_rows=False)
+        return (B @ u + self.rate_terms(t))[self.kept]
+
+    def gamma(self, pose: Pose, u: np.ndarray, t: float, eps: float = 1e-6) -> np.ndarray:
+        """d/dt (B u + b_t) at constant u (central difference along the motion), kept rows."""
+        plus = self.velocity_constraint(self.advance(pose, eps * u), u, t + eps)
+        minus = self.velocity_constraint(self.advance(pose, -eps * u), u, t - eps)
+        return (plus - minus) / (2 * eps)
+
+    def accept(self, pose: Pose) -> None:
+        """Update joint-angle unwrapping references after an accepted step."""
+        ctx = Context(self, pose, np.zeros(self.n), 0.0, None)
+        for j in self.joints:
+            if j.coordinate_kind:
+                j.accept(ctx.kin(j.marker1), ctx.kin(j.marker2))
+
+    # ------------------------------------------------------------------ simulation
+    def simulate(self, t_end: float, *, h: float = 1e-3, method: str = "genalpha", rho_inf: float = 0.9,
+                 rtol: float | None = None, atol: float = 1e-9, effects=None, output_dt: float | None = None,
+                 static_start: bool = False, newton_tol: float = 1e-10, max_steps: int = 10_000_000,
+                 baumgarte: float = 20.0) -> Result:
+        """Integrate from t = 0 to t_end and return the Result.
+
+        Parameters
+        ----------
+        t_end : end time, s
+        h : (initial) step size, s
+        method : "genalpha" (implicit Lie-group generalised-alpha, index 3, Arnold-Bruls) or
+            "rk45" / "dop853" (explicit scipy solve_ivp on the index-1 ODE with Baumgarte
+            stabilisation; for non-stiff scenes)
+        rho_inf : spectral radius at infinity of generalised-alpha (1 = no numerical damping)
+        rtol, atol : step-size control (None = fixed step h for genalpha); for rk45/dop853 the
+            solve_ivp tolerances (default rtol 1e-8)
+        effects : overrides the system's effects choice
+        output_dt : sampling interval of the results (default: every step / h)
+        static_start : start with the elastic coordinates in quasi-static equilibrium with the
+            initial rigid-body accelerations (no start-up vibration)
+        newton_tol : Newton tolerance on the scaled acceleration correction
+        baumgarte : stabilisation rate (1/s) of the explicit methods
+        """
+        from solver.integrate import integrate
+
+        return integrate(self, t_end, h=h, method=method, rho_inf=rho_inf, rtol=rtol, atol=atol,
+                         effects=self.effects if effects is None else effects, output_dt=output_dt,
+                         static_start=static_start, newton_tol=newton_tol, max_steps=max_steps,
+                         baumgarte=baumgarte)
