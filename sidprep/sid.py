@@ -227,9 +227,10 @@ def mode_pair_integrals(Ms, Phi3: np.ndarray) -> np.ndarray:
 
     Phi3 : (n, 3, nq) node-wise mode shapes; Ms : (n, n) scalar mass matrix (sparse or dense).
     """
-    nq = Phi3.shape[2]
-    MsPhi = np.stack([np.asarray(Ms @ Phi3[:, b, :]).reshape(-1, nq) for b in range(3)], 1)
-    return np.einsum("nak,nbj->abkj", Phi3, MsPhi)
+    n, _, nq = Phi3.shape
+    flat = Phi3.reshape(n, 3 * nq)
+    MsPhi = np.asarray(Ms @ flat).reshape(n, 3 * nq)
+    return (flat.T @ MsPhi).reshape(3, nq, 3, nq).transpose(0, 2, 1, 3)
 
 
 def first_moments(Ms, points: np.ndarray, Phi3: np.ndarray) -> np.ndarray:
@@ -262,12 +263,12 @@ def centrifugal_softening(P: np.ndarray) -> np.ndarray:
 
 def gr_matrix(G: np.ndarray) -> np.ndarray:
     """a-block Gr matrix (3, 3nq) from the canonical tensor G[k, i, a] (inverse of ``gr_tensor``)."""
-    return G.transpose(1, 2, 0).reshape(3, -1)
+    return G.transpose(1, 2, 0).reshape(3, 3 * G.shape[0])
 
 
 def ge_matrix(Ge: np.ndarray) -> np.ndarray:
     """a-block Ge matrix (nq, 3nq) from the canonical tensor Ge[a, k, j] (inverse of ``ge_tensor``)."""
-    return Ge.transpose(1, 0, 2).reshape(Ge.shape[1], -1)
+    return Ge.transpose(1, 0, 2).reshape(Ge.shape[1], 3 * Ge.shape[1])
 
 
 def structure_code(M0: np.ndarray, kind: str = "general") -> int:

@@ -22,7 +22,8 @@ LABEL_ROUNDING = 1e-3  # labels carry 3 decimals of Hz; FE and reduced frequenci
 REAL = {  # file: (mass kg, node count, label frequencies Hz, dialect, Gr layout, Ge layout)
     "cartopPragV32": (9.0824, 9, [1.135, 2.557, 2.922], "native", "a-block", "a-block"),
     "Beam_3m": (706.5, 21, [9.089, 27.028, 56.638, 146.316], "PY_SID", "k-block", "a-block"),
-    "balken1m": (0.784999999999, 3, [8.360], "native", "a-block", "a-block"),
+    "balken1m": (0.784999999999, 3, [8.360], "native (Gr/Ge layouts coincide for nq < 2)",
+                 "a-block", "a-block"),
 }
 
 
@@ -181,3 +182,16 @@ def test_truncated_and_missing_files(tmp_path):
         parse_sid_fem(text[: len(text) // 2], "half.SID_FEM")
     with pytest.raises(InputError, match="cannot read"):
         read_sid_fem(tmp_path / "nope.SID_FEM")
+
+
+def test_rigid_body_sid_without_modes(tmp_path):
+    """nq = 0: a rigid body still has mass, CM and inertia; both formats carry it."""
+    from sidprep.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
+    X = np.random.default_rng(4).normal(size=(6, 3))
+    sid = sid_invariants(X, np.eye(6), np.zeros((18, 0)), [(1, X[0], np.zeros((3, 0)))],
+                         Ke=np.zeros((0, 0)))
+    for again in (read_sid_fem(write_sid_fem(sid, tmp_path / "r.SID_FEM")),
+                  read_sid_hdf5(write_sid_hdf5(sid, tmp_path / "r.sid.h5"))):
+        assert again.nq == 0 and again.mass == 6.0
+        assert np.allclose(again.J.M0, sid.J.M0, rtol=DIGITS_12, atol=0)
+        assert again.Gr.M0.shape == (3, 0)

@@ -62,6 +62,12 @@ def test_round_trip_is_exact_with_stiffening_and_surface(tmp_path):
     assert not list(tmp_path.glob(".*part"))              # atomic: no temporary left
 
 
+@pytest.mark.parametrize("name", ["Beam_3m", "balken1m"])
+def test_other_real_files_round_trip(tmp_path, name):
+    sid = real(name)
+    assert_same_sid(sid, read_sid_hdf5(write_sid_hdf5(sid, tmp_path / "b.sid.h5")))
+
+
 def test_real_file_round_trip_and_schema(tmp_path):
     sid = real("cartopPragV32")
     path = write_sid_hdf5(sid, tmp_path / "cartop.sid.h5")

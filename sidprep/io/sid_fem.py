@@ -23,7 +23,7 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.io.atomic import atomic_path
 from sidprep.sid import (DIAGONAL, GENERAL, IDENTITY, SID, SYMMETRIC, ZERO, SIDNode, Taylor,
-                         frequencies_from_stiffness, inertia_matrix, j6)
+                         frequencies_from_stiffness, inertia_matrix, j6, skew)
 
 MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 NODE_MEMBERS = ("origin", "phi", "psi", "AP", "sigma")
@@ -375,6 +375,8 @@ def _relative(residual: float, scale: float) -> float:
 
 def _gr_residuals(Gr: Taylor, J: Taylor, Cr: Taylor, nq: int) -> dict:
     """Relative residual of sym(Gr0_k) = I1_k (or Gr0_k - Gr0_k^T = -2 skew(Cr0_k)) per layout."""
+    if nq < 2:                                                  # the layouts coincide
+        return {layout: np.nan for layout in LAYOUTS}
     out = {}
     for layout in LAYOUTS:
         G = from_layout(Gr, nq, layout).M0.reshape(3, 3, nq).transpose(2, 0, 1)
@@ -382,8 +384,7 @@ def _gr_residuals(Gr: Taylor, J: Taylor, Cr: Taylor, nq: int) -> dict:
             ref = np.stack([inertia_matrix(J.M1[:, k, 0]) for k in range(nq)])
             res = np.linalg.norm(0.5 * (G + G.transpose(0, 2, 1)) - ref)
         else:
-            cr = Cr.M0
-            ref = -2 * np.stack([[[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]] for c in cr])
+            ref = -2 * np.stack([skew(c) for c in Cr.M0])
             res = np.linalg.norm(G - G.transpose(0, 2, 1) - ref)
         out[layout] = _relative(res, max(np.linalg.norm(ref), np.linalg.norm(G)))
     return out
@@ -391,7 +392,7 @@ def _gr_residuals(Gr: Taylor, J: Taylor, Cr: Taylor, nq: int) -> dict:
 
 def _ge_residuals(Ge: Taylor, Cr: Taylor, nq: int) -> dict:
     """Relative residual of Ge_a = 2 Cr.M1[:, :, a] per layout (antisymmetric parts if needed)."""
-    if Cr.M1 is None:
+    if Cr.M1 is None or nq < 2:
         return {layout: np.nan for layout in LAYOUTS}
     ref = 2 * Cr.M1.transpose(2, 0, 1)
     full, anti = {}, {}
@@ -481,11 +482,14 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         "geo_stiff": "Geo_Stiff= yes" in raw["comment"].replace("Geo_Stiff=yes", "Geo_Stiff= yes"),
         "units_note": "SID_FEM carries no units; SI assumed",
         "sid_fem_dialect": {
-            "name": _dialect(m1_order, j_form, gr_layout, ge_layout),
+            "name": _dialect(m1_order, j_form, gr_layout, ge_layout) + (
+                "" if gr_decided and ge_decided else
+                " (Gr/Ge layouts coincide for nq < 2)" if nq < 2 else
+                " (Gr/Ge layout not detectable, assumed " + gr_layout + ")"),
             "m1_index_order": m1_order, "J": j_form, "Gr_layout": gr_layout,
             "Ge_layout": ge_layout, "layouts_detected": gr_decided and ge_decided,
-            "Gr_layout_residuals": {k: float(v) for k, v in gr_res.items()},
-            "Ge_layout_residuals": {k: float(v) for k, v in ge_res.items()},
+            "Gr_layout_residuals": {k: float(v) if np.isfinite(v) else None for k, v in gr_res.items()},
+            "Ge_layout_residuals": {k: float(v) if np.isfinite(v) else None for k, v in ge_res.items()},
         },
         "frequencies_from_Ke_hz": [float(f) for f in from_ke],
     }
