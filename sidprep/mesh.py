@@ -9,6 +9,7 @@ DOFs are node-interleaved: DOF 3*i + c is component c (x, y, z) of node i.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Mapping
 
 import numpy as np
@@ -141,8 +142,6 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
         Missing / unreadable / truncated file, unknown extension, no tetrahedra, non-tet volume
         elements, mixed tet4/tet10, NaN or inf coordinates, flat elements, overlapping elements.
     """
-    from pathlib import Path
-
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: file not found; check the path")
@@ -282,6 +281,7 @@ def _read_meshio(path) -> _RawMesh:
     """Any volume format meshio reads; its tet10 node order is VTK's for every format."""
     import contextlib
     import io
+    import tempfile
 
     import meshio
 
@@ -291,13 +291,21 @@ def _read_meshio(path) -> _RawMesh:
             sorted(meshio.extension_to_filetypes)
         )
         raise InputError(f"{path}: unknown mesh file extension '{suffix}'; use one of {known}")
+    abaqus_lines = _abaqus_lines(path) if suffix == ".inp" else None
     try:  # meshio prints warnings and errors itself, and exits on some broken files
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            m = meshio.read(path)
-    except (Exception, SystemExit) as exc:  # ReadError, ValueError, IndexError, SystemExit, ...
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            if abaqus_lines is None:
+                m = meshio.read(path)
+            else:  # meshio does not resolve *INCLUDE: give it the included text inline
+                with tempfile.TemporaryDirectory() as tmp:
+                    flat = Path(tmp) / path.name
+                    flat.write_text("".join(abaqus_lines))
+                    m = meshio.read(flat, file_format="abaqus")
+    except (Exception, SystemExit) as exc:  # ReadError, ValueError, KeyError, SystemExit, ...
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         raise InputError(
-            f"{path}: meshio could not read it ({msg}); check that the file is complete and valid"
+            f"{path}: meshio could not read it ({type(exc).__name__}: {msg}); "
+            "check that the file is complete and valid"
         ) from None
     volume = {"tetra", "tetra10", "hexahedron", "hexahedron20", "hexahedron27", "wedge",
               "wedge15", "pyramid", "pyramid13", "tetra20"}  # fmt: skip
@@ -338,14 +346,68 @@ def _read_meshio(path) -> _RawMesh:
     points = np.asarray(m.points, dtype=float)
     if points.shape[1] == 2:
         raise InputError(f"{path}: has 2D coordinates; a tetrahedral mesh needs x, y, z")
-    return _RawMesh(
-        points,
-        np.arange(1, len(points) + 1, dtype=np.int64),
-        cells,
-        np.arange(1, len(cells) + 1, dtype=np.int64),
-        node_sets,
-        cell_sets,
-    )
+    node_ids, cell_ids = _meshio_ids(m, blocks, abaqus_lines)
+    return _RawMesh(points, node_ids, cells, cell_ids, node_sets, cell_sets)
+
+
+def _meshio_ids(m, blocks, abaqus_lines) -> tuple[np.ndarray, np.ndarray]:
+    """The file's node and tetrahedron numbers (Nastran, Abaqus); else 1, 2, ... in file order."""
+    n_cells = sum(len(m.cells[k].data) for k in blocks)
+    if hasattr(m, "points_id") and hasattr(m, "cells_id"):  # meshio's Nastran reader keeps them
+        return np.asarray(m.points_id, np.int64), np.concatenate([m.cells_id[k] for k in blocks])
+    if abaqus_lines is not None:
+        node_ids, tet_ids = _abaqus_ids(abaqus_lines)
+        if len(node_ids) == len(m.points) and len(tet_ids) == n_cells:
+            return node_ids, tet_ids
+    return np.arange(1, len(m.points) + 1, dtype=np.int64), np.arange(1, n_cells + 1, dtype=np.int64)
+
+
+def _abaqus_lines(path) -> list[str]:
+    """The lines of an Abaqus / CalculiX input file with every ``*INCLUDE`` replaced by its file."""
+    lines = []
+    with open(path, errors="replace") as f:
+        for line in f:
+            if line[:8].upper() == "*INCLUDE":
+                included = Path(path).parent / line.split("=", 1)[1].strip().strip('"')
+                if not included.is_file():
+                    raise InputError(
+                        f"{path}: *INCLUDE file {included} not found; "
+                        "fix INPUT= (a path relative to the including file)"
+                    )
+                lines.extend(_abaqus_lines(included))
+            else:
+                lines.append(line if line.endswith("\n") else line + "\n")
+    return lines
+
+
+def _abaqus_ids(lines) -> tuple[np.ndarray, np.ndarray]:
+    """Node numbers of the ``*NODE`` lines and element numbers of the C3D4* / C3D10* elements,
+    in file order (the order meshio reads them in)."""
+    node_ids, tet_ids = [], []
+    block, tokens, per_element = None, [], 0
+
+    def close():
+        if block == "ELEMENT" and per_element:
+            ids = np.array([int(t) for t in tokens if t.strip()], dtype=np.int64)
+            tet_ids.append(ids.reshape(-1, per_element + 1)[:, 0])
+
+    for line in lines:
+        if line.startswith("**"):
+            continue
+        if line.startswith("*"):
+            close()
+            words = [w.strip().upper() for w in line[1:].split(",")]
+            params = dict(w.split("=", 1) for w in words[1:] if "=" in w)
+            block, tokens = words[0], []
+            kind = params.get("TYPE", "")
+            per_element = 10 if kind.startswith("C3D10") else 4 if kind.startswith("C3D4") else 0
+        elif block == "NODE" and line.strip():
+            node_ids.append(int(line.split(",", 1)[0]))
+        elif block == "ELEMENT" and per_element:
+            tokens.extend(line.split(","))
+    close()
+    tets = np.concatenate(tet_ids) if tet_ids else np.zeros(0, np.int64)
+    return np.array(node_ids, dtype=np.int64), tets
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,5 +1,7 @@
 """Mesh import: node order per format, groups by name, the input checks, surface topology."""
 
+from pathlib import Path
+
 import meshio
 import numpy as np
 import pytest
@@ -233,3 +235,56 @@ def test_disconnected_parts(tmp_path):
     n_parts, labels = connected_parts(mesh)
     assert n_parts == 2 and np.array_equal(labels, np.repeat([0, 1], 5))
     assert any("2 disconnected parts; each adds 6 rigid-body modes" in n for n in mesh.notes)
+
+
+def test_abaqus_numbers_and_sets_from_a_hand_written_deck(tmp_path):
+    """File numbers (not 1..n) reach node_ids and the messages; a continued element line."""
+    nodes = "\n".join(f"{100 + k}, {x}, {y}, {z}" for k, (x, y, z) in enumerate(_two_tets()[0], 1))
+    (tmp_path / "nodes.inp").write_text(f"*NODE\n{nodes}\n")
+    deck = tmp_path / "deck.inp"
+    deck.write_text(
+        "** two tets, element 9 in the other orientation\n*INCLUDE, INPUT=nodes.inp\n"
+        "*ELEMENT, TYPE=C3D4, ELSET=ALL\n7, 101, 102, 103,\n 104\n9, 102, 103, 105, 104\n"
+        "*NSET, NSET=TIP\n105\n*ELSET, ELSET=SECOND\n9\n"
+    )
+    mesh = read_mesh(deck)
+    assert np.array_equal(mesh.node_ids, [101, 102, 103, 104, 105])
+    assert np.array_equal(mesh.node_sets["TIP"], [4])
+    assert np.array_equal(mesh.cell_sets["SECOND"], [1])
+    assert any("1 of 2 elements had negative volume (worst: element 9)" in n for n in mesh.notes)
+
+
+VALIDATION = Path(__file__).resolve().parents[1] / ".." / "shared" / "validation"
+
+
+@pytest.mark.skipif(not VALIDATION.is_dir(), reason="needs ../shared/validation beside the clone")
+def test_calculix_deck_with_include(tmp_path):
+    """The validation deck (written by its own gmsh -> C3D10 converter) *INCLUDEs its mesh."""
+    deck = read_mesh(VALIDATION / "decks" / "cantilever_bar_h0.02.inp")
+    mesh = read_mesh(VALIDATION / "meshes" / "bar_h0.02_mesh.inp")
+    assert np.array_equal(deck.points, mesh.points) and np.array_equal(deck.cells, mesh.cells)
+    assert deck.n_dof == 17058 and _midpoint_error(deck) < MIDPOINT_RTOL
+    assert len(deck.node_sets["NX0"]) == 79 and np.allclose(deck.points[deck.node_sets["NX0"], 0], 0)
+    (tmp_path / "bad.inp").write_text("*INCLUDE, INPUT=missing.inp\n")
+    with pytest.raises(InputError, match="INCLUDE file .*missing.inp not found"):
+        read_mesh(tmp_path / "bad.inp")
+
+
+def test_step_and_brep_are_meshed_in_metres(tmp_path):
+    """gmsh writes STEP in millimetres; sidprep reads STEP in metres, BREP as is."""
+    import gmsh
+
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.occ.addBox(0, 0, 0, 10, 20, 30)
+        gmsh.model.occ.synchronize()
+        gmsh.write(str(tmp_path / "box.step"))
+        gmsh.write(str(tmp_path / "box.brep"))
+    finally:
+        gmsh.finalize()
+    step = read_mesh(tmp_path / "box.step", size=0.01, order=1)
+    brep = read_mesh(tmp_path / "box.brep", size=10.0, order=2)
+    assert np.allclose(step.points.max(axis=0), [0.01, 0.02, 0.03])
+    assert np.isclose(cell_volumes(step.points, step.cells).sum(), 6e-6, rtol=GEOMETRY_RTOL)
+    assert brep.order == 2 and np.allclose(brep.points.max(axis=0), [10, 20, 30])
