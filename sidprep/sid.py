@@ -184,19 +184,6 @@ STRUCTURE_TOL = 1e-12
 DIAGONAL_BASIS_TOL = 1e-8
 
 
-def rigid_body_fields(points: np.ndarray) -> np.ndarray:
-    """The six omega-hat load fields w_i(x) of sid-spec.md section 6.3, (6, n, 3).
-
-    w_i is the coefficient of omega_hat_i in omega~ omega~ x, in OMEGA_HAT_ORDER.
-    """
-    x, y, z = np.asarray(points, dtype=float).T
-    o = np.zeros_like(x)
-    return np.stack([
-        np.stack([o, -y, -z], 1), np.stack([-x, o, -z], 1), np.stack([-x, -y, o], 1),
-        np.stack([y, x, o], 1), np.stack([o, z, y], 1), np.stack([z, o, x], 1),
-    ])
-
-
 def j6(i3: np.ndarray) -> np.ndarray:
     """SID 6-vector [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] of a (..., 3, 3) tensor; (..., 6)."""
     i3 = np.asarray(i3)
