@@ -8,6 +8,7 @@ DOFs are node-interleaved: DOF 3*i + c is component c (x, y, z) of node i.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping
@@ -88,7 +89,7 @@ ENCLOSED_VOLUME_RTOL = 1e-6
 #: files meshed through the gmsh API (geometry); ``.msh`` is read through the gmsh API too
 GEOMETRY_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".brp", ".iges", ".igs")
 #: gmsh element type numbers of the linear and quadratic tetrahedron
-_GMSH_TET = {4: 1, 11: 2}
+_GMSH_TET = (4, 11)
 #: gmsh tet10 node k -> canonical node: gmsh numbers the last two edges (2,3), (1,3)
 _GMSH_TET10_TO_CANONICAL = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 #: re-ordering that reverses a cell's orientation (swap vertices 1 and 2 with their edges)
@@ -107,8 +108,6 @@ class _RawMesh:
     cell_ids: np.ndarray
     node_sets: dict
     cell_sets: dict
-    notes: tuple = ()
-    length_unit: str = "m"
 
 
 def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
@@ -165,59 +164,66 @@ def _file_sha256(path) -> str:
     return h.hexdigest()
 
 
-def _index_of(tags: np.ndarray, wanted: np.ndarray) -> np.ndarray:
-    """Row indices of ``wanted`` tags in the (unsorted, unique) array ``tags``."""
+def _index_of(tags: np.ndarray, wanted: np.ndarray, path) -> np.ndarray:
+    """Row indices of the ``wanted`` node / element numbers in the (unique) array ``tags``."""
     sorter = np.argsort(tags, kind="stable")
-    pos = np.searchsorted(tags, wanted, sorter=sorter)
-    return sorter[np.clip(pos, 0, len(tags) - 1)]
+    index = sorter[np.clip(np.searchsorted(tags, wanted, sorter=sorter), 0, max(len(tags) - 1, 0))]
+    missing = tags[index] != wanted if len(tags) else np.ones(len(wanted), bool)
+    if missing.any():
+        raise InputError(
+            f"{path}: refers to node/element {wanted[missing][0]}, which it does not define; "
+            "fix the file"
+        )
+    return index
 
 
-def _gmsh_session():
-    """Context manager: a quiet gmsh session with an empty model of its own.
+@contextlib.contextmanager
+def _gmsh_session(options: dict):
+    """A quiet gmsh session with ``options`` set and an empty model of its own.
 
-    Reuses a session the caller already started (its models stay untouched), else starts one
-    and finalizes it afterwards.
+    Reuses a session the caller already started (its models and options are restored
+    afterwards), else starts one and finalizes it.
     """
-    import contextlib
-
     import gmsh
 
-    @contextlib.contextmanager
-    def session():
-        own = not gmsh.isInitialized()
+    own = not gmsh.isInitialized()
+    if own:
+        gmsh.initialize(readConfigFiles=False, interruptible=False)
+    options = {"General.Terminal": 0, "General.Verbosity": 0, **options}
+    get = {str: gmsh.option.getString, float: gmsh.option.getNumber}
+    put = {str: gmsh.option.setString, float: gmsh.option.setNumber}
+    kinds = {name: str if isinstance(value, str) else float for name, value in options.items()}
+    saved = {name: get[kinds[name]](name) for name in options}
+    previous = None if own else gmsh.model.getCurrent()
+    for name, value in options.items():
+        put[kinds[name]](name, value)
+    gmsh.model.add("sidprep_read_mesh")
+    try:
+        yield gmsh
+    finally:
         if own:
-            gmsh.initialize(readConfigFiles=False, interruptible=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.Verbosity", 0)
-        previous = gmsh.model.getCurrent() if not own else None
-        gmsh.model.add("sidprep_read_mesh")
-        try:
-            yield gmsh
-        finally:
-            if own:
-                gmsh.finalize()
-            else:
-                gmsh.model.setCurrent("sidprep_read_mesh")
-                gmsh.model.remove()
-                if previous:
-                    gmsh.model.setCurrent(previous)
-
-    return session()
+            gmsh.finalize()
+        else:
+            gmsh.model.setCurrent("sidprep_read_mesh")
+            gmsh.model.remove()
+            if previous:
+                gmsh.model.setCurrent(previous)
+            for name, value in saved.items():
+                put[kinds[name]](name, value)
 
 
 def _read_gmsh(path, *, size, order) -> _RawMesh:
     """Open a .msh file or mesh a geometry file with the gmsh API."""
     suffix = path.suffix.lower()
-    with _gmsh_session() as gmsh:
+    options = {"Mesh.ElementOrder": float(order)}
+    if suffix in (".step", ".stp", ".iges", ".igs"):
+        options["Geometry.OCCTargetUnit"] = "M"  # these files carry their unit
+    if size is not None:  # replaces the sizes the file gives its points
+        options.update({"Mesh.MeshSizeFromPoints": 0.0, "Mesh.MeshSizeMax": float(size)})
+    with _gmsh_session(options) as gmsh:
         try:
-            if suffix in (".step", ".stp", ".iges", ".igs"):
-                gmsh.option.setString("Geometry.OCCTargetUnit", "M")
             gmsh.merge(str(path))
             if suffix != ".msh" and not _gmsh_volume_types(gmsh):
-                if size is not None:  # replaces the sizes the file gives its points
-                    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-                    gmsh.option.setNumber("Mesh.MeshSizeMax", float(size))
-                gmsh.option.setNumber("Mesh.ElementOrder", order)
                 gmsh.model.mesh.generate(3)
                 gmsh.model.mesh.setOrder(order)
             return _gmsh_arrays(gmsh, path)
@@ -255,7 +261,7 @@ def _gmsh_arrays(gmsh, path) -> _RawMesh:
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     node_tags = np.asarray(node_tags, dtype=np.int64)
     points = np.asarray(coords, dtype=float).reshape(-1, 3)
-    cells = _index_of(node_tags, np.asarray(cell_tags, dtype=np.int64)).reshape(-1, n_per)
+    cells = _index_of(node_tags, np.asarray(cell_tags, dtype=np.int64), path).reshape(-1, n_per)
     if n_per == 10:
         cells = cells[:, _GMSH_TET10_TO_CANONICAL]
     cell_ids = np.asarray(cell_ids, dtype=np.int64)
@@ -264,16 +270,13 @@ def _gmsh_arrays(gmsh, path) -> _RawMesh:
         name = gmsh.model.getPhysicalName(dim, tag) or f"group_{tag}"
         if dim < 3:
             tags, _ = gmsh.model.mesh.getNodesForPhysicalGroup(dim, tag)
-            node_sets[name] = np.unique(_index_of(node_tags, np.asarray(tags, dtype=np.int64)))
+            node_sets[name] = np.unique(_index_of(node_tags, np.asarray(tags, np.int64), path))
         else:
-            ids = [
-                np.asarray(gmsh.model.mesh.getElements(3, ent)[1][k], dtype=np.int64)
-                for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
-                for k, t in enumerate(gmsh.model.mesh.getElements(3, ent)[0])
-                if t == etype
-            ]
-            ids = np.concatenate(ids) if ids else np.zeros(0, np.int64)
-            cell_sets[name] = np.unique(_index_of(cell_ids, ids))
+            ids = [np.zeros(0, np.int64)]
+            for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+                types, tags, _ = gmsh.model.mesh.getElements(3, entity)
+                ids += [np.asarray(t, np.int64) for k, t in zip(types, tags) if k == etype]
+            cell_sets[name] = np.unique(_index_of(cell_ids, np.concatenate(ids), path))
     return _RawMesh(points, node_tags, cells, cell_ids, node_sets, cell_sets)
 
 
@@ -415,7 +418,7 @@ def _abaqus_ids(lines) -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 def _validated(raw: _RawMesh, path) -> FEMesh:
     """Run the checks on a raw mesh; raise ``InputError`` or repair and note."""
-    notes = list(raw.notes)
+    notes = []
     keep_nodes, cells = _drop_unreferenced(raw.points, raw.cells)
     n_dropped = len(raw.points) - len(keep_nodes)
     if n_dropped:
@@ -452,6 +455,11 @@ def _validated(raw: _RawMesh, path) -> FEMesh:
     for name, idx in raw.node_sets.items():
         mapped = node_map[idx]
         node_sets[name] = np.unique(mapped[mapped >= 0])
+        if (mapped < 0).any():
+            notes.append(
+                f"node set '{name}': {int((mapped < 0).sum())} of its {len(idx)} nodes are on no "
+                "tetrahedron and were left out"
+            )
     mesh = FEMesh(
         points=points,
         cells=cells,
@@ -461,7 +469,6 @@ def _validated(raw: _RawMesh, path) -> FEMesh:
         source=str(path),
         sha256=_file_sha256(path),
         notes=tuple(notes),
-        length_unit=raw.length_unit,
     )
     n_parts, _ = connected_parts(mesh)
     if n_parts > 1:

@@ -240,14 +240,16 @@ def test_disconnected_parts(tmp_path):
 def test_abaqus_numbers_and_sets_from_a_hand_written_deck(tmp_path):
     """File numbers (not 1..n) reach node_ids and the messages; a continued element line."""
     nodes = "\n".join(f"{100 + k}, {x}, {y}, {z}" for k, (x, y, z) in enumerate(_two_tets()[0], 1))
-    (tmp_path / "nodes.inp").write_text(f"*NODE\n{nodes}\n")
+    (tmp_path / "nodes.inp").write_text(f"*NODE\n{nodes}\n106, 9.0, 9.0, 9.0\n")  # 106: unused
     deck = tmp_path / "deck.inp"
     deck.write_text(
         "** two tets, element 9 in the other orientation\n*INCLUDE, INPUT=nodes.inp\n"
         "*ELEMENT, TYPE=C3D4, ELSET=ALL\n7, 101, 102, 103,\n 104\n9, 102, 103, 105, 104\n"
-        "*NSET, NSET=TIP\n105\n*ELSET, ELSET=SECOND\n9\n"
+        "*NSET, NSET=TIP\n105, 106\n*ELSET, ELSET=SECOND\n9\n"
     )
     mesh = read_mesh(deck)
+    assert any("1 nodes not used by any tetrahedron" in n for n in mesh.notes)
+    assert any("node set 'TIP': 1 of its 2 nodes are on no tetrahedron" in n for n in mesh.notes)
     assert np.array_equal(mesh.node_ids, [101, 102, 103, 104, 105])
     assert np.array_equal(mesh.node_sets["TIP"], [4])
     assert np.array_equal(mesh.cell_sets["SECOND"], [1])
@@ -288,3 +290,31 @@ def test_step_and_brep_are_meshed_in_metres(tmp_path):
     assert np.allclose(step.points.max(axis=0), [0.01, 0.02, 0.03])
     assert np.isclose(cell_volumes(step.points, step.cells).sum(), 6e-6, rtol=GEOMETRY_RTOL)
     assert brep.order == 2 and np.allclose(brep.points.max(axis=0), [10, 20, 30])
+
+
+def test_caller_gmsh_session_is_left_as_it_was(tmp_path):
+    import gmsh
+
+    path = _gmsh_cube(tmp_path / "c.msh")
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("Mesh.ElementOrder", 3)
+        gmsh.model.add("mine")
+        gmsh.model.occ.addSphere(0, 0, 0, 1)
+        gmsh.model.occ.synchronize()
+        assert read_mesh(path).order == 2
+        assert gmsh.model.getCurrent() == "mine" and gmsh.model.getEntities(3) == [(3, 1)]
+        assert gmsh.option.getNumber("Mesh.ElementOrder") == 3
+    finally:
+        gmsh.finalize()
+
+
+def test_undefined_node(tmp_path):
+    path = tmp_path / "undefined.msh"
+    path.write_text(
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n$EndNodes\n"
+        "$Elements\n1\n1 4 2 0 1 1 2 3 99\n$EndElements\n"
+    )
+    with pytest.raises(InputError, match="undefined.msh"):
+        read_mesh(path)
