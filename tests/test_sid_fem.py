@@ -116,6 +116,7 @@ def test_computed_sid_round_trip_to_12_digits(tmp_path, layout):
     assert "Geo_Stiff= yes" in text.splitlines()[0]
     assert re.search(r"m0\( 1, 1\) += ?-?\d\.\d{11}D[-+]\d\d", text)
     again = read_sid_fem(path)
+    assert again.metadata["geo_stiff"] and not real("balken1m").metadata["geo_stiff"]
     assert max_relative_difference(sid, again) <= DIGITS_12
     assert again.metadata["sid_fem_dialect"]["Gr_layout"] == layout
     assert again.metadata["sid_fem_dialect"]["Ge_layout"] == layout
