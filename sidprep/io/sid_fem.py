@@ -37,6 +37,7 @@ _COUNTS = re.compile(r"^\s*(\d+)\s+(\d+)\s*(?::No\. nodes, No\. modes:)?(.*)$")
 _INDEXED = re.compile(r"^(m[01n]|ielastq)\s*\(\s*(\d+)\s*(?:,\s*(\d+)\s*)?(?:,\s*(\d+)\s*)?\)$")
 _FREQ = re.compile(r":\s*([-+]?\d+(?:\.\d*)?(?:[eEdD][-+]?\d+)?)\s*Hz")
 _LAYOUT_HINT = re.compile(r"Gr/Ge\s+(a-block|k-block)")
+_GEO_STIFF = re.compile(r"Geo_Stiff\s*=\s*yes", re.IGNORECASE)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -111,7 +112,9 @@ def format_sid_fem(sid: SID, layout: str = "a-block", comment: str = "") -> str:
         raise InputError(f"SID_FEM layout {layout!r} is unknown; use one of {', '.join(LAYOUTS)}")
     nq = sid.nq
     geo = any(key.startswith("K0") for key in sid.stiffening)
-    text = (f"sidprep SID, units {sid.units} (kg, m, s, N, rad), Gr/Ge {layout}"
+    units = f"{sid.units} (kg, m, s, N, rad)" if sid.units == "SI" else sid.units
+    comment = " ".join(comment.split())                         # line 1 must stay one line
+    text = (f"sidprep SID, units {units}, Gr/Ge {layout}"
             f"{'. ' + comment if comment else ''}{' Geo_Stiff= yes' if geo else ''}")
     lines = [f"{len(sid.nodes):5d}{nq:5d}    :No. nodes, No. modes:{text}", " part",
              _assign(6, "new modal", ""), " " * 11 + "refmod",
@@ -479,7 +482,7 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         "source": str(path),
         "format": "SID_FEM",
         "header_comment": raw["comment"],
-        "geo_stiff": "Geo_Stiff= yes" in raw["comment"].replace("Geo_Stiff=yes", "Geo_Stiff= yes"),
+        "geo_stiff": bool(_GEO_STIFF.search(raw["comment"])),
         "units_note": "SID_FEM carries no units; SI assumed",
         "sid_fem_dialect": {
             "name": _dialect(m1_order, j_form, gr_layout, ge_layout) + (
