@@ -1,0 +1,75 @@
+"""``sidprep reduce`` end to end: defaults on the piston rod, job files, one-line errors."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli.main import main
+from sidprep.io.sid_fem import read_sid_fem
+from sidprep.io.sid_hdf5 import read_sid_hdf5
+
+MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
+
+
+def test_defaults_on_the_piston_rod_write_three_files_and_pass_the_checks(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["reduce", str(MESHES / "piston_rod.msh"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    files = {k: Path(v) for k, v in summary["files"].items()}
+    assert sorted(p.name for p in files.values()) == ["piston_rod.SID_FEM", "piston_rod.obj", "piston_rod.sid.h5"]
+    assert all((tmp_path / p).is_file() for p in files.values())
+    checks = summary["checks"]
+    assert checks["passed"] and checks["zero_energy_modes"] == 6
+    assert checks["eigen_frequency_max_rel_error"] < 1e-3
+    sid = read_sid_hdf5(tmp_path / files["hdf5"])
+    assert [n.name for n in sid.nodes] == ["big_end", "small_end"]
+    assert sid.mode_kinds[:6] == ("eigen",) * 6 and "frm" in sid.mode_kinds
+    assert sid.labels[0].startswith("Eigen Mode    7 :")
+    np.testing.assert_allclose(sid.Me.M0, np.eye(sid.nq), atol=1e-9)
+    np.testing.assert_allclose(sid.Ct.M0, 0, atol=1e-9 * sid.mass)       # free frame: mean axes
+    assert sid.surface is not None and sid.surface.shapes.shape[2] == sid.nq
+    ascii_sid = read_sid_fem(tmp_path / files["sid_fem"])
+    np.testing.assert_allclose(ascii_sid.Ke.M0, sid.Ke.M0, rtol=1e-10)
+    assert (tmp_path / files["obj"]).read_text().count("\nf ") == len(sid.surface.triangles)
+
+
+def test_job_file_with_rbe3_attached_frame_and_stiffening(tmp_path, capsys):
+    job = tmp_path / "bar.toml"
+    job.write_text(f'mesh = "{MESHES / "bar.msh"}"\ninterfaces = ["fixed_end:rbe2", "free_end:rbe3"]\n'
+                   'frame = "fixed_end"\nfmax = 300.0\nstiffening = true\nobj = false\n'
+                   f'output = "{tmp_path / "out" / "bar.sid.h5"}"\ndamping = [0.01, 0.02, 0.03]\n')
+    assert main(["reduce", str(job), "--quiet", "--no-frm", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert set(summary["files"]) == {"hdf5", "sid_fem"}
+    sid = read_sid_hdf5(tmp_path / "out" / "bar.sid.h5")
+    np.testing.assert_allclose(sid.frequencies_hz[:3], [41.93, 66.77, 259.97], rtol=2e-3)
+    assert "K0F/1" in sid.stiffening and sid.Ct.M1 is not None
+    np.testing.assert_allclose(sid.nodes[0].phi.M0, 0, atol=1e-15)         # the frame master is held
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--frame", "nowhere"], "--frame nowhere: no such interface; valid: free, fixed_end, free_end"),
+    (["--interface", "free_end:rbe9"], "expected NAME[:rbe2|rbe3]"),
+    (["--interface", "tip"], "valid: fixed_end, free_end"),
+    (["--modes", "0"], "--modes 0: must be >= 1"),
+    (["--material", "cheese"], "unknown material"),
+    (["--cutoff-factor", "0.5"], "must be >= 1"),
+])
+def test_bad_options_give_one_line_errors(tmp_path, monkeypatch, capsys, argv, message):
+    monkeypatch.chdir(tmp_path)
+    assert main(["reduce", str(MESHES / "bar.msh"), "-q"] + argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("sidprep: error:") and message in err and "\n" not in err
+    assert not list(tmp_path.iterdir())                                     # nothing written
+
+
+def test_bad_job_files(tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text('mesh = "bar.msh"\nmodez = 3\n')
+    assert main(["reduce", str(job)]) == 2
+    assert "unknown key(s) modez; valid:" in capsys.readouterr().err
+    job.write_text('frame = "free"\n')
+    assert main(["reduce", str(job)]) == 2
+    assert "needs mesh" in capsys.readouterr().err
