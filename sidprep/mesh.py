@@ -135,6 +135,17 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
         dropped.  Repairs (negative-volume cells re-ordered, duplicate nodes merged, unreferenced
         nodes dropped) and disconnected parts are listed in ``notes``.
 
+    Notes
+    -----
+    Orientation: a tetrahedron whose corner nodes span a negative volume is a valid element
+    written in the other orientation convention (MED / Salome and some exporters use it), so its
+    node order is reversed (vertices 1 and 2 swapped with their edge nodes) and the count and
+    worst element are noted; FE codes that reject such elements leave the user re-exporting for
+    no gain.  What cannot be repaired is rejected: flat elements (|V| / l_rms^3 below
+    ``FLAT_ELEMENT_TOL``) and overlapping ones (element volumes that do not add up to the volume
+    the boundary encloses, ``ENCLOSED_VOLUME_RTOL``).  Node and element numbers in messages and
+    ``node_ids`` are the file's (gmsh, Abaqus, Nastran); other formats number from 1.
+
     Raises
     ------
     InputError

@@ -84,15 +84,26 @@ def test_meshio_formats_keep_tet10_node_order(tmp_path, cube, suffix):
 
 
 def test_abaqus_sets_by_name(tmp_path, cube):
+    """*NSET -> node set, *ELSET of tets -> cell set, *ELSET of surface elements -> node set;
+    the surface elements themselves are dropped."""
     path = tmp_path / "cube.inp"
     x0 = cube.node_sets["x0"]
     half = np.arange(len(cube.cells) // 2)
+    faces = boundary_faces(cube)
+    on_x0 = faces[np.isin(faces, x0).all(axis=1)]
     meshio.write_points_cells(
-        path, cube.points, [("tetra10", cube.cells)], point_sets={"X0": x0}, cell_sets={"HALF": [half]}
+        path,
+        cube.points,
+        [("tetra10", cube.cells), ("triangle", on_x0)],
+        point_sets={"X0": x0},
+        cell_sets={"HALF": [half, []], "X0_FACES": [[], np.arange(len(on_x0))]},
     )
     mesh = read_mesh(path)
     assert np.array_equal(mesh.node_sets["X0"], x0)
     assert np.array_equal(mesh.cell_sets["HALF"], half)
+    corners_on_x0 = np.intersect1d(x0, np.unique(cube.cells[:, :4]))
+    assert np.array_equal(mesh.node_sets["X0_FACES"], corners_on_x0)
+    assert mesh.cells.shape == cube.cells.shape
 
 
 def test_wrong_tet10_order_is_detected(tmp_path, cube):
@@ -110,6 +121,7 @@ def test_tet4_and_geo_file(tmp_path):
     geo.write_text(
         'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 2, 1, 1};\n'
         'Physical Surface("bottom") = {5};\nPhysical Volume("body") = {1};\n'
+        'Physical Curve("edge") = {1};\nPhysical Point("corner") = {1};\n'
     )
     coarse, fine = read_mesh(geo, size=0.5, order=2), read_mesh(geo, size=0.25, order=1)
     assert coarse.order == 2 and fine.order == 1 and len(fine.cells) > len(coarse.cells)
@@ -117,6 +129,9 @@ def test_tet4_and_geo_file(tmp_path):
     assert np.isclose(cell_volumes(fine.points, fine.cells).sum(), 2.0, rtol=GEOMETRY_RTOL)
     assert np.allclose(coarse.points[coarse.node_sets["bottom"], 2], 0.0)
     assert len(coarse.cell_sets["body"]) == len(coarse.cells)
+    assert np.array_equal(coarse.points[coarse.node_sets["corner"]], [[0, 0, 1]])  # OCC point 1
+    edge = coarse.points[coarse.node_sets["edge"]]  # OCC box curve 1: x = y = 0, z in [0, 1]
+    assert len(edge) == 5 and np.allclose(edge[:, :2], 0) and np.ptp(edge[:, 2]) == 1
 
 
 def test_boundary_faces_are_outward_and_closed(cube):
@@ -209,6 +224,19 @@ def test_tangled_elements(tmp_path):
     p[4] = [0.1, 0.1, 0.1]
     with pytest.raises(InputError, match="overlapping or inverted"):
         read_mesh(_write(tmp_path / "tangled.msh", p, c))
+
+
+def test_other_volume_elements_and_mixed_orders(tmp_path):
+    p, c = _two_tets()
+    hexa = np.arange(8)[None]
+    path = tmp_path / "hex.vtu"
+    meshio.write_points_cells(path, np.vstack([p, np.ones((3, 3))]), [("tetra", c), ("hexahedron", hexa)])
+    with pytest.raises(InputError, match="other than tetrahedra \\(hexahedron\\)"):
+        read_mesh(path)
+    p10 = np.vstack([p, np.zeros((10, 3))])
+    meshio.write_points_cells(path, p10, [("tetra", c), ("tetra10", np.arange(5, 15)[None])])
+    with pytest.raises(InputError, match="mixes tet4 and tet10"):
+        read_mesh(path)
 
 
 def test_no_tetrahedra(tmp_path):
