@@ -66,14 +66,14 @@ def deformed_points(surface: Surface, r: np.ndarray, A: np.ndarray, q: np.ndarra
     return r + surface.points @ A.T + u, u
 
 
-def frame_mesh(results, surfaces: dict[str, Surface], i: int):
+def frame_mesh(result, surfaces: dict[str, Surface], i: int):
     """meshio.Mesh of all bodies at output index ``i``."""
     import meshio
 
     points, disp, cells, body_ids = [], [], [], []
     offset = 0
     for k, (name, surf) in enumerate(surfaces.items()):
-        b = results.bodies[name]
+        b = result.bodies[name]
         x, u = deformed_points(surf, b.position[i], b.rotation[i], b.q[i])
         points.append(x)
         disp.append(u)
@@ -87,7 +87,7 @@ def frame_mesh(results, surfaces: dict[str, Surface], i: int):
                        cell_data={"body": body_ids})
 
 
-def write_animation(results, surfaces: dict[str, Surface], pvd_path: str | os.PathLike) -> Path:
+def write_animation(result, surfaces: dict[str, Surface], pvd_path: str | os.PathLike) -> Path:
     """Write ``<stem>.pvd`` and ``<stem>_vtu/<stem>_NNNNN.vtu`` (one per output time); returns the .pvd path."""
     import meshio
 
@@ -98,10 +98,10 @@ def write_animation(results, surfaces: dict[str, Surface], pvd_path: str | os.Pa
     folder = pvd_path.with_name(pvd_path.stem + "_vtu")
     folder.mkdir(parents=True, exist_ok=True)
     entries = []
-    for i, t in enumerate(results.time):
+    for i, t in enumerate(result.t):
         vtu = folder / f"{pvd_path.stem}_{i:05d}.vtu"
         with atomic_path(vtu) as tmp:
-            meshio.write(tmp, frame_mesh(results, surfaces, i), file_format="vtu")
+            meshio.write(tmp, frame_mesh(result, surfaces, i), file_format="vtu")
         rel = vtu.relative_to(pvd_path.parent).as_posix()
         entries.append(f'    <DataSet timestep="{float(t)!r}" group="" part="0" file={quoteattr(rel)}/>')
     text = "\n".join(['<?xml version="1.0"?>',

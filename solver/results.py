@@ -1,25 +1,29 @@
-"""Results of a simulation: the data model, the HDF5 file, CSV export and PNG plots.
+"""Results files of a simulation (HDF5), their reader, CSV export and PNG plots of signals.
 
-HDF5 layout (every dataset SI, its unit in the attribute ``units``)::
+The data are the solver's ``solver.system.Result``.  HDF5 layout (SI; each dataset carries
+its unit in the attribute ``units``)::
 
-    /                      attrs: format="sidprep-results", format_version, units="SI", created_utc,
-                                  sidprep_version
-    /time                  (nt,)            s
-    /bodies/<name>/        attrs: kind ("flexible" | "rigid"), source (SID / OBJ path or "")
-        position           (nt, 3)          m      r_O, inertial components
-        rotation           (nt, 3, 3)       1      A (body -> inertial components)
-        velocity           (nt, 3)          m/s    inertial velocity of O, inertial components
-        angular_velocity   (nt, 3)          rad/s  omega, body-frame (K) components
-        q, qd              (nt, nq)         1, 1/s modal coordinates and their rates
-    /markers/<name>/position  (nt, 3)       m      marker point, inertial components
-    /joints/<name>/force   (nt, 3)          N      reaction force on the first body of the joint
-    /joints/<name>/torque  (nt, 3)          N m    reaction torque on the first body (inertial)
-    /energy/<kind>         (nt,)            J      kinetic, potential, elastic, total, ...
-    /effects, /stats       attrs: ``json`` (the effects report; solver statistics)
+    /                      attrs: format="sidprep-results", format_version, units="SI",
+                                  created_utc, sidprep_version
+    /time                  (nt,)           s
+    /bodies/<name>/        attrs: kind ("flexible" | "rigid"), source (SID / OBJ path)
+        position           (nt, 3)         m      r_O, inertial components
+        rotation           (nt, 3, 3)      1      A (body -> inertial components)
+        velocity           (nt, 3)         m/s    v_O, inertial components
+        omega              (nt, 3)         rad/s  body-frame (K) components
+        q, qd              (nt, nq)        1, 1/s modal coordinates and rates
+        acceleration       (nt, 6 + nq)           [dv_O/dt, omega_dot, q_ddot]
+    /markers/<name>/position (nt, 3)       m      inertial
+    /joints/<name>/        attrs: kind; force, torque (nt, 3) reaction on body 2, inertial;
+                           force_local, torque_local (marker-1 components); coordinate, rate,
+                           effort (nt,) joint angle/slide, its rate, driver effort
+    /energy/<kind>         (nt,)           J      kinetic, strain, gravity, ..., total
+    /constraint_error      (nt,)                  max |g|
+    /effects               attrs: json (EffectsReport.as_dict()), text (the printed report)
+    /stats                 attrs: json (solver statistics)
     /scene                 attrs: path, sha256, text (the scene file as read)
 
-The signal names used by plots and CSV are ``<body>.position.x``, ``<body>.q.3`` (1-based mode),
-``<marker>.position.z``, ``<joint>.force.y``, ``energy.total`` ... (see ``signal_names``).
+Signal names for plots and CSV: see ``signal_names``.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from __future__ import annotations
 import csv
 import datetime
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,73 +41,50 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.io.atomic import atomic_path
+from solver.effects import EffectEntry, EffectsReport
+from solver.system import BodyHistory, JointHistory, Result
 
 FORMAT = "sidprep-results"
 FORMAT_VERSION = 1
 
-#: unit and component names of each per-entity quantity
-VECTOR_QUANTITIES = {
-    "position": "m",
-    "velocity": "m/s",
-    "angular_velocity": "rad/s",
-    "force": "N",
-    "torque": "N m",
-}
-MODAL_QUANTITIES = {"q": "1", "qd": "1/s"}
 XYZ = ("x", "y", "z")
+#: per-body signals: Result.bodies[name].<attr> -> unit (vectors have components x, y, z)
+BODY_VECTORS = {"position": "m", "velocity": "m/s", "omega": "rad/s"}
+BODY_MODAL = {"q": "1", "qd": "1/s"}
+#: per-joint signals: vectors (x, y, z) and scalars
+JOINT_VECTORS = {"force": "N", "torque": "N m", "force_local": "N", "torque_local": "N m"}
+JOINT_SCALARS = {"coordinate": "rad|m", "rate": "rad/s|m/s", "effort": "N m|N"}
+_BODY_ARRAYS = ("position", "rotation", "velocity", "omega", "q", "qd", "acceleration")
+_BODY_UNITS = {"position": "m", "rotation": "1", "velocity": "m/s", "omega": "rad/s", "q": "1", "qd": "1/s",
+               "acceleration": "m/s^2, rad/s^2, 1/s^2"}
+_JOINT_UNITS = {**JOINT_VECTORS, **JOINT_SCALARS}
 
 
 @dataclass(frozen=True)
-class BodyTrack:
-    """Time history of one body at the output times (nt of them).
+class ResultsFile:
+    """A results file read back: the solver ``Result`` plus where it came from.
 
-    position (nt, 3) m; rotation (nt, 3, 3); velocity (nt, 3) m/s inertial; angular_velocity
-    (nt, 3) rad/s in K; q, qd (nt, nq) (nq = 0 for a rigid body); kind "flexible" | "rigid";
-    source: the SID or OBJ file the body came from ("" if none).
+    scene : {"path", "sha256", "text"} of the scene file; bodies : {name: {"kind": "flexible" |
+    "rigid", "source": SID or OBJ path}}.
     """
 
-    kind: str
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    source: str = ""
-
-
-@dataclass(frozen=True)
-class Results:
-    """Everything a run produced.
-
-    time (nt,) s; bodies {name: BodyTrack}; markers {name: (nt, 3) m};
-    joints {name: {"force": (nt, 3) N, "torque": (nt, 3) N m}}; energy {kind: (nt,) J};
-    effects {"included": [...], "left_out": [...], "warnings": [...]}; stats (JSON-able dict:
-    steps, cpu_s, integrator, ...); scene {"path", "sha256", "text"}.
-    """
-
-    time: np.ndarray
-    bodies: Mapping[str, BodyTrack]
-    markers: Mapping[str, np.ndarray] = field(default_factory=dict)
-    joints: Mapping[str, Mapping[str, np.ndarray]] = field(default_factory=dict)
-    energy: Mapping[str, np.ndarray] = field(default_factory=dict)
-    effects: Mapping[str, list] = field(default_factory=dict)
-    stats: Mapping[str, object] = field(default_factory=dict)
+    result: Result
     scene: Mapping[str, str] = field(default_factory=dict)
+    bodies: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------------------------------
 # energy summary
 
 
-def energy_summary(results: Results) -> dict:
+def energy_summary(result: Result) -> dict:
     """Initial and final total energy (J) and the largest drift of it, relative to the energy scale.
 
     The scale is max(|E_total(0)|, max_t E_kinetic), so that a body released from rest with
     E_total(0) = 0 still gets a meaningful relative drift.
     """
-    total = np.asarray(results.energy["total"])
-    scale = max(abs(total[0]), float(np.max(results.energy.get("kinetic", 0.0))), 1e-300)
+    total = np.asarray(result.energy["total"])
+    scale = max(abs(total[0]), float(np.max(result.energy.get("kinetic", 0.0))), 1e-300)
     return {
         "initial": float(total[0]),
         "final": float(total[-1]),
@@ -114,52 +96,67 @@ def energy_summary(results: Results) -> dict:
 # signals
 
 
-def signal_names(results: Results) -> list[str]:
-    """Every plottable signal name of ``results`` (see the module docstring)."""
+def signal_names(result: Result) -> list[str]:
+    """Every plottable signal name of ``result``: ``<body>.position.x``, ``<body>.q.3`` (1-based
+    mode), ``<marker>.position.z``, ``<joint>.force.y``, ``<joint>.coordinate``, ``energy.total``."""
     names = []
-    for name, b in results.bodies.items():
-        for qty in ("position", "velocity", "angular_velocity"):
-            names += [f"{name}.{qty}.{c}" for c in XYZ]
-        for qty in MODAL_QUANTITIES:
-            names += [f"{name}.{qty}.{k + 1}" for k in range(b.q.shape[1])]
-    for name in results.markers:
-        names += [f"{name}.position.{c}" for c in XYZ]
-    for name, j in results.joints.items():
-        for qty in j:
-            names += [f"{name}.{qty}.{c}" for c in XYZ]
-    names += [f"energy.{kind}" for kind in results.energy]
+    for name, b in result.bodies.items():
+        names += [f"{name}.{qty}.{c}" for qty in BODY_VECTORS for c in XYZ]
+        names += [f"{name}.{qty}.{k + 1}" for qty in BODY_MODAL for k in range(b.q.shape[1])]
+    names += [f"{name}.position.{c}" for name in result.markers for c in XYZ]
+    for name in result.joints:
+        names += [f"{name}.{qty}.{c}" for qty in JOINT_VECTORS for c in XYZ]
+        names += [f"{name}.{qty}" for qty in JOINT_SCALARS]
+    names += [f"energy.{kind}" for kind in result.energy]
     return names
 
 
-def signal(results: Results, name: str) -> tuple[np.ndarray, str]:
-    """Values (nt,) and unit of the signal ``name``; InputError naming the valid choices if unknown."""
-    parts = name.split(".")
+def _lookup(result: Result, parts: list[str]) -> tuple[np.ndarray, str]:
+    """Signal values and unit from the split name; KeyError / ValueError / IndexError if unknown."""
+    if parts[0] == "energy" and len(parts) == 2:
+        return np.asarray(result.energy[parts[1]]), "J"
+    entity, qty, *comp = parts
+    if entity in result.bodies and len(comp) == 1:
+        b = result.bodies[entity]
+        if qty in BODY_MODAL and int(comp[0]) >= 1:
+            return getattr(b, qty)[:, int(comp[0]) - 1], BODY_MODAL[qty]
+        return getattr(b, qty)[:, XYZ.index(comp[0])], BODY_VECTORS[qty]
+    if entity in result.markers and qty == "position" and len(comp) == 1:
+        return result.markers[entity][:, XYZ.index(comp[0])], "m"
+    if entity in result.joints:
+        j = result.joints[entity]
+        if qty in JOINT_SCALARS and not comp:
+            return getattr(j, qty), JOINT_SCALARS[qty]
+        if qty in JOINT_VECTORS and len(comp) == 1:
+            return getattr(j, qty)[:, XYZ.index(comp[0])], JOINT_VECTORS[qty]
+    raise KeyError(".".join(parts))
+
+
+def signal(result: Result, name: str) -> tuple[np.ndarray, str]:
+    """Values (nt,) and unit of the signal ``name``; InputError naming valid choices if unknown."""
     try:
-        if parts[0] == "energy" and len(parts) == 2:
-            return np.asarray(results.energy[parts[1]]), "J"
-        entity, qty, comp = parts
-        if entity in results.bodies:
-            b = results.bodies[entity]
-            if qty in MODAL_QUANTITIES:
-                k = int(comp) - 1
-                if not 0 <= k < b.q.shape[1]:
-                    raise KeyError(name)
-                return getattr(b, qty)[:, k], MODAL_QUANTITIES[qty]
-            if qty in ("position", "velocity", "angular_velocity"):
-                return getattr(b, qty)[:, XYZ.index(comp)], VECTOR_QUANTITIES[qty]
-        if entity in results.markers and qty == "position":
-            return results.markers[entity][:, XYZ.index(comp)], "m"
-        if entity in results.joints and qty in results.joints[entity]:
-            return results.joints[entity][qty][:, XYZ.index(comp)], VECTOR_QUANTITIES[qty]
-    except (KeyError, ValueError):
-        pass
-    examples = ", ".join(signal_names(results)[:6])
-    raise InputError(f"unknown signal {name!r}; use <body|marker|joint>.<quantity>.<x|y|z|mode number> "
-                     f"or energy.<kind>, e.g. {examples}")
+        return _lookup(result, name.split("."))
+    except (KeyError, ValueError, IndexError, AttributeError):
+        examples = ", ".join(signal_names(result)[:4])
+        raise InputError(f"unknown signal {name!r}; use <body|marker|joint>.<quantity>[.<x|y|z|mode number>] "
+                         f"or energy.<kind>, e.g. {examples}") from None
 
 
 # ---------------------------------------------------------------------------------------------
 # HDF5
+
+
+def json_safe(value):
+    """Strict JSON: numpy scalars -> Python numbers, NaN / infinity -> null."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def _put(group, name: str, data, units: str) -> None:
@@ -167,42 +164,58 @@ def _put(group, name: str, data, units: str) -> None:
     group[name].attrs["units"] = units
 
 
-def write_results(results: Results, path: str | os.PathLike) -> Path:
-    """Write ``results`` to the HDF5 file ``path`` atomically; returns the path."""
+def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str, str] | None = None,
+                  bodies: Mapping[str, Mapping[str, str]] | None = None) -> Path:
+    """Write ``result`` (solver.system.Result) to the HDF5 file ``path`` atomically.
+
+    scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
+    """
     import h5py
 
     from sidprep import __version__
 
     path = Path(path)
+    bodies = bodies or {}
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, units="SI", sidprep_version=__version__,
                        created_utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
-        _put(f, "time", results.time, "s")
-        for name, b in results.bodies.items():
+        _put(f, "time", result.t, "s")
+        for name, b in result.bodies.items():
             g = f.create_group(f"bodies/{name}")
-            g.attrs.update(kind=b.kind, source=b.source)
-            for qty, unit in (("position", "m"), ("rotation", "1"), ("velocity", "m/s"),
-                              ("angular_velocity", "rad/s"), ("q", "1"), ("qd", "1/s")):
-                _put(g, qty, getattr(b, qty), unit)
-            g["angular_velocity"].attrs["frame"] = "body (K components)"
-        for name, pos in results.markers.items():
+            g.attrs.update({"kind": "", "source": "", **bodies.get(name, {})})
+            for qty in _BODY_ARRAYS:
+                _put(g, qty, getattr(b, qty), _BODY_UNITS[qty])
+            g["omega"].attrs["frame"] = "body (K components)"
+        for name, pos in result.markers.items():
             _put(f.create_group(f"markers/{name}"), "position", pos, "m")
-        for name, reaction in results.joints.items():
+        for name, j in result.joints.items():
             g = f.create_group(f"joints/{name}")
-            for qty, values in reaction.items():
-                _put(g, qty, values, VECTOR_QUANTITIES[qty])
+            g.attrs["kind"] = j.kind
+            for qty, unit in _JOINT_UNITS.items():
+                _put(g, qty, getattr(j, qty), unit)
         g = f.create_group("energy")
-        for kind, values in results.energy.items():
+        for kind, values in result.energy.items():
             _put(g, kind, values, "J")
-        f.create_group("effects").attrs["json"] = json.dumps(results.effects)
-        f.create_group("stats").attrs["json"] = json.dumps(results.stats)
+        _put(f, "constraint_error", result.constraint_error, "m|rad")
+        g = f.create_group("effects")
+        g.attrs.update(json=json.dumps(json_safe(result.effects.as_dict())), text=result.effects.text())
+        f.create_group("stats").attrs["json"] = json.dumps(json_safe(result.stats))
         g = f.create_group("scene")
-        for key, value in results.scene.items():
+        for key, value in (scene or {}).items():
             g.attrs[key] = str(value)
     return path
 
 
-def read_results(path: str | os.PathLike) -> Results:
+def _effects_from_dict(d: Mapping) -> EffectsReport:
+    nan = float("nan")
+    return EffectsReport(
+        bodies={b: tuple(EffectEntry(e["effect"], e["included"], e["available"], e["reason"],
+                                     nan if e["estimate"] is None else e["estimate"], e["measure"])
+                         for e in entries) for b, entries in d["bodies"].items()},
+        notes=tuple(d["notes"]))
+
+
+def read_results(path: str | os.PathLike) -> ResultsFile:
     """Read a results file written by ``write_results``."""
     import h5py
 
@@ -213,41 +226,39 @@ def read_results(path: str | os.PathLike) -> Results:
         if f.attrs.get("format") != FORMAT:
             raise InputError(f"{path}: not a sidprep results file (no format={FORMAT!r} attribute); "
                              "pass the file written by `sidprep simulate`")
-        bodies = {
-            name: BodyTrack(kind=str(g.attrs["kind"]), source=str(g.attrs["source"]),
-                            **{qty: g[qty][()] for qty in ("position", "rotation", "velocity",
-                                                           "angular_velocity", "q", "qd")})
-            for name, g in f.get("bodies", {}).items()
-        }
-        return Results(
-            time=f["time"][()],
-            bodies=bodies,
+        bodies = {name: BodyHistory(name, **{qty: g[qty][()] for qty in _BODY_ARRAYS})
+                  for name, g in f.get("bodies", {}).items()}
+        joints = {name: JointHistory(name, str(g.attrs["kind"]), **{qty: g[qty][()] for qty in _JOINT_UNITS})
+                  for name, g in f.get("joints", {}).items()}
+        result = Result(
+            t=f["time"][()], bodies=bodies, joints=joints,
             markers={name: g["position"][()] for name, g in f.get("markers", {}).items()},
-            joints={name: {qty: g[qty][()] for qty in g} for name, g in f.get("joints", {}).items()},
             energy={kind: d[()] for kind, d in f["energy"].items()},
-            effects=json.loads(f["effects"].attrs["json"]),
-            stats=json.loads(f["stats"].attrs["json"]),
-            scene={key: str(v) for key, v in f["scene"].attrs.items()},
-        )
+            constraint_error=f["constraint_error"][()],
+            effects=_effects_from_dict(json.loads(f["effects"].attrs["json"])),
+            stats=json.loads(f["stats"].attrs["json"]))
+        return ResultsFile(result, scene={key: str(v) for key, v in f["scene"].attrs.items()},
+                           bodies={name: {"kind": str(g.attrs["kind"]), "source": str(g.attrs["source"])}
+                                   for name, g in f.get("bodies", {}).items()})
 
 
 # ---------------------------------------------------------------------------------------------
 # CSV and plots
 
 
-def write_csv(results: Results, names: list[str], path: str | os.PathLike) -> Path:
+def write_csv(result: Result, names: list[str], path: str | os.PathLike) -> Path:
     """Write time and the chosen signals as CSV columns ``time [s], <name> [unit], ...``."""
-    columns = [signal(results, n) for n in names]
+    columns = [signal(result, n) for n in names]
     path = Path(path)
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["time [s]"] + [f"{n} [{unit}]" for n, (_, unit) in zip(names, columns)])
-        for i, t in enumerate(results.time):
+        for i, t in enumerate(result.t):
             w.writerow([repr(float(t))] + [repr(float(values[i])) for values, _ in columns])
     return path
 
 
-def plot_signals(results: Results, names: list[str], path: str | os.PathLike) -> Path:
+def plot_signals(result: Result, names: list[str], path: str | os.PathLike, title: str = "") -> Path:
     """One PNG with a panel per unit (signals sharing a unit share a panel), against time."""
     import matplotlib
 
@@ -256,18 +267,17 @@ def plot_signals(results: Results, names: list[str], path: str | os.PathLike) ->
 
     panels: dict[str, list[tuple[str, np.ndarray]]] = {}
     for n in names:
-        values, unit = signal(results, n)
+        values, unit = signal(result, n)
         panels.setdefault(unit, []).append((n, values))
     fig, axes = plt.subplots(len(panels), 1, sharex=True, squeeze=False,
                              figsize=(8.0, 2.6 * len(panels) + 0.6))
     for ax, (unit, curves) in zip(axes[:, 0], panels.items()):
         for n, values in curves:
-            ax.plot(results.time, values, label=n)
+            ax.plot(result.t, values, label=n)
         ax.set_ylabel(f"[{unit}]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
     axes[-1, 0].set_xlabel("time [s]")
-    title = Path(results.scene.get("path", "")).name
     if title:
         fig.suptitle(title)
     fig.tight_layout()

@@ -13,66 +13,81 @@ import pytest
 
 from sidprep.errors import InputError
 from solver.animation import Surface, obj_surface, write_animation
-from solver.results import (BodyTrack, Results, energy_summary, plot_signals, read_results, signal,
-                            signal_names, write_csv, write_results)
+from solver.effects import EffectEntry, EffectsReport
+from solver.results import energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
+from solver.system import BodyHistory, JointHistory, Result
 
 NT = 4
 ROT_Z90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
 
-def make_results():
+def make_result():
     t = np.linspace(0.0, 0.3, NT)
     rng = np.random.default_rng(1)
-    bar = BodyTrack("flexible", rng.normal(size=(NT, 3)), np.tile(ROT_Z90, (NT, 1, 1)), rng.normal(size=(NT, 3)),
-                    rng.normal(size=(NT, 3)), rng.normal(size=(NT, 2)), rng.normal(size=(NT, 2)), "bar.sid.h5")
-    box = BodyTrack("rigid", np.zeros((NT, 3)), np.tile(np.eye(3), (NT, 1, 1)), np.zeros((NT, 3)), np.zeros((NT, 3)),
-                    np.zeros((NT, 0)), np.zeros((NT, 0)), "box.obj")
+
+    def body(name, nq, rot):
+        return BodyHistory(name, rng.normal(size=(NT, 3)), np.tile(rot, (NT, 1, 1)), rng.normal(size=(NT, 3)),
+                           rng.normal(size=(NT, 3)), rng.normal(size=(NT, nq)), rng.normal(size=(NT, nq)),
+                           rng.normal(size=(NT, 6 + nq)))
+
+    hinge = JointHistory("hinge", "revolute", *(rng.normal(size=(NT, 3)) for _ in range(4)),
+                         *(rng.normal(size=NT) for _ in range(3)))
     kinetic = np.array([0.0, 1.0, 2.0, 3.0])
-    return Results(time=t, bodies={"bar": bar, "box": box}, markers={"tip": rng.normal(size=(NT, 3))},
-                   joints={"hinge": {"force": rng.normal(size=(NT, 3)), "torque": rng.normal(size=(NT, 3))}},
-                   energy={"kinetic": kinetic, "potential": -kinetic + 0.01 * t, "total": 0.01 * t},
-                   effects={"included": ["gravity"], "left_out": ["geometric stiffening"], "warnings": []},
-                   stats={"steps": 30, "cpu_s": 0.5}, scene={"path": "scene.toml", "sha256": "00", "text": "x = 1"})
+    effects = EffectsReport({"bar": (EffectEntry("gravity", True, True, "gravity is set"),
+                                     EffectEntry("coriolis", False, True, "named", 0.5, "max |Ge(w) qd| / max |Ke q|"))},
+                            notes=("a note",))
+    return Result(t=t, bodies={"bar": body("bar", 2, ROT_Z90), "box": body("box", 0, np.eye(3))},
+                  joints={"hinge": hinge}, markers={"tip": rng.normal(size=(NT, 3))},
+                  energy={"kinetic": kinetic, "gravity": -kinetic + 0.01 * t, "total": 0.01 * t},
+                  constraint_error=np.full(NT, 1e-12), effects=effects, stats={"steps": 30, "cpu_time": 0.5})
 
 
 def test_hdf5_round_trip_is_exact(tmp_path):
-    res = make_results()
-    back = read_results(write_results(res, tmp_path / "r.h5"))
-    assert np.array_equal(back.time, res.time)
+    res = make_result()
+    scene = {"path": "scene.toml", "sha256": "00", "text": "x = 1"}
+    kinds = {"bar": {"kind": "flexible", "source": "bar.sid.h5"}, "box": {"kind": "rigid", "source": "box.obj"}}
+    back = read_results(write_results(res, tmp_path / "r.h5", scene=scene, bodies=kinds))
+    r = back.result
+    assert np.array_equal(r.t, res.t) and np.array_equal(r.constraint_error, res.constraint_error)
     for name, b in res.bodies.items():
-        for qty in ("position", "rotation", "velocity", "angular_velocity", "q", "qd"):
-            assert np.array_equal(getattr(back.bodies[name], qty), getattr(b, qty))
-        assert back.bodies[name].kind == b.kind and back.bodies[name].source == b.source
-    assert np.array_equal(back.markers["tip"], res.markers["tip"])
-    assert np.array_equal(back.joints["hinge"]["torque"], res.joints["hinge"]["torque"])
-    assert back.effects == res.effects and back.stats == res.stats and back.scene == res.scene
+        for qty in ("position", "rotation", "velocity", "omega", "q", "qd", "acceleration"):
+            assert np.array_equal(getattr(r.bodies[name], qty), getattr(b, qty))
+    for qty in ("force", "torque", "force_local", "torque_local", "coordinate", "rate", "effort"):
+        assert np.array_equal(getattr(r.joints["hinge"], qty), getattr(res.joints["hinge"], qty))
+    assert np.array_equal(r.markers["tip"], res.markers["tip"])
+    assert r.effects.text() == res.effects.text() and r.effects.warnings == res.effects.warnings
+    assert r.stats == res.stats and back.scene == scene and back.bodies == kinds
     assert [p.name for p in tmp_path.iterdir()] == ["r.h5"]          # no temporary left behind
+    with pytest.raises(InputError, match="no such results file"):
+        read_results(tmp_path / "missing.h5")
 
 
 def test_energy_summary_scales_by_kinetic_energy_when_total_starts_at_zero():
-    s = energy_summary(make_results())
+    s = energy_summary(make_result())
     assert s["initial"] == 0.0 and s["final"] == pytest.approx(0.003)
     assert s["max_rel_drift"] == pytest.approx(0.003 / 3.0)
 
 
 def test_signals_csv_and_plot(tmp_path):
-    res = make_results()
+    res = make_result()
     assert "bar.q.2" in signal_names(res) and "box.q.1" not in signal_names(res)
+    assert all(signal(res, n)[0].shape == (NT,) for n in signal_names(res))
     values, unit = signal(res, "bar.q.2")
     assert unit == "1" and np.array_equal(values, res.bodies["bar"].q[:, 1])
-    names = ["tip.position.z", "hinge.force.y", "energy.total"]
+    names = ["tip.position.z", "hinge.force.y", "hinge.coordinate", "energy.total"]
     rows = list(csv.reader(open(write_csv(res, names, tmp_path / "s.csv"))))
-    assert rows[0] == ["time [s]", "tip.position.z [m]", "hinge.force.y [N]", "energy.total [J]"]
-    assert float(rows[2][1]) == res.markers["tip"][1, 2] and float(rows[3][2]) == res.joints["hinge"]["force"][2, 1]
-    png = plot_signals(res, names, tmp_path / "s.png")
+    assert rows[0] == ["time [s]", "tip.position.z [m]", "hinge.force.y [N]", "hinge.coordinate [rad|m]",
+                       "energy.total [J]"]
+    assert float(rows[2][1]) == res.markers["tip"][1, 2] and float(rows[3][2]) == res.joints["hinge"].force[2, 1]
+    png = plot_signals(res, names, tmp_path / "s.png", title="test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    for bad in ("bar.q.3", "bar.spin.x", "nobody.position.x", "energy"):
+    for bad in ("bar.q.3", "bar.q.0", "bar.spin.x", "nobody.position.x", "energy", "hinge.force"):
         with pytest.raises(InputError, match="unknown signal"):
             signal(res, bad)
 
 
 def test_animation_points_follow_rigid_motion_plus_modes(tmp_path):
-    res = make_results()
+    res = make_result()
     c = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     shapes = np.zeros((3, 3, 2))
     shapes[1, 2, 0] = 0.5        # mode 1 lifts point 1 in z
@@ -91,5 +106,6 @@ def test_animation_points_follow_rigid_motion_plus_modes(tmp_path):
     expected_bar = b.position[i] + local @ ROT_Z90.T
     assert np.allclose(mesh.points[:3], expected_bar, rtol=0, atol=1e-12)
     assert np.allclose(mesh.point_data["displacement"][:3], (local - c) @ ROT_Z90.T, atol=1e-12)
-    assert np.allclose(mesh.points[3:], [[0, 0, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)   # box at rest
+    box_points = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]])                          # A = E: shifted only
+    assert np.allclose(mesh.points[3:], res.bodies["box"].position[i] + box_points, atol=1e-12)
     assert np.concatenate(mesh.cell_data["body"]).tolist() == [0, 1]

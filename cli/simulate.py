@@ -1,0 +1,119 @@
+"""``sidprep simulate SCENE``: run a TOML scene (docs/scenes.md), write results, plots, animation."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+#: signals plotted / exported when the scene's [output] names none
+DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "simulate", help="simulate a scene of flexible (SID) and rigid bodies",
+        description="Simulate a TOML scene (docs/scenes.md): flexible bodies from SID files, rigid bodies, "
+                    "joints, drivers and forces. Writes an HDF5 results file; optionally a PNG plot and a CSV of "
+                    "the scene's [output] signals and a ParaView animation (.pvd + .vtu). Prints the effects "
+                    "report: which FFR terms were included, which were left out and how large they were.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
+    p.add_argument("-o", "--output", metavar="RESULTS.h5",
+                   help="results file (default ./<scene stem>.results.h5); plot, CSV and animation go beside it")
+    p.add_argument("--t-end", type=float, metavar="T", help="end time in s (overrides [solver] t_end)")
+    p.add_argument("--plot", action="store_true", help="write <results>.png of the [output] signals")
+    p.add_argument("--csv", action="store_true", help="write <results>.csv of the [output] signals")
+    p.add_argument("--animate", action="store_true", help="write <results>.pvd + <results>_vtu/ for ParaView")
+    p.add_argument("--json", action="store_true", help="print one JSON summary object on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=run)
+
+
+def effects_summary(report) -> dict:
+    """{"included": {body: [...]}, "left_out": {body: [...]}, "not_in_sid": {...}, "warnings": [...]}."""
+    out = {"included": {}, "left_out": {}, "not_in_sid": {}, "warnings": list(report.warnings)}
+    for body, entries in report.bodies.items():
+        out["included"][body] = [e.effect for e in entries if e.included]
+        out["left_out"][body] = [e.effect for e in entries if not e.included and e.available]
+        out["not_in_sid"][body] = [e.effect for e in entries if not e.available]
+    return out
+
+
+def summary(scene, result, outputs: dict) -> dict:
+    """The JSON summary of a run (see docs/scenes.md, "Output")."""
+    from solver.results import energy_summary
+
+    stats = result.stats
+    return {
+        "scene": str(scene.path),
+        "t_end": float(result.t[-1]),
+        "steps": int(stats.get("steps", 0)),
+        "cpu_s": float(stats.get("cpu_time", float("nan"))),
+        "energy": energy_summary(result),
+        "effects": effects_summary(result.effects),
+        "bodies": {name: {"position": b.position[-1].tolist(), "rotation": b.rotation[-1].tolist(),
+                          "q": b.q[-1].tolist()} for name, b in result.bodies.items()},
+        "max_constraint_error": float(result.constraint_error.max()) if len(result.constraint_error) else 0.0,
+        "stats": stats,
+        "outputs": outputs,
+    }
+
+
+def animation_surfaces(scene) -> dict:
+    """{body name: Surface} of every body that has a shape (flexible: SID surface; rigid: OBJ)."""
+    from solver.animation import obj_surface, sid_surface
+
+    surfaces = {}
+    for b in scene.system.bodies:
+        src = scene.sources[b.name]
+        if src["kind"] == "flexible":
+            surfaces[b.name] = sid_surface(b.sid)
+        elif src["source"]:
+            surfaces[b.name] = obj_surface(src["source"])
+    return surfaces
+
+
+def run(args) -> int:
+    from sidprep.progress import Phases
+    from solver.results import json_safe, plot_signals, write_csv, write_results
+    from solver.scene import load_scene, simulate
+
+    phases = Phases(verbose=not args.quiet)
+    with phases("scene", args.scene):
+        scene = load_scene(args.scene, t_end=args.t_end)
+    out = Path(args.output) if args.output else Path(Path(args.scene).stem + ".results.h5")
+    base = out.name.removesuffix(".h5").removesuffix(".results")
+
+    def beside(suffix: str) -> Path:
+        return out.with_name(base + suffix)
+
+    kw = scene.simulate_kwargs
+    with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
+        result = simulate(scene)
+    outputs = {}
+    with phases("write", str(out)):
+        outputs["results"] = str(write_results(result, out, scene=scene.provenance(), bodies=scene.sources))
+        signals = list(scene.output.signals or DEFAULT_SIGNALS)
+        if args.plot or scene.output.plot:
+            outputs["plot"] = str(plot_signals(result, signals, beside(".png"), title=scene.title))
+        if args.csv or scene.output.csv:
+            outputs["csv"] = str(write_csv(result, signals, beside(".csv")))
+    if args.animate or scene.output.animate:
+        from solver.animation import write_animation
+
+        with phases("animate", f"{len(result.t)} frames"):
+            outputs["animation"] = str(write_animation(result, animation_surfaces(scene), beside(".pvd")))
+    report = result.effects.text()
+    if args.json:
+        if not args.quiet:
+            print(report, file=sys.stderr)
+        print(json.dumps(json_safe(summary(scene, result, outputs))))
+    else:
+        s = summary(scene, result, outputs)
+        e = s["energy"]
+        print(report)
+        print(f"{scene.title}: {s['steps']} steps to t = {s['t_end']:g} s in {s['cpu_s']:.2f} s CPU; "
+              f"energy {e['initial']:.6g} -> {e['final']:.6g} J (max relative drift {e['max_rel_drift']:.2e})")
+        for kind, path in outputs.items():
+            print(f"  {kind}: {path}")
+    return 0

@@ -1,0 +1,580 @@
+"""Scene files (TOML) -> a ``solver.system.System`` plus solver and output settings.
+
+The format is documented with a complete example in ``docs/scenes.md``.  Tables::
+
+    [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names])
+    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol
+    [output]           rate (samples/s), signals, plot, csv, animate
+    [bodies.<name>]    type = "flexible" (sid, make, q0, qd0, effects) | "rigid" (mass, com,
+                       inertia, obj); position, rotation, velocity, omega
+    [markers.<name>]   body, position | node | node_index, rotation | z_axis
+    [joints.<name>]    type = spherical | revolute | cylindrical | prismatic | planar | fixed; markers
+    [drivers.<name>]   joint, motion = constant_speed | smooth_start | table
+    [forces.<name>]    type = point_force | point_torque | spring_damper | joint_force | joint_friction
+
+Every problem raises one ``InputError`` line: ``<scene file>: [<table>] <key>: <problem>; <fix>``.
+Paths (sid, obj) are relative to the scene file.  Units are SI.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sidprep.errors import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+_REQUIRED = object()
+#: names a user may not give to bodies / markers / joints (they name other things in signals)
+RESERVED_NAMES = ("ground", "energy")
+#: |z_axis| and orthonormality of rotation matrices are checked to this tolerance
+ROTATION_TOL = 1e-6
+METHODS = ("genalpha", "rk45", "dop853")
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """What ``sidprep simulate`` writes besides the results file.
+
+    rate : samples per second of the results (None: every step); signals : names plotted and
+    exported (solver/results.py); plot, csv, animate : write a PNG, a CSV, a ParaView series.
+    """
+
+    rate: float | None = None
+    signals: tuple[str, ...] = ()
+    plot: bool = False
+    csv: bool = False
+    animate: bool = False
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A parsed scene.
+
+    path : the scene file; text, sha256 : its content (provenance); title : [scene] title;
+    system : the built System; simulate_kwargs : keyword arguments of ``System.simulate``
+    (t_end, h, method, rho_inf, rtol, atol, output_dt, static_start, newton_tol);
+    output : OutputSettings; sources : {body name: {"kind", "source"}} (results provenance);
+    """
+
+    path: Path
+    text: str
+    sha256: str
+    title: str
+    system: object
+    simulate_kwargs: dict
+    output: OutputSettings
+    sources: dict = field(default_factory=dict)
+
+    @property
+    def t_end(self) -> float:
+        return self.simulate_kwargs["t_end"]
+
+    def provenance(self) -> dict:
+        return {"path": str(self.path), "sha256": self.sha256, "text": self.text}
+
+
+# ---------------------------------------------------------------------------------------------
+# typed access to one TOML table
+
+
+class _Table:
+    """One TOML table with typed getters; every error names the file, the table and the key."""
+
+    def __init__(self, file: Path, where: str, data):
+        self.file, self.where = file, where
+        if not isinstance(data, dict):
+            self.fail("", f"must be a table, got {type(data).__name__}", f"write it as [{where}] with key = value lines")
+        self.data = data
+        self.used: set[str] = set()
+
+    def fail(self, key: str, problem: str, fix: str):
+        at = f"[{self.where}] {key}: " if key else f"[{self.where}]: "
+        raise InputError(f"{self.file}: {at}{problem}; {fix}")
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def raw(self, key: str, default=_REQUIRED, fix: str = ""):
+        self.used.add(key)
+        if key in self.data:
+            return self.data[key]
+        if default is _REQUIRED:
+            self.fail(key, "missing", fix or f"add `{key} = ...` to [{self.where}]")
+        return default
+
+    def number(self, key: str, default=_REQUIRED, *, positive=False, nonnegative=False) -> float:
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            self.fail(key, f"must be a number, got {v!r}", f"write e.g. `{key} = 1.0`")
+        if positive and v <= 0:
+            self.fail(key, f"must be > 0, got {v!r}", "give a positive value (SI units)")
+        if nonnegative and v < 0:
+            self.fail(key, f"must be >= 0, got {v!r}", "give a non-negative value (SI units)")
+        return float(v)
+
+    def integer(self, key: str, default=_REQUIRED) -> int:
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(key, f"must be an integer, got {v!r}", f"write e.g. `{key} = 1`")
+        return v
+
+    def string(self, key: str, default=_REQUIRED, choices=None) -> str:
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        if not isinstance(v, str):
+            self.fail(key, f"must be a string, got {v!r}", f'write e.g. `{key} = "..."`')
+        if choices is not None and v not in choices:
+            self.fail(key, f"unknown value {v!r}", f"use one of: {', '.join(choices)}")
+        return v
+
+    def boolean(self, key: str, default=False) -> bool:
+        v = self.raw(key, default)
+        if not isinstance(v, bool):
+            self.fail(key, f"must be true or false, got {v!r}", f"write `{key} = true` or `{key} = false`")
+        return v
+
+    def array(self, key: str, default=_REQUIRED, shape=None) -> np.ndarray:
+        """A numeric array; ``shape`` (tuple, -1 = any length) is checked."""
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.dtype == object or not np.all(np.isfinite(a)) or any(isinstance(x, bool) for x in np.ravel(v)):
+            self.fail(key, f"must be numbers, got {v!r}", f"write e.g. `{key} = [0.0, 0.0, 1.0]`")
+        if shape is not None and (a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape))):
+            want = " x ".join("n" if s == -1 else str(s) for s in shape)
+            self.fail(key, f"must have shape {want}, got {a.shape}", f"give {want} numbers")
+        return a
+
+    def vector(self, key: str, default=_REQUIRED) -> np.ndarray:
+        return self.array(key, default, shape=(3,))
+
+    def strings(self, key: str, default=_REQUIRED) -> tuple[str, ...]:
+        v = self.raw(key, default)
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            self.fail(key, f"must be a list of strings, got {v!r}", f'write e.g. `{key} = ["a", "b"]`')
+        return tuple(v)
+
+    def rotation(self, key: str = "rotation") -> np.ndarray | None:
+        """A rotation matrix from a 3x3 matrix (orthonormal, det +1) or a rotation vector (rad)."""
+        from solver.kinematics import exp_so3
+
+        v = self.raw(key, None)
+        if v is None:
+            return None
+        a = self.array(key)
+        if a.shape == (3,):
+            return exp_so3(a)
+        if a.shape != (3, 3):
+            self.fail(key, f"must be a rotation vector (3 numbers, rad) or a 3x3 matrix, got shape {a.shape}",
+                      f"write e.g. `{key} = [0.0, 0.0, 1.5708]`")
+        if np.max(np.abs(a @ a.T - np.eye(3))) > ROTATION_TOL or np.linalg.det(a) < 0:
+            self.fail(key, "is not a rotation matrix (not orthonormal with det +1)",
+                      "give the body->inertial rotation matrix rows, or a rotation vector")
+        return a
+
+    def path(self, key: str, default=_REQUIRED) -> Path | None:
+        v = self.string(key, default)
+        return None if v is None else (self.file.parent / v)
+
+    def finish(self) -> None:
+        """Reject keys nobody asked for (typos), suggesting the closest known key."""
+        for key in self.data:
+            if key not in self.used:
+                close = difflib.get_close_matches(key, sorted(self.used), n=1)
+                hint = f"did you mean `{close[0]}`?" if close else f"known keys here: {', '.join(sorted(self.used))}"
+                self.fail(key, "unknown key", hint)
+
+
+def _subtables(file: Path, root: dict, name: str):
+    """(name, _Table) for every [<name>.<entry>] table."""
+    group = root.get(name, {})
+    if not isinstance(group, dict):
+        raise InputError(f"{file}: `{name}` must be a table of named entries; write [{name}.<entry name>] tables")
+    return [(entry, _Table(file, f"{name}.{entry}", data)) for entry, data in group.items()]
+
+
+# ---------------------------------------------------------------------------------------------
+# the tables
+
+
+def _effects(t: _Table, key: str, default):
+    from solver.effects import EFFECTS
+
+    v = t.raw(key, default)
+    if v is None or v in ("auto", "all"):
+        return v
+    names = [v] if isinstance(v, str) else v
+    if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+        t.fail(key, f"must be \"auto\", \"all\" or a list of effect names, got {v!r}", 'write e.g. effects = ["gravity"]')
+    bad = [x for x in names if x not in EFFECTS]
+    if bad:
+        t.fail(key, f"unknown effect {bad[0]!r}", f"use \"auto\", \"all\" or names from: {', '.join(EFFECTS)}")
+    return names
+
+
+def _solver_settings(file: Path, root: dict, t_end_override: float | None) -> dict:
+    t = _Table(file, "solver", root.get("solver", {}))
+    kw = {
+        "t_end": t.number("t_end", positive=True) if t_end_override is None else t_end_override,
+        "method": t.string("method", "genalpha", METHODS),
+        "h": t.number("step", 1e-3, positive=True),
+        "rho_inf": t.number("rho_inf", 0.9),
+        "rtol": t.number("rtol", None, positive=True),
+        "atol": t.number("atol", 1e-9, positive=True),
+        "static_start": t.boolean("static_start", False),
+        "newton_tol": t.number("newton_tol", 1e-10, positive=True),
+    }
+    if t_end_override is not None:
+        t.raw("t_end", None)
+        if t_end_override <= 0:
+            t.fail("t_end", f"--t-end must be > 0, got {t_end_override}", "give a positive end time in s")
+    if not 0.0 <= kw["rho_inf"] <= 1.0:
+        t.fail("rho_inf", f"must be in [0, 1], got {kw['rho_inf']}", "use e.g. 0.9 (1 = no numerical damping)")
+    if kw["h"] > kw["t_end"]:
+        t.fail("step", f"{kw['h']} s is longer than t_end = {kw['t_end']} s", "use a smaller step")
+    t.finish()
+    return kw
+
+
+def _output_settings(file: Path, root: dict) -> OutputSettings:
+    t = _Table(file, "output", root.get("output", {}))
+    out = OutputSettings(rate=t.number("rate", None, positive=True), signals=t.strings("signals", []),
+                         plot=t.boolean("plot"), csv=t.boolean("csv"), animate=t.boolean("animate"))
+    t.finish()
+    return out
+
+
+def _missing_sid(t: _Table, path: Path) -> None:
+    make = t.string("make", None)
+    fix = f"make it with `{make}` (run in {t.file.parent})" if make else \
+        "make it with `sidprep reduce MESH -o <file>` or fix the path (relative to the scene file)"
+    t.fail("sid", f"SID file {path} not found", fix)
+
+
+def _flexible_body(name: str, t: _Table, pose: dict):
+    from solver.system import FlexibleBody
+
+    path = t.path("sid")
+    if not path.is_file():
+        _missing_sid(t, path)
+    t.string("make", None)
+    from sidprep.io import read_sid
+
+    try:
+        sid = read_sid(path)
+    except InputError as exc:
+        t.fail("sid", f"cannot read {path} ({exc})", "regenerate the SID file")
+    q0 = t.array("q0", None, shape=(sid.nq,))
+    qd0 = t.array("qd0", None, shape=(sid.nq,))
+    body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), **pose)
+    return body, {"kind": "flexible", "source": str(path)}
+
+
+def _rigid_body(name: str, t: _Table, pose: dict):
+    from solver.system import RigidBody
+
+    mass = t.number("mass", positive=True)
+    inertia = t.array("inertia")
+    if inertia.shape not in ((3,), (6,), (3, 3)):
+        t.fail("inertia", f"shape {inertia.shape} is not 3 (principal), 6 ([Ixx, Iyy, Izz, Ixy, Ixz, Iyz]) or 3x3",
+               "give the inertia about the centre of mass in kg m^2")
+    obj = t.path("obj", None)
+    if obj is not None and not obj.is_file():
+        t.fail("obj", f"OBJ file {obj} not found", "fix the path (relative to the scene file) or remove `obj`")
+    body = RigidBody(mass, t.vector("com", [0.0, 0.0, 0.0]), inertia, name=name, obj=obj, **pose)
+    return body, {"kind": "rigid", "source": "" if obj is None else str(obj)}
+
+
+def _bodies(file: Path, root: dict, system) -> dict:
+    sources = {}
+    for name, t in _subtables(file, root, "bodies"):
+        kind = t.string("type", choices=("flexible", "rigid"))
+        pose = {"position": t.vector("position", None), "rotation": t.rotation(),
+                "velocity": t.vector("velocity", None), "omega": t.vector("omega", None)}
+        body, sources[name] = (_flexible_body if kind == "flexible" else _rigid_body)(name, t, pose)
+        t.finish()
+        system.add(body)
+    if not sources:
+        raise InputError(f"{file}: no bodies; add at least one [bodies.<name>] table with type = \"flexible\" or \"rigid\"")
+    return sources
+
+
+def _z_axis_rotation(t: _Table) -> np.ndarray:
+    """A rotation whose third column is the unit vector ``z_axis`` (the joint axis)."""
+    z = t.vector("z_axis")
+    norm = np.linalg.norm(z)
+    if norm < ROTATION_TOL:
+        t.fail("z_axis", "is the zero vector", "give the joint axis direction, e.g. [0, 1, 0]")
+    z = z / norm
+    helper = np.eye(3)[int(np.argmin(np.abs(z)))]
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _markers(file: Path, root: dict, system) -> dict:
+    from solver.system import FlexibleBody
+
+    bodies = {b.name: b for b in system.bodies}
+    markers = {}
+    for name, t in _subtables(file, root, "markers"):
+        body_name = t.string("body")
+        if body_name != "ground" and body_name not in bodies:
+            t.fail("body", f"no body {body_name!r}", f"use \"ground\" or one of: {', '.join(bodies)}")
+        body = system.ground if body_name == "ground" else bodies[body_name]
+        if t.has("rotation") and t.has("z_axis"):
+            t.fail("z_axis", "given together with `rotation`", "give only one of them")
+        rotation = _z_axis_rotation(t) if t.has("z_axis") else t.rotation()
+        on_node = t.has("node") or t.has("node_index")
+        if on_node:
+            if not isinstance(body, FlexibleBody):
+                t.fail("node", f"body {body_name!r} is not flexible", "use `position` on rigid bodies and ground")
+            if t.has("position"):
+                t.fail("position", "given together with a node", "give either `node`/`node_index` or `position`")
+            m = _node_marker(t, body, name)
+            if rotation is not None:
+                m.rotation = rotation           # marker -> K at q = 0 instead of the node's AP0
+        else:
+            m = body.marker(t.vector("position", [0.0, 0.0, 0.0]), rotation, name=name)
+        t.finish()
+        markers[name] = m
+    return markers
+
+
+def _node_marker(t: _Table, body, name: str):
+    if t.has("node") and t.has("node_index"):
+        t.fail("node_index", "given together with `node`", "give the FE node number `node` or the 0-based `node_index`")
+    if t.has("node"):
+        node_id = t.integer("node")
+        ids = [n.node_id for n in body.sid.nodes]
+        if node_id not in ids:
+            t.fail("node", f"the SID of body {body.name!r} has no node {node_id}",
+                   f"use one of its node numbers: {', '.join(map(str, ids[:12]))}{' ...' if len(ids) > 12 else ''}")
+        return body.node_marker(node_id=node_id, name=name)
+    index = t.integer("node_index")
+    if not 0 <= index < len(body.sid.nodes):
+        t.fail("node_index", f"must be in 0..{len(body.sid.nodes) - 1}", "count the SID nodes from 0")
+    return body.node_marker(index, name=name)
+
+
+def _lookup(t: _Table, key: str, table: dict, what: str):
+    name = t.string(key)
+    if name not in table:
+        t.fail(key, f"no {what} {name!r}", f"define [{what}s.{name}] or use one of: {', '.join(table) or '(none)'}")
+    return table[name]
+
+
+def _marker_pair(t: _Table, markers: dict):
+    pair = t.strings("markers")
+    if len(pair) != 2:
+        t.fail("markers", f"needs exactly 2 marker names, got {len(pair)}", 'write markers = ["on_body_1", "on_body_2"]')
+    for m in pair:
+        if m not in markers:
+            t.fail("markers", f"no marker {m!r}", f"define [markers.{m}] or use one of: {', '.join(markers) or '(none)'}")
+    return markers[pair[0]], markers[pair[1]]
+
+
+def _joints(file: Path, root: dict, system, markers: dict) -> dict:
+    from solver.system import JOINT_TYPES
+
+    joints = {}
+    for name, t in _subtables(file, root, "joints"):
+        cls = JOINT_TYPES[t.string("type", choices=tuple(JOINT_TYPES))]
+        m1, m2 = _marker_pair(t, markers)
+        if m1.body is m2.body:
+            t.fail("markers", f"both markers are on body {m1.body.name!r}", "join markers on two different bodies")
+        t.finish()
+        joints[name] = system.add(cls(m1, m2, name=name))
+    return joints
+
+
+def _motion(t: _Table):
+    from solver.system import ConstantSpeed, SmoothStart, TabulatedMotion
+
+    kind = t.string("motion", choices=("constant_speed", "smooth_start", "table"))
+    if kind == "constant_speed":
+        return ConstantSpeed(t.number("speed"), t.number("start", 0.0))
+    if kind == "smooth_start":
+        return SmoothStart(t.number("speed"), t.number("ramp_time", positive=True), t.number("start", 0.0))
+    times, values = t.array("times", shape=(-1,)), t.array("values", shape=(-1,))
+    if len(times) < 2 or len(values) != len(times) or np.any(np.diff(times) <= 0):
+        t.fail("times", "needs >= 2 strictly increasing times and as many values", "fix the table")
+    return TabulatedMotion(times, values)
+
+
+def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
+    from solver.system import Driver
+
+    drivers = {}
+    for name, t in _subtables(file, root, "drivers"):
+        joint = _lookup(t, "joint", joints, "joint")
+        if joint.coordinate_kind is None:
+            t.fail("joint", f"a {joint.kind} joint has no coordinate to drive", "drive a revolute, cylindrical or prismatic joint")
+        drivers[name] = system.add(Driver(joint, _motion(t), name=name))
+        t.finish()
+    return drivers
+
+
+def _load_value(t: _Table, joints: dict):
+    """Constant vector / scalar `value`, or a `table` {x, y, period} over time or `argument` joint."""
+    from solver.system import Table
+
+    argument = _lookup(t, "argument", joints, "joint") if t.has("argument") else None
+    if t.has("table"):
+        tt = _Table(t.file, f"{t.where}.table", t.raw("table"))
+        try:
+            value = Table(tt.array("x", shape=(-1,)), tt.array("y"), tt.number("period", None, positive=True))
+        except ValueError as exc:
+            tt.fail("x", str(exc), "give strictly increasing x and one y row per x")
+        tt.finish()
+    else:
+        value = t.array("value")
+        if value.shape not in ((), (3,)):
+            t.fail("value", f"must be a number (with `direction`) or 3 numbers, got shape {value.shape}", "fix the value")
+    return value, argument
+
+
+def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None:
+    from solver import system as api
+
+    kinds = ("point_force", "point_torque", "spring_damper", "joint_force", "joint_friction")
+    for name, t in _subtables(file, root, "forces"):
+        kind = t.string("type", choices=kinds)
+        if kind in ("point_force", "point_torque"):
+            marker = _lookup(t, "marker", markers, "marker")
+            value, argument = _load_value(t, joints)
+            cls = api.PointForce if kind == "point_force" else api.PointTorque
+            element = cls(marker, value, direction=t.vector("direction", None),
+                          frame=t.string("frame", "inertial", ("inertial", "marker")), argument=argument, name=name)
+        elif kind == "spring_damper":
+            m1, m2 = _marker_pair(t, markers)
+            stop = t.raw("bump_stop", None)
+            law = None
+            if stop is not None:
+                st = _Table(file, f"forces.{name}.bump_stop", stop)
+                law = api.bump_stop(st.number("clearance", nonnegative=True), st.number("stiffness", nonnegative=True),
+                                    st.number("exponent", 1.0, positive=True), st.number("damping", 0.0, nonnegative=True))
+                st.finish()
+            element = api.SpringDamper(m1, m2, t.number("stiffness", 0.0, nonnegative=True),
+                                       t.number("damping", 0.0, nonnegative=True),
+                                       t.number("length", None, nonnegative=True), law=law, name=name)
+        elif kind == "joint_force":
+            joint = _lookup(t, "joint", joints, "joint")
+            if joint.coordinate_kind is None:
+                t.fail("joint", f"a {joint.kind} joint has no coordinate", "use a revolute, cylindrical or prismatic joint")
+            k, c = t.number("stiffness", 0.0), t.number("damping", 0.0)
+            x0, f0 = t.number("reference", 0.0), t.number("constant", 0.0)
+            element = api.JointForce(joint, lambda x, xd, time, k=k, c=c, x0=x0, f0=f0: f0 - k * (x - x0) - c * xd,
+                                     name=name)
+        else:
+            joint = _lookup(t, "joint", joints, "joint")
+            try:
+                element = api.JointFriction(joint, t.number("mu", nonnegative=True), radius=t.number("radius", 0.0),
+                                            preload=t.number("preload", 0.0, nonnegative=True),
+                                            regularisation=t.number("regularisation", 1e-3, positive=True), name=name)
+            except ValueError as exc:
+                t.fail("joint", str(exc), "see docs/scenes.md, [forces] joint_friction")
+        t.finish()
+        system.add(element)
+
+
+def _check_names(file: Path, root: dict) -> None:
+    """Body, marker, joint, driver and force names share one namespace (signal names use them)."""
+    seen: dict[str, str] = {}
+    for group in ("bodies", "markers", "joints", "drivers", "forces"):
+        entries = root.get(group, {})
+        for name in entries if isinstance(entries, dict) else ():
+            if name in RESERVED_NAMES or "." in name:
+                raise InputError(f"{file}: [{group}.{name}]: the name {name!r} is reserved or contains '.'; "
+                                 "rename it")
+            if name in seen:
+                raise InputError(f"{file}: [{group}.{name}]: the name {name!r} is also used in [{seen[name]}]; "
+                                 "give every body, marker, joint, driver and force its own name")
+            seen[name] = f"{group}.{name}"
+
+
+def _check_signals(file: Path, scene_signals, system) -> None:
+    """Every requested signal must exist (checked on an empty Result of this system)."""
+    from solver.results import signal
+    from solver.system import BodyHistory, JointHistory, Result
+
+    z = np.zeros((0, 3))
+    empty = Result(
+        t=np.zeros(0),
+        bodies={b.name: BodyHistory(b.name, z, np.zeros((0, 3, 3)), z, z, np.zeros((0, b.nq)), np.zeros((0, b.nq)),
+                                    np.zeros((0, 6 + b.nq))) for b in system.bodies},
+        joints={c.name: JointHistory(c.name, "", z, z, z, z, np.zeros(0), np.zeros(0), np.zeros(0))
+                for c in list(system.joints) + list(system.drivers)},
+        markers={m.name: z for b in [system.ground] + list(system.bodies) for m in b.markers},
+        energy={k: np.zeros(0) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "total")},
+        constraint_error=np.zeros(0), effects=None)
+    for name in scene_signals:
+        try:
+            signal(empty, name)
+        except InputError as exc:
+            raise InputError(f"{file}: [output] signals: {exc}") from None
+
+
+def read_toml(path: Path) -> tuple[dict, str]:
+    """Parsed TOML and its text; InputError for a missing file or a syntax error."""
+    if not path.is_file():
+        raise InputError(f"{path}: no such scene file; check the path")
+    text = path.read_text(encoding="utf-8")
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: TOML syntax error: {exc}; fix the file (see docs/scenes.md)") from None
+
+
+def load_scene(path, *, t_end: float | None = None) -> Scene:
+    """Parse the scene file ``path`` and build its System; ``t_end`` overrides [solver] t_end."""
+    from solver.system import System
+
+    path = Path(path)
+    root, text = read_toml(path)
+    known = ("scene", "solver", "output", "bodies", "markers", "joints", "drivers", "forces")
+    for key in root:
+        if key not in known:
+            close = difflib.get_close_matches(key, known, n=1)
+            raise InputError(f"{path}: unknown top-level table or key `{key}`; "
+                             + (f"did you mean [{close[0]}]?" if close else f"use: {', '.join(known)}"))
+    _check_names(path, root)
+    head = _Table(path, "scene", root.get("scene", {}))
+    system = System(gravity=head.vector("gravity", [0.0, 0.0, -9.81]), effects=_effects(head, "effects", "auto"))
+    title = head.string("title", path.stem)
+    head.finish()
+    kwargs = _solver_settings(path, root, t_end)
+    output = _output_settings(path, root)
+    kwargs["output_dt"] = None if output.rate is None else 1.0 / output.rate
+    sources = _bodies(path, root, system)
+    markers = _markers(path, root, system)
+    joints = _joints(path, root, system, markers)
+    _drivers(path, root, system, joints)
+    _forces(path, root, system, markers, joints)
+    _check_signals(path, output.signals, system)
+    return Scene(path=path, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(), title=title,
+                 system=system, simulate_kwargs=kwargs, output=output, sources=sources)
+
+
+def simulate(scene: Scene):
+    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> solver.system.Result."""
+    return scene.system.simulate(**scene.simulate_kwargs)
