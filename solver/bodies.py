@@ -21,8 +21,10 @@ import numpy as np
 
 from sidprep.sid import ge_tensor, gr_tensor
 from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
-from solver.kinematics import as_rotation, exp_so3, skew
+from solver.kinematics import as_rotation, cross, exp_so3, skew
 
+#: relative size below which a split-off part of a SID member counts as round-off (zero)
+ROUNDOFF = 1e-12
 #: relative tolerance of the check "Oe.M1 holds only Kom" (trace identity, sid-spec 4.8 item 7)
 KOM_ONLY_RTOL = 1e-6
 
@@ -128,12 +130,12 @@ class BodyModel:
         md, inertia, ct, _ = self.inertia_terms(q)
         nq = self.nq
         h = np.empty(6 + nq)
-        wmd = np.cross(w, md)
-        h[:3] = -np.cross(w, wmd)
-        h[3:6] = -np.cross(w, inertia @ w)
+        wmd = cross(w, md)
+        h[:3] = -cross(w, wmd)
+        h[3:6] = -cross(w, inertia @ w)
         he = -(self.Ke @ q)
         if self.Gr0 is not None:
-            h[:3] -= 2.0 * np.cross(w, ct.T @ qd)
+            h[:3] -= 2.0 * cross(w, ct.T @ qd)
         if self.Gr0 is not None:
             h[3:6] -= np.einsum("kia,k,a->i", self.Gr0, qd, w)
             he -= np.einsum("akj,a,j->k", self.Ge, w, qd)
@@ -299,7 +301,7 @@ class FlexibleBody(_MassBody):
             return None
         kr = cr1.transpose(2, 0, 1)
         sym = 0.5 * (kr + kr.transpose(0, 2, 1))
-        return sym if np.any(sym) else None
+        return sym if np.max(np.abs(sym)) > ROUNDOFF * np.max(np.abs(kr)) else None
 
     def _derive_mode_pairs(self) -> np.ndarray | None:
         st = self.sid.stiffening
@@ -388,18 +390,20 @@ class FlexibleBody(_MassBody):
                 return i
         raise KeyError(f"body '{self.name}': no SID node with id {node_id}")
 
-    def node_marker(self, index: int | None = None, *, node_id: int | None = None,
+    def node_marker(self, index: int | None = None, *, node_id: int | None = None, rotation=None,
                     name: str | None = None) -> Marker:
         """A marker on SID node ``index`` (0-based) or ``node_id`` (FE node number).
 
-        Position d_n = c_n + Phi_n q, orientation A R(Psi_n q) AP0 (sid-spec 3.2, 5.2).
+        Position d_n = c_n + Phi_n q, orientation A R(Psi_n q) AP0 R_m (sid-spec 3.2, 5.2), with
+        ``rotation`` R_m (3x3 or rotation vector, default E) orienting the marker in the node
+        frame, e.g. to put a joint axis (marker z) along the node's y axis.
         """
         if (index is None) == (node_id is None):
             raise ValueError("give exactly one of index / node_id")
         i = self.node_index(node_id) if node_id is not None else int(index)
         node = self.sid.nodes[i]
         m = Marker(self, name or f"{self.name}.n{node.node_id}", node.origin.M0[:, 0].copy(),
-                   node.AP.M0.copy(), node=i, phi=node.phi.M0.copy(), psi=node.psi.M0.copy(),
+                   node.AP.M0 @ as_rotation(rotation), node=i, phi=node.phi.M0.copy(), psi=node.psi.M0.copy(),
                    k0f=self._m1(node.phi), k0m=self._m1(node.psi))
         self.markers.append(m)
         return m

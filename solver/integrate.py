@@ -153,13 +153,12 @@ def accelerations(system, pose: Pose, u: np.ndarray, t: float, lam=None, iterati
 
 
 def project_velocities(system, pose: Pose, u: np.ndarray, t: float) -> np.ndarray:
-    """Mass-weighted projection of u onto B u + b_t = 0."""
+    """Mass-weighted projection of u onto B u + b_t = 0: the smallest kinetic-energy change."""
     if not system.kept.any():
         return u
     mass, _, _, B, _, _ = system.evaluate(pose, u, t)
     err = system.velocity_constraint(pose, u, t)
-    minv_bt = np.linalg.solve(mass, B.T)
-    return u - minv_bt @ np.linalg.solve(B @ minv_bt, err)
+    return u + solve_kkt(mass, np.zeros(system.n), B, B, -err)[0]
 
 
 def quasi_static_elastic(system, pose: Pose, u: np.ndarray, t: float, iterations: int = 30) -> Pose:
@@ -254,8 +253,6 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
     t = 0.0
     a = ud.copy()
     stats = {"steps": 0, "rejected": 0, "newton_iterations": 0, "jacobians": 0, "h_min": np.inf, "h_max": 0.0}
-    lu = None
-    lu_h = None
     adaptive = rtol is not None
     ctx0 = system.evaluate(pose, u, t, lam)[5]
     rec.power_step(system, ctx0, 0.0)
@@ -272,22 +269,32 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         r = np.empty(n + m)
         r[:n] = mass @ udn - f + BF.T @ lamn
         r[n:] = g / (h * h * beta * ca)
-        return r, an, pn, un, BF, ctx
+        return r, mass, B, BF, ctx
 
-    def jacobian(udn, lamn, tn):
-        r0, _, _, _, BF, _ = residual(udn, lamn, tn)
-        jac = np.zeros((n + m, n + m))
+    def tangent(udn, lamn, tn):
+        """D = d r1 / d ud - M by finite differences: the damping / stiffness part of the
+        iteration matrix (h gamma' C_t + h^2 beta' K_t), re-used over steps."""
+        r0, mass, _, _, _ = residual(udn, lamn, tn)
+        d = np.empty((n, n))
         eps_pos = np.sqrt(np.finfo(float).eps) / (h * h * beta * ca)
         for i in range(n):
             e = max(1e-7 * abs(udn[i]), eps_pos)
             x = udn.copy()
             x[i] += e
-            jac[:, i] = (residual(x, lamn, tn)[0] - r0) / e
-        jac[:n, n:] = BF.T
+            d[:, i] = (residual(x, lamn, tn)[0][:n] - r0[:n]) / e
         stats["jacobians"] += 1
-        return scipy.linalg.lu_factor(jac)
+        return d - mass
+
+    def newton_matrix(mass, B, BF):
+        """[M + D, B_F^T; B, 0]: mass and constraint blocks exact at the current iterate."""
+        jac = np.zeros((n + m, n + m))
+        jac[:n, :n] = mass + dmat
+        jac[:n, n:] = BF.T
+        jac[n:, :n] = B
+        return jac
 
     steps = 0
+    dmat, dmat_h = None, None
     while t < t_end - 1e-12 * max(1.0, t_end):
         if steps >= max_steps:
             raise RuntimeError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s")
@@ -295,24 +302,26 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         tn = t + h
         udn, lamn = ud.copy(), lam.copy()
         converged, renewed = False, False
-        if lu is None or lu_h != h:
-            lu, lu_h, renewed = jacobian(udn, lamn, tn), h, True
+        if dmat is None or dmat_h != h:
+            dmat, dmat_h, renewed = tangent(udn, lamn, tn), h, True
         last = np.inf
         it = 0
         while True:
-            r, an, pn, un, _, ctx = residual(udn, lamn, tn)
-            dz = -scipy.linalg.lu_solve(lu, r)
+            r, mass, B, BF, ctx = residual(udn, lamn, tn)
+            dz = -np.linalg.solve(newton_matrix(mass, B, BF), r)
             udn += dz[:n]
             lamn += dz[n:]
             it += 1
             err = np.max(np.abs(dz[:n]) * w) * h * h * beta * ca / length
+            if not np.isfinite(err):
+                break
             if err <= newton_tol:
                 converged = True
                 break
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if renewed:
                     break
-                lu, lu_h, renewed = jacobian(udn, lamn, tn), h, True
+                dmat, dmat_h, renewed = tangent(udn, lamn, tn), h, True
                 it, last = 0, np.inf
                 continue
             last = err
@@ -320,7 +329,7 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         if not converged:
             stats["rejected"] += 1
             h *= 0.5
-            lu = None
+            dmat = None
             if h < 1e-14 * max(1.0, t_end):
                 raise RuntimeError(f"generalised-alpha: Newton failed at t = {t:.6g} s (step size underflow)")
             continue

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from solver.bodies import Marker
+from solver.kinematics import cross
 
 # constraint rows as (kind, axis of marker 1, axis of marker 2); kind "p" = position, "a" = angle
 _ROWS = {
@@ -74,12 +75,12 @@ class Joint:
             if kind == "p":
                 g[r] = e @ d
                 c[0, r] = -e
-                c[1, r] = np.cross(e, d)
+                c[1, r] = cross(e, d)
                 c[2, r] = e
             else:
                 b = a2[:, j]
                 g[r] = e @ b
-                axb = np.cross(e, b)
+                axb = cross(e, b)
                 c[1, r] = axb
                 c[3, r] = -axb
         return g, c[0], c[1], c[2], c[3]
@@ -105,7 +106,7 @@ class Joint:
             return value, (zero, -z, zero, z)
         if self.coordinate_kind == "slide":
             d = k2[0] - k1[0]
-            return z @ d, (-z, np.cross(z, d), z, zero)
+            return z @ d, (-z, cross(z, d), z, zero)
         raise ValueError(f"joint '{self.name}' ({self.kind}) has no joint coordinate")
 
     def accept(self, k1, k2) -> None:
