@@ -293,7 +293,6 @@ def _gmsh_arrays(gmsh, path) -> _RawMesh:
 
 def _read_meshio(path) -> _RawMesh:
     """Any volume format meshio reads; its tet10 node order is VTK's for every format."""
-    import contextlib
     import io
     import tempfile
 
@@ -350,13 +349,13 @@ def _read_meshio(path) -> _RawMesh:
         if in_tets:
             cell_sets[name] = np.unique(np.concatenate(in_tets))
             continue
-        faces = [
+        set_nodes = [  # a set of surface / line / vertex elements: the nodes they use
             m.cells[k].data[np.asarray(idx, np.int64)].ravel()
             for k, idx in enumerate(per_block)
             if idx is not None and len(idx)
         ]
-        if faces and name not in node_sets:
-            node_sets[name] = np.unique(np.concatenate(faces)).astype(np.int64)
+        if set_nodes and name not in node_sets:
+            node_sets[name] = np.unique(np.concatenate(set_nodes)).astype(np.int64)
     points = np.asarray(m.points, dtype=float)
     if points.shape[1] == 2:
         raise InputError(f"{path}: has 2D coordinates; a tetrahedral mesh needs x, y, z")
@@ -557,10 +556,17 @@ def _positively_oriented(points, cells, cell_ids, path, notes) -> np.ndarray:
 
 def _check_midnode_order(points, cells, cell_ids, path) -> None:
     """Each mid-edge node must be nearer its own edge's midpoint than any other edge's."""
-    mid = np.stack([(points[cells[:, a]] + points[cells[:, b]]) / 2 for a, b in TET10_EDGES], 1)
-    node = points[cells[:, 4:]]
-    dist = np.linalg.norm(node[:, :, None, :] - mid[:, None, :, :], axis=-1)  # (ne, node, edge)
-    wrong = (dist.argmin(axis=2) != np.arange(6)).any(axis=1)
+    x = points[cells]
+    x -= x[:, :4].mean(axis=1, keepdims=True)  # cell-local coordinates: no cancellation below
+    mid = np.stack([(x[:, a] + x[:, b]) / 2 for a, b in TET10_EDGES], 1)
+    node = x[:, 4:]
+    # squared distances (ne, node, edge) without an (ne, 6, 6, 3) temporary
+    dist2 = (
+        np.einsum("eid,eid->ei", node, node)[:, :, None]
+        + np.einsum("ejd,ejd->ej", mid, mid)[:, None, :]
+        - 2 * node @ mid.transpose(0, 2, 1)
+    )
+    wrong = (dist2.argmin(axis=2) != np.arange(6)).any(axis=1)
     if wrong.any():
         raise InputError(
             f"{path}: {int(wrong.sum())} tet10 elements have mid-edge nodes on the wrong edges "
