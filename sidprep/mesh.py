@@ -158,6 +158,8 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
     suffix = path.suffix.lower()
     if order not in (1, 2):
         raise InputError(f"--order {order}: element order must be 1 (tet4) or 2 (tet10)")
+    if size is not None and not (np.isfinite(size) and size > 0):
+        raise InputError(f"--size {size}: the element size must be a positive length")
     if suffix == ".msh" or suffix in GEOMETRY_SUFFIXES:
         raw = _read_gmsh(path, size=size, order=order)
     else:

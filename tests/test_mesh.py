@@ -129,6 +129,8 @@ def test_tet4_and_geo_file(tmp_path):
     assert np.isclose(cell_volumes(fine.points, fine.cells).sum(), 2.0, rtol=GEOMETRY_RTOL)
     assert np.allclose(coarse.points[coarse.node_sets["bottom"], 2], 0.0)
     assert len(coarse.cell_sets["body"]) == len(coarse.cells)
+    with pytest.raises(InputError, match="--size -1"):
+        read_mesh(geo, size=-1)
     assert np.array_equal(coarse.points[coarse.node_sets["corner"]], [[0, 0, 1]])  # OCC point 1
     edge = coarse.points[coarse.node_sets["edge"]]  # OCC box curve 1: x = y = 0, z in [0, 1]
     assert len(edge) == 5 and np.allclose(edge[:, :2], 0) and np.ptp(edge[:, 2]) == 1
