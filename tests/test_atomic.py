@@ -24,3 +24,13 @@ def test_failure_leaves_nothing(tmp_path):
             tmp.write_text("half")
             raise RuntimeError("interrupted")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_folder_is_an_input_error(tmp_path):
+    from sidprep.errors import InputError
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(InputError, match="cannot write here"):
+        with atomic_path(blocker / "out.txt"):
+            pass

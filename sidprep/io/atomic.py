@@ -7,6 +7,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from sidprep.errors import InputError
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike):
@@ -16,8 +18,11 @@ def atomic_path(path: str | os.PathLike):
     is ever left under the final name.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write here ({exc.strerror}); choose a writable folder") from None
     os.close(fd)
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
     try:
