@@ -53,9 +53,6 @@ MASS_MATRIX_EFFECTS = frozenset({"inertia_change", "second_order_inertia", "acce
 #: a left-out effect whose estimated relative size exceeds this gets a WARNING in the report
 WARN_LEVEL = 0.01
 
-#: angular speed (rad/s) below which a body counts as not rotating for ``auto``
-ROTATION_THRESHOLD = 1e-9
-
 DESCRIPTIONS = {
     "gravity": "uniform gravity (m g, md~ g, Ct g)",
     "coupling": "rigid-elastic inertia coupling Ct0, Cr0",
@@ -172,14 +169,9 @@ def _scene_facts(system, body) -> dict:
     attached = [j for j in system.joints if body in (j.marker1.body, j.marker2.body)]
     fixed_to_ground = any(j.kind == "fixed" and isinstance(
         (j.marker2 if j.marker1.body is body else j.marker1).body, Ground) for j in attached)
-    driven = [d for d in system.drivers if d.joint in attached and d.joint.coordinate_kind == "angle"]
-    spin = float(np.linalg.norm(body.omega0))
     return {
         "gravity": bool(np.any(system.gravity)),
         "can_rotate": not fixed_to_ground,
-        "spinning": spin > ROTATION_THRESHOLD or bool(driven),
-        "spin_reason": f"initial |omega| = {spin:.3g} rad/s" if spin > ROTATION_THRESHOLD
-        else (f"driven joint '{driven[0].joint.name}'" if driven else ""),
         "loaded_nodes": any(m.k0f is not None or m.k0m is not None for m in body.markers),
     }
 
@@ -217,8 +209,9 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
          "Oe.M1 holds only Kom (softening) without K0omega: both left out (sid-spec 5.4)" if kom_only
          else ("body can rotate: Kom + K0omega kept together" if f["can_rotate"]
                else "body is fixed to ground"))
-    pick("inertia_change", f["spinning"],
-         f"body spins ({f['spin_reason']})" if f["spinning"] else "body does not spin (size estimated)")
+    pick("inertia_change", f["can_rotate"],
+         "body can rotate: J.M1 keeps Gr0 / Oe0 energy-consistent (first-order Lagrangian)"
+         if f["can_rotate"] else "body is fixed to ground")
     pick("second_order_inertia", False, "second order, usually dropped (sid-spec 5.4)")
     accel = f["gravity"] or f["can_rotate"]
     pick("acceleration_stiffening", accel, "gravity / body accelerations present" if accel
@@ -320,8 +313,8 @@ def build_report(choices: dict, estimates: dict, notes=()) -> EffectsReport:
         entries = []
         for e in EFFECTS:
             value, measure = est.get(e, (float("nan"), ""))
+            shown = avail[e] and e not in chosen
             entries.append(EffectEntry(e, e in chosen, avail[e], reasons.get(e, ""),
-                                       float(value) if e not in chosen else float("nan"),
-                                       measure if e not in chosen else ""))
+                                       float(value) if shown else float("nan"), measure if shown else ""))
         bodies[name] = tuple(entries)
     return EffectsReport(bodies, tuple(notes))

@@ -410,7 +410,7 @@ def _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec):
         system.accept(p)
         ud, lam = accelerations(system, p, uk, t)
         rec.samples.append((t, p, uk.copy(), ud, lam))
-        rec.flows.append((np.nan, np.nan))
+        rec.flows.append(None)
     stats["steps"] = int(sol.t.size)
     return stats
 
@@ -468,6 +468,8 @@ def postprocess(system, rec: _Recorder, choices) -> Result:
     energy = {k: np.zeros(nt) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external")}
     cerr = np.zeros(nt)
     node_loads = {b.name: {} for b in system.bodies if b.nq}
+    acc_in = acc_diss = 0.0
+    last = (0.0, 0.0)
     for k, (t, pose, u, ud, lam) in enumerate(rec.samples):
         mass, f, g, B, BF, ctx = system.evaluate(pose, u, t, lam)
         cerr[k] = np.max(np.abs(g)) if g.size else 0.0
@@ -503,7 +505,16 @@ def postprocess(system, rec: _Recorder, choices) -> Result:
         kin, strain, grav = body_energies(system, pose, u)
         energy["kinetic"][k], energy["strain"][k], energy["gravity"][k] = kin, strain, grav
         energy["spring"][k] = sum(fe.potential(ctx) for fe in system.forces if hasattr(fe, "potential"))
-        energy["dissipated"][k], energy["external"][k] = rec.flows[k]
+        if rec.flows[k] is None:  # explicit methods: trapezoidal rule over the samples
+            p_in, p_diss = power(system, ctx)
+            if k:
+                dt = t - rec.samples[k - 1][0]
+                acc_in += 0.5 * dt * (p_in + last[0])
+                acc_diss += 0.5 * dt * (p_diss + last[1])
+            last = (p_in, p_diss)
+            energy["dissipated"][k], energy["external"][k] = acc_diss, acc_in
+        else:
+            energy["dissipated"][k], energy["external"][k] = rec.flows[k]
     energy["total"] = (energy["kinetic"] + energy["strain"] + energy["gravity"] + energy["spring"]
                        + energy["dissipated"] - energy["external"])
     estimates = {}
