@@ -54,6 +54,8 @@ BODY_MODAL = {"q": "1", "qd": "1/s"}
 #: per-joint signals: vectors (x, y, z) and scalars
 JOINT_VECTORS = {"force": "N", "torque": "N m", "force_local": "N", "torque_local": "N m"}
 JOINT_SCALARS = {"coordinate": "rad|m", "rate": "rad/s|m/s", "effort": "N m|N"}
+#: joint kind -> its coordinate (angle: first unit above, slide: second)
+_COORDINATE_KIND = {"revolute": "angle", "cylindrical": "angle", "prismatic": "slide"}
 _BODY_ARRAYS = ("position", "rotation", "velocity", "omega", "q", "qd", "acceleration")
 _BODY_UNITS = {"position": "m", "rotation": "1", "velocity": "m/s", "omega": "rad/s", "q": "1", "qd": "1/s",
                "acceleration": "m/s^2, rad/s^2, 1/s^2"}
@@ -126,7 +128,9 @@ def _lookup(result: Result, parts: list[str]) -> tuple[np.ndarray, str]:
     if entity in result.joints:
         j = result.joints[entity]
         if qty in JOINT_SCALARS and not comp:
-            return getattr(j, qty), JOINT_SCALARS[qty]
+            rad_or_m = JOINT_SCALARS[qty].split("|")
+            unit = {"angle": rad_or_m[0], "slide": rad_or_m[1]}.get(_COORDINATE_KIND.get(j.kind), JOINT_SCALARS[qty])
+            return getattr(j, qty), unit
         if qty in JOINT_VECTORS and len(comp) == 1:
             return getattr(j, qty)[:, XYZ.index(comp[0])], JOINT_VECTORS[qty]
     raise KeyError(".".join(parts))

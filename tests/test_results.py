@@ -76,7 +76,7 @@ def test_signals_csv_and_plot(tmp_path):
     assert unit == "1" and np.array_equal(values, res.bodies["bar"].q[:, 1])
     names = ["tip.position.z", "hinge.force.y", "hinge.coordinate", "energy.total"]
     rows = list(csv.reader(open(write_csv(res, names, tmp_path / "s.csv"))))
-    assert rows[0] == ["time [s]", "tip.position.z [m]", "hinge.force.y [N]", "hinge.coordinate [rad|m]",
+    assert rows[0] == ["time [s]", "tip.position.z [m]", "hinge.force.y [N]", "hinge.coordinate [rad]",
                        "energy.total [J]"]
     assert float(rows[2][1]) == res.markers["tip"][1, 2] and float(rows[3][2]) == res.joints["hinge"].force[2, 1]
     png = plot_signals(res, names, tmp_path / "s.png", title="test")

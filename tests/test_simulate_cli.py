@@ -1,0 +1,71 @@
+"""``sidprep simulate``: the JSON contract, the files it writes, the report, and its errors."""
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from cli.main import main
+from sidprep.io.sid_hdf5 import write_sid_hdf5
+from solver.results import read_results
+from test_scene import TINY_SCENE, tiny_sid
+
+
+@pytest.fixture
+def scene(tmp_path):
+    write_sid_hdf5(tiny_sid(), tmp_path / "tiny.sid.h5")
+    path = tmp_path / "scene.toml"
+    path.write_text(TINY_SCENE)
+    return path
+
+
+def test_json_summary_is_one_object_with_the_contract_keys(scene, tmp_path, capsys):
+    out = tmp_path / "run" / "r.h5"
+    assert main(["simulate", str(scene), "-o", str(out), "--t-end", "0.03", "--json", "-q"]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)                     # the whole of stdout is one JSON object
+    assert captured.err == ""
+    for key in ("steps", "cpu_s", "energy", "effects", "bodies", "outputs"):
+        assert key in summary
+    assert summary["steps"] == 30 and summary["t_end"] == pytest.approx(0.03)
+    assert set(summary["energy"]) == {"initial", "final", "max_rel_drift"}
+    assert set(summary["effects"]) >= {"included", "left_out", "warnings"}
+    result = read_results(out).result
+    final = summary["bodies"]["bar"]
+    assert np.allclose(final["position"], result.bodies["bar"].position[-1], rtol=0, atol=0)
+    assert np.allclose(final["rotation"], result.bodies["bar"].rotation[-1], rtol=0, atol=0)
+    assert summary["outputs"] == {"results": str(out)}
+
+
+def test_plot_csv_animation_and_report(scene, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", str(scene), "--t-end", "0.02", "--plot", "--csv", "--animate"]) == 0
+    captured = capsys.readouterr()
+    assert "body 'bar':" in captured.out and "included" in captured.out and "left out" in captured.out
+    assert "simulate" in captured.err                      # progress lines go to stderr
+    for name in ("scene.results.h5", "scene.png", "scene.csv", "scene.pvd"):
+        assert (tmp_path / name).is_file(), name
+    header = (tmp_path / "scene.csv").read_text().splitlines()[0]
+    assert header == "time [s],tip.position.z [m],hinge.coordinate [rad],energy.total [J],bar.q.2 [1]"
+    frames = [d.get("file") for d in ET.parse(tmp_path / "scene.pvd").getroot().iter("DataSet")]
+    assert len(frames) == 3 and all((tmp_path / f).is_file() for f in frames)     # 100 samples/s, 0..0.02 s
+
+
+@pytest.mark.parametrize("argv_tail, words", [
+    (["--t-end", "-1"], ["[solver] t_end", "> 0"]),
+    ([], ["[bodies.bar] sid", "not found", "python make_tiny.py"]),
+])
+def test_errors_are_one_line_with_exit_code_2(scene, tmp_path, capsys, argv_tail, words):
+    if not argv_tail:
+        (tmp_path / "tiny.sid.h5").unlink()
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "-q", *argv_tail]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sidprep: error: ") and err.count("\n") == 1
+    assert all(w in err for w in words), err
+    assert not (tmp_path / "r.h5").exists()
+
+
+def test_missing_scene_file(tmp_path, capsys):
+    assert main(["simulate", str(tmp_path / "none.toml")]) == 2
+    assert "no such scene file" in capsys.readouterr().err
