@@ -73,7 +73,8 @@ class Reduction:
 
     im : InterfaceModel; K_model, M_model : sparse model matrices; cb : ReducedModel;
     basis : ModalBasis; Phi_model (n_model, nq); Phi_fe (3n, nq); held : frame master model DOFs
-    or None (free frame); rigid : (n_model, 6) rigid motions in model DOFs.
+    or None (free frame); rigid : (n_model, 6) rigid motions in model DOFs; supports : the 6
+    statically determinate support DOFs of static solves (sid-spec 6.4).
     """
 
     im: object
@@ -85,6 +86,11 @@ class Reduction:
     Phi_fe: np.ndarray
     held: np.ndarray | None
     rigid: np.ndarray
+    supports: np.ndarray
+
+    def static_solve(self, P: np.ndarray) -> np.ndarray:
+        """Exact full-model K_model u = P with u = 0 on the supports; (n_model, nc)."""
+        return self.cb.static_solve(P, self.supports)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -179,7 +185,7 @@ def reduce_body(mesh, material, K_fe, M_fe, interfaces, *, frame="free", n_modes
         im = interface_model(mesh.n_nodes, interfaces, mesh.points)
         K_model, M_model = im.project(K_fe), im.project(M_fe)
         rigid = rigid_modes_model(im, mesh.points)
-    boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(im, mesh.points)
+    boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(rigid, np.arange(im.n_model))
     with ph("craig-bampton", f"{len(boundary)} boundary DOF"):
         if fmax is not None:
             cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax)
@@ -195,28 +201,27 @@ def reduce_body(mesh, material, K_fe, M_fe, interfaces, *, frame="free", n_modes
                             frm=frm, cutoff_factor=cutoff_factor)
         Phi_model = cb.basis @ basis.Z
         Phi_fe = np.asarray(im.T @ Phi_model)
-    return Reduction(im, K_model, M_model, cb, basis, Phi_model, Phi_fe, held, rigid)
+    return Reduction(im, K_model, M_model, cb, basis, Phi_model, Phi_fe, held, rigid,
+                     support_dofs(rigid, boundary, held))
 
 
 # ---------------------------------------------------------------------------------------------
 # FE-comparison checks
 # ---------------------------------------------------------------------------------------------
 
-def master_compliance_full(red: Reduction, points) -> tuple[np.ndarray, np.ndarray]:
+def master_compliance_full(red: Reduction) -> tuple[np.ndarray, np.ndarray]:
     """Static deflection of the full model at the master DOFs under unit master loads.
 
     Returns (load DOFs (nl,) model indices, C (nl, nl) deflection of DOF i under load j).  Free
     bodies: inertia relief, then the rigid part removed (mean-axis deflection).
     """
-    from sidprep.stiffening import static_fields, support_dofs
-
     loads = np.setdiff1d(red.im.master_dofs.ravel(), [] if red.held is None else red.held)
     P = np.zeros((red.im.n_model, len(loads)))
     P[loads, np.arange(len(loads))] = 1.0
     R, M = red.rigid, red.M_model
     if red.held is None:
         P = P - M @ (R @ np.linalg.solve(R.T @ (M @ R), R.T @ P))
-    u = -static_fields(red.K_model, P, support_dofs(red.im, points, red.held))
+    u = red.static_solve(P)
     if red.held is None:
         u = u - R @ np.linalg.solve(R.T @ (M @ R), R.T @ (M @ u))
     return loads, u[loads]
@@ -244,7 +249,7 @@ def fe_checks(red: Reduction, mesh, M_fe, sid, full_frequencies=True) -> dict:
     checks["zero_energy_modes"] = zero_energy_count(eigen_pairs(red.cb.K[np.ix_(free, free)],
                                                                 red.cb.M[np.ix_(free, free)])[0])
     checks["zero_energy_modes_expected"] = 6 if red.held is None else 0
-    loads, C_full = master_compliance_full(red, mesh.points)
+    loads, C_full = master_compliance_full(red)
     Pm = red.Phi_model[loads]
     C_red = Pm @ np.diag(1.0 / (2 * np.pi * red.basis.frequencies_hz) ** 2) @ Pm.T
     err = np.abs(np.diag(C_red) - np.diag(C_full)) / np.abs(np.diag(C_full))
@@ -374,7 +379,7 @@ def reduce_job(options: ReduceOptions) -> dict:
     stiff = None
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
-            stiff = stiffening_parts(mesh, material, red.K_model, M_fe, red.im, red.Phi_fe, red.held)
+            stiff = stiffening_parts(mesh, material, M_fe, red.im, red.static_solve, red.Phi_fe)
     metadata = {"source": str(o.mesh), "mesh_sha256": mesh.sha256, "material": material.as_dict(),
                 "options": {k: v for k, v in asdict(o).items() if k != "verbose"},
                 "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
@@ -393,7 +398,7 @@ def reduce_job(options: ReduceOptions) -> dict:
             write_sid_fem(sid, paths["sid_fem"], comment=f"sidprep reduce {Path(o.mesh).name}")
         if "obj" in paths:
             write_obj(paths["obj"], sid.surface.points, sid.surface.triangles)
-    summary = {"files": {k: str(v) for k, v in paths.items()}, "nq": sid.nq, "labels": list(sid.labels),
+    summary = {"files": {k: str(v) for k, v in paths.items()}, "dof": mesh.n_dof, "nq": sid.nq, "labels": list(sid.labels),
                "kinds": list(sid.mode_kinds), "checks": checks, "timings_s": ph.timings_s,
                "peak_memory_mb": peak_memory_mb()}
     if o.verbose:

@@ -32,7 +32,8 @@ class ReducedModel:
 
     basis : (n, nb + nm) Phi in the unreduced DOFs; columns = boundary DOFs (in the order given),
     then fixed-interface modes.  K, M : (nb + nm, nb + nm) dense Phi^T K Phi, Phi^T M Phi.
-    boundary_dofs : (nb,) unreduced DOF indices; fixed_interface_hz : (nm,) Hz.
+    boundary_dofs : (nb,) unreduced DOF indices; fixed_interface_hz : (nm,) Hz;
+    interior_factor : the factor of K_ii (reused by ``static_solve``).
     """
 
     basis: np.ndarray
@@ -40,10 +41,35 @@ class ReducedModel:
     M: np.ndarray
     boundary_dofs: np.ndarray
     fixed_interface_hz: np.ndarray
+    interior_factor: object = None
 
     @property
     def n_boundary(self) -> int:
         return len(self.boundary_dofs)
+
+    def static_solve(self, P: np.ndarray, supports) -> np.ndarray:
+        """EXACT full-model static solution K u = P, u = 0 at ``supports`` (a subset of the boundary).
+
+        Static condensation with the stored K_ii factor: the boundary block of the reduced K is the
+        Schur complement S = K_bb - K_bi K_ii^-1 K_ib, so S u_b = P_b + Psi^T P_i and
+        u_i = Psi u_b + K_ii^-1 P_i.  P : (n, nc) -> u : (n, nc).
+        """
+        nb = self.n_boundary
+        b = self.boundary_dofs
+        interior = np.ones(self.basis.shape[0], bool)
+        interior[b] = False
+        P = np.asarray(P, dtype=float).reshape(self.basis.shape[0], -1)
+        Psi = self.basis[interior, :nb]
+        v_i = np.asarray(self.interior_factor.solve(np.ascontiguousarray(P[interior]))).reshape(-1, P.shape[1])
+        free = ~np.isin(b, supports)
+        if not np.isin(supports, b).all():
+            raise ValueError("static_solve: the supports must be boundary DOFs")
+        u_b = np.zeros((nb, P.shape[1]))
+        u_b[free] = np.linalg.solve(self.K[:nb, :nb][np.ix_(free, free)], (P[b] + Psi.T @ P[interior])[free])
+        u = np.empty_like(P)
+        u[b] = u_b
+        u[interior] = Psi @ u_b + v_i
+        return u
 
 
 def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
@@ -120,7 +146,7 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
     basis[i, :len(b)] = Psi
     basis[b, np.arange(len(b))] = 1.0
     basis[i, len(b):] = Phi_m
-    return ReducedModel(basis, project(K, basis), project(M, basis), b, f)
+    return ReducedModel(basis, project(K, basis), project(M, basis), b, f, factor)
 
 
 def guyan(K, M, boundary_dofs) -> ReducedModel:

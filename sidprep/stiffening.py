@@ -2,8 +2,9 @@
 
 For each unit load p (sid-spec 6.3) the static field u_p = K^-1 (-p) (the unified sign rule,
 6.2) is solved with ONE statically determinate support set for all cases (6.4): the 6 DOF of the
-frame's interface master for an attached frame, 3-2-1 supports (the 6 model DOFs that hold the
-rigid-body motions best, by pivoted QR) for a free body.  Its stress sigma = D eps(u_p) at the
+frame's interface master for an attached frame, 3-2-1 supports (the 6 boundary DOFs that hold
+the rigid-body motions best, by pivoted QR) for a free body.  The solve is the exact static
+condensation through the Craig-Bampton factor of K_ii (ReducedModel.static_solve).  Its stress sigma = D eps(u_p) at the
 Gauss points gives the geometric stiffness, block (grad N_a . sigma grad N_b) E3 (6.5), projected
 K0_p = Phi^T K_G(u_p) Phi.
 
@@ -18,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.assemble import CHUNK, MASS_QUAD_DEGREE, _geometry, _rule
-from sidprep.interfaces import best_columns, rigid_modes_model, rigid_rows
+from sidprep.interfaces import best_columns, rigid_rows
 
 #: quadrature of K_G: degree 4 integrates grad N sigma grad N of affine tet10 (cubic) exactly
 KG_QUAD_DEGREE = MASS_QUAD_DEGREE
@@ -80,39 +81,28 @@ def unit_loads(points, M_fe, im) -> dict[str, np.ndarray]:
     return loads
 
 
-def support_dofs(im, points, held=None) -> np.ndarray:
+def support_dofs(rigid: np.ndarray, candidates: np.ndarray, held=None) -> np.ndarray:
     """The statically determinate support of the static solves (sid-spec 6.4): ``held`` (the
-    frame master's 6 DOF) for an attached frame, else the 6 model DOFs that best hold the
-    rigid-body motions (3-2-1 supports by pivoted QR)."""
+    frame master's 6 DOF) for an attached frame, else the 6 of the ``candidates`` DOFs that best
+    hold the rigid-body motions ``rigid`` (n, 6) (3-2-1 supports, by pivoted QR)."""
     if held is not None:
         return np.asarray(held, dtype=np.int64)
-    return best_columns(rigid_modes_model(im, points).T, 6)
+    return candidates[best_columns(rigid[candidates].T, 6)]
 
 
-def static_fields(K_model, loads: np.ndarray, supports: np.ndarray) -> np.ndarray:
-    """u = K^-1 (-p) with the supports held (sid-spec 6.2); (n_model, nc)."""
-    from sidprep.linalg import factorize
-
-    free = np.setdiff1d(np.arange(K_model.shape[0]), supports)
-    K_ff = sp.csr_matrix(K_model)[free][:, free].tocsc()
-    u = np.zeros(loads.shape)
-    u[free] = np.asarray(factorize(K_ff).solve(np.ascontiguousarray(-loads[free]))).reshape(len(free), -1)
-    return u
-
-
-def stiffening_parts(mesh, material, K_model, M_fe, im, Phi_fe: np.ndarray, held=None) -> dict[str, np.ndarray]:
+def stiffening_parts(mesh, material, M_fe, im, static_solve, Phi_fe: np.ndarray) -> dict[str, np.ndarray]:
     """The ``stiffening`` dict for sidprep.sid.sid_invariants: {slot: (ncases, nq, nq)}.
 
     Parameters
     ----------
-    mesh, material : the FE model; K_model : (n_model, n_model) stiffness in model DOFs;
-    M_fe : (3n, 3n) FE mass; im : InterfaceModel; Phi_fe : (3n, nq) the final basis in FE DOFs;
-    held : the frame master's 6 model DOFs (attached frame) or None (free body).
+    mesh, material : the FE model; M_fe : (3n, 3n) FE mass; im : InterfaceModel;
+    static_solve : callable P (n_model, nc) -> u with K u = P on the supports of sid-spec 6.4
+    (sidprep.pipeline.Reduction.static_solve); Phi_fe : (3n, nq) the final basis in FE DOFs.
     """
     loads = unit_loads(mesh.points, M_fe, im)
     names = list(loads)
     P = np.hstack([loads[k] for k in names])
-    U_fe = im.T @ static_fields(K_model, P, support_dofs(im, mesh.points, held))
+    U_fe = im.T @ static_solve(-P)                                   # sign rule, sid-spec 6.2
     K0 = projected_geometric_stiffness(mesh, material, U_fe, Phi_fe)
     out, start = {}, 0
     for k in names:

@@ -31,7 +31,7 @@ def bar():
     K, M = stiffness_matrix(mesh, steel), mass_matrix(mesh, steel)
     red = reduce_body(mesh, steel, K, M, [make_interface(mesh, "fixed_end"), make_interface(mesh, "free_end")],
                       frame="fixed_end", n_modes=6)
-    parts = stiffening_parts(mesh, steel, red.K_model, M, red.im, red.Phi_fe, red.held)
+    parts = stiffening_parts(mesh, steel, M, red.im, red.static_solve, red.Phi_fe)
     return mesh, steel, red, parts
 
 
