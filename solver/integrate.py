@@ -40,6 +40,8 @@ POSITION_TOL = 1e-12
 MAX_NEWTON = 6
 #: contraction factor above which the iteration matrix is renewed
 SLOW_CONTRACTION = 0.3
+#: fixed-step mode: successful steps after a step cut before the step is doubled again
+RECOVER_STEPS = 4
 #: step-size factor limits of the error control
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
 
@@ -116,16 +118,27 @@ def independent_rows(B: np.ndarray, tol: float = REDUNDANCY_TOL) -> np.ndarray:
     return kept
 
 
-def project_positions(system, pose: Pose, t: float) -> Pose:
-    """Minimum-norm Gauss-Newton projection onto g(x, t) = 0 (all rows)."""
+def project_positions(system, pose: Pose, t: float, rigid_only: bool = False) -> Pose:
+    """Minimum-norm Gauss-Newton projection onto g(x, t) = 0 (kept rows).
+
+    rigid_only moves the rigid-body coordinates only (keeps q); if that cannot satisfy the
+    constraints (e.g. a body clamped at two nodes) the modal coordinates are moved as well.
+    """
+    cols = np.ones(system.n, bool)
+    if rigid_only:
+        for sl in system._slices:
+            cols[sl.start + 6:sl.stop] = False
     for _ in range(50):
         ctx = Context(system, pose, np.zeros(system.n), t, None)
         g, B, _, _ = system.constraint_rows(ctx, force_rows=False)
         k = system.kept
         if g[k].size == 0 or np.max(np.abs(g[k])) < POSITION_TOL:
             return pose
-        delta = np.linalg.lstsq(B[k], -g[k], rcond=None)[0]
+        delta = np.zeros(system.n)
+        delta[cols] = np.linalg.lstsq(B[k][:, cols], -g[k], rcond=None)[0]
         pose = system.advance(pose, delta)
+    if rigid_only:
+        return project_positions(system, pose, t)
     raise RuntimeError(f"initial positions cannot satisfy the joints (max |g| = {np.max(np.abs(g[k])):.3g}); "
                        "check marker positions / axes")
 
@@ -161,20 +174,52 @@ def project_velocities(system, pose: Pose, u: np.ndarray, t: float) -> np.ndarra
     return u + solve_kkt(mass, np.zeros(system.n), B, B, -err)[0]
 
 
-def quasi_static_elastic(system, pose: Pose, u: np.ndarray, t: float, iterations: int = 30) -> Pose:
-    """Modal coordinates in equilibrium with the initial rigid-body accelerations (q_ddot = 0)."""
-    flex = [(i, b) for i, b in enumerate(system.bodies) if b.nq]
+def quasi_static_elastic(system, pose: Pose, u: np.ndarray, t: float, iterations: int = 10) -> Pose:
+    """Modal coordinates with q_ddot = 0 under the initial loads and rigid-body accelerations.
+
+    Gauss-Newton on F(q) = q_ddot(q) (index-1 accelerations; for every q the rigid coordinates
+    are re-projected onto the constraints).  Where joints at nodes pin combinations of q, the
+    perturbations are projected too: the columns D of actually reachable changes give the
+    reduced system (D^T dF) c = -D^T F, solved in the least-squares sense.
+    """
+    flex = [(i, system._slices[i]) for i, b in enumerate(system.bodies) if b.nq]
+    if not flex:
+        return pose
+
+    def modal(p, vec=None):
+        if vec is None:
+            vec = accelerations(system, p, u, t)[0]
+        return np.concatenate([vec[sl][6:] if vec.size == system.n else p.q[i] for i, sl in flex])
+
+    def with_q(p, qvec):
+        p = p.copy()
+        k = 0
+        for i, sl in flex:
+            nq = sl.stop - sl.start - 6
+            p.q[i] = qvec[k:k + nq].copy()
+            k += nq
+        return project_positions(system, p, t, rigid_only=True)
+
+    def q_of(p):
+        return np.concatenate([p.q[i] for i, _ in flex])
+
+    weights, length = length_weights(system)
+    scale = np.concatenate([length / weights[sl][6:] for _, sl in flex])  # q moving nodes by L
     for _ in range(iterations):
-        ud, _ = accelerations(system, pose, u, t)
-        worst = 0.0
-        for i, b in flex:
-            sl = system._slices[i]
-            qdd = ud[sl][6:]
-            dq = np.linalg.solve(b.model.Ke, b.model.Me @ qdd)
-            pose.q[i] = pose.q[i] + dq
-            worst = max(worst, np.linalg.norm(dq) / max(np.linalg.norm(pose.q[i]), 1e-300))
-        pose = project_positions(system, pose, t)
-        if worst < 1e-10:
+        q = q_of(pose)
+        f0 = modal(pose)
+        dmat = np.empty((q.size, q.size))
+        dfun = np.empty((q.size, q.size))
+        for k in range(q.size):
+            trial = q.copy()
+            trial[k] += 1e-6 * max(scale[k], abs(q[k]))
+            pk = with_q(pose, trial)
+            dmat[:, k] = q_of(pk) - q
+            dfun[:, k] = modal(pk) - f0
+        c = np.linalg.lstsq(dmat.T @ dfun, -dmat.T @ f0, rcond=1e-10)[0]
+        step = dmat @ c
+        pose = with_q(pose, q + step)
+        if np.max(np.abs(step) / np.maximum(np.abs(q + step), scale * 1e-9)) < 1e-8:
             break
     return pose
 
@@ -182,7 +227,7 @@ def quasi_static_elastic(system, pose: Pose, u: np.ndarray, t: float, iterations
 def consistent_initial_state(system, static_start: bool):
     """(pose, u, ud, lambda) satisfying the constraints at position, velocity, acceleration level."""
     pose, u = system.initial_pose()
-    pose = project_positions(system, pose, 0.0)
+    pose = project_positions(system, pose, 0.0, rigid_only=True)
     ctx = Context(system, pose, u, 0.0, None)
     _, B, _, _ = system.constraint_rows(ctx, force_rows=False)
     system.kept = independent_rows(B)
@@ -247,6 +292,7 @@ def power(system, ctx) -> tuple[float, float]:
 def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps):
     am, af, gamma, beta = genalpha_parameters(rho_inf)
     ca = (1 - af) / (1 - am)
+    h_nominal = h
     w, length = length_weights(system)
     n = system.n
     m = int(system.kept.sum())
@@ -352,6 +398,8 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         rec.offer(t, pose, u, ud, lam, force=t >= t_end - 1e-12 * max(1.0, t_end))
         if adaptive:
             h *= min(H_GROW, max(H_SHRINK, factor))
+        elif h < h_nominal and steps % RECOVER_STEPS == 0:  # fixed step: return to h after a cut
+            h = min(2.0 * h, h_nominal)
     return stats
 
 

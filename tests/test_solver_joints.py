@@ -1,0 +1,139 @@
+"""Joints, drivers and force elements: exact velocity rows, a closed loop, statics, friction."""
+
+import numpy as np
+import pytest
+from test_solver_bodies import bar_sid
+
+from solver.bodies import RigidBody
+from solver.integrate import project_positions
+from solver.forces import JointFriction, PointForce, SpringDamper, Table, bump_stop
+from solver.joints import JOINT_TYPES, ConstantSpeed, Driver, Prismatic, Revolute, SmoothStart
+from solver.system import Context, FlexibleBody, System
+
+#: central-difference check of the velocity rows (step 1e-6)
+FD_TOL = 1e-8
+#: position-level constraint drift of the index-3 integrator (m, rad)
+DRIFT_TOL = 1e-10
+#: quasi-static slider-crank: dynamic effects are ~1e-7 of the statics
+STATICS_RTOL = 1e-4
+
+ALONG_X = np.array([0.0, np.pi / 2, 0.0])  # rotation vector taking z to x
+
+
+@pytest.mark.parametrize("kind", sorted(JOINT_TYPES))
+def test_constraint_rows_are_the_time_derivative_of_g(kind):
+    rng = np.random.default_rng(7)
+    s = System(gravity=(0, 0, 0))
+    b1 = s.add(RigidBody(1.0, name="b1", position=rng.normal(size=3), rotation=rng.normal(size=3)))
+    b2 = s.add(RigidBody(1.0, name="b2", position=rng.normal(size=3), rotation=rng.normal(size=3)))
+    joint = s.add(JOINT_TYPES[kind](b1.marker(rng.normal(size=3), rng.normal(size=3)),
+                                    b2.marker(rng.normal(size=3), rng.normal(size=3))))
+    if joint.coordinate_kind:
+        s.add(Driver(joint, ConstantSpeed(0.3)))
+    s._compile()
+    pose = project_positions(s, s.initial_pose()[0], 0.5)  # the angle row is exact on g = 0
+    u = rng.normal(size=s.n)
+    ctx = Context(s, pose, u, 0.5, None)
+    g, B, _, _ = s.constraint_rows(ctx, force_rows=False)
+    eps = 1e-6
+    gp = s.constraint_rows(Context(s, s.advance(pose, eps * u), u, 0.5 + eps, None), False)[0]
+    gm = s.constraint_rows(Context(s, s.advance(pose, -eps * u), u, 0.5 - eps, None), False)[0]
+    assert np.allclose((gp - gm) / (2 * eps), B @ u + s.rate_terms(0.5), atol=FD_TOL)
+
+
+def slider_crank(crank=0.1, rod=0.3, theta0=0.5, speed=0.1, force=-100.0, flexible_rod=False):
+    """Planar slider-crank of four 3D joints (3 rows redundant) driven at constant speed."""
+    s = System(gravity=(0, 0, 0))
+    pin = crank * np.array([np.cos(theta0), np.sin(theta0), 0.0])
+    x_piston = pin[0] + np.sqrt(rod**2 - pin[1] ** 2)
+    phi = np.arctan2(-pin[1], x_piston - pin[0])
+    c = s.add(RigidBody(0.01, (crank / 2, 0, 0), [1e-6, 1e-6, 1e-6], name="crank", rotation=(0, 0, theta0)))
+    if flexible_rod:
+        r = s.add(FlexibleBody(bar_sid(length=rod, mass=0.01), name="rod", position=pin, rotation=(0, 0, phi)))
+        m_big, m_small = r.node_marker(0), r.node_marker(1)
+    else:
+        r = s.add(RigidBody(0.01, (rod / 2, 0, 0), [1e-6, 1e-6, 1e-6], name="rod", position=pin,
+                            rotation=(0, 0, phi)))
+        m_big, m_small = r.marker(), r.marker((rod, 0, 0))
+    p = s.add(RigidBody(0.01, (0, 0, 0), [1e-6, 1e-6, 1e-6], name="piston", position=(x_piston, 0, 0)))
+    crank_joint = s.add(Revolute(s.ground.marker(), c.marker(), name="main"))
+    s.add(Revolute(c.marker((crank, 0, 0)), m_big, name="crankpin"))
+    s.add(Revolute(m_small, p.marker(), name="wristpin"))
+    slide = s.add(Prismatic(s.ground.marker(rotation=ALONG_X), p.marker(rotation=ALONG_X), name="slide"))
+    s.add(Driver(crank_joint, ConstantSpeed(speed, theta0), name="motor"))
+    s.add(PointForce(p.marker(), (force, 0.0, 0.0)))
+    return s, crank_joint, slide
+
+
+def piston_rate(theta, crank, rod):
+    """ds/dtheta of the slider-crank."""
+    sn, cs = np.sin(theta), np.cos(theta)
+    return -crank * sn - crank**2 * sn * cs / np.sqrt(rod**2 - crank**2 * sn**2)
+
+
+@pytest.mark.parametrize("flexible_rod", [False, True])
+def test_slider_crank_closed_loop_statics(flexible_rod):
+    """Rigid: the kinematic statics exactly.  Flexible rod (stiff, started in quasi-static
+    equilibrium): its compliance changes the geometry by ~1e-3 relative."""
+    s, main, slide = slider_crank(flexible_rod=flexible_rod)
+    r = s.simulate(2.0, h=1e-2, output_dt=0.1, static_start=flexible_rod, rho_inf=0.5)
+    rtol = 5e-3 if flexible_rod else STATICS_RTOL
+    assert np.max(r.constraint_error) < DRIFT_TOL
+    if not flexible_rod:
+        assert len(r.stats["dropped_constraint_rows"]) == 3
+    theta = r.joints["main"].coordinate
+    assert np.allclose(theta, 0.5 + 0.1 * r.t, atol=1e-9)
+    # virtual work: motor torque dtheta + F ds = 0
+    torque = r.joints["motor"].effort
+    expected = 100.0 * piston_rate(theta, 0.1, 0.3)
+    assert np.allclose(torque, expected, rtol=rtol, atol=rtol * 100 * 0.1)
+    # whole mechanism in equilibrium: ground reactions balance the piston force
+    total = r.joints["main"].force + r.joints["slide"].force + np.array([-100.0, 0, 0])
+    assert np.max(np.abs(total)) < rtol * 100
+
+
+def test_prismatic_friction_decelerates_at_mu_n_over_m():
+    m, mu, normal, v0 = 2.0, 0.3, 50.0, 1.0
+    s = System(gravity=(0, 0, 0))
+    block = s.add(RigidBody(m, name="block", velocity=(v0, 0, 0)))
+    slide = s.add(Prismatic(s.ground.marker(rotation=ALONG_X), block.marker(rotation=ALONG_X)))
+    s.add(JointFriction(slide, mu, preload=normal, regularisation=1e-4))
+    r = s.simulate(0.1, h=1e-3)
+    v = r.bodies["block"].velocity[:, 0]
+    assert np.allclose(v, v0 - mu * normal / m * r.t, rtol=1e-6)
+    assert r.energy["dissipated"][-1] == pytest.approx(0.5 * m * (v0**2 - v[-1] ** 2), rel=1e-4)
+
+
+def test_spring_mass_frequency_and_bump_stop():
+    m, k = 0.5, 200.0
+    s = System(gravity=(0, 0, 0))
+    mass = s.add(RigidBody(m, name="mass", position=(1.0, 0, 0), velocity=(0.1, 0, 0)))
+    s.add(Prismatic(s.ground.marker(rotation=ALONG_X), mass.marker(rotation=ALONG_X)))
+    s.add(SpringDamper(s.ground.marker(), mass.marker(), stiffness=k, length=1.0))
+    r = s.simulate(1.0, h=1e-3, rho_inf=1.0)
+    x = r.bodies["mass"].position[:, 0] - 1.0
+    omega = np.sqrt(k / m)
+    assert np.allclose(x, 0.1 / omega * np.sin(omega * r.t), atol=2e-3 * 0.1 / omega)
+    assert np.ptp(r.energy["total"]) < 1e-6 * r.energy["kinetic"][0]
+    # a stiff stop 2 mm short of the amplitude limits the compression
+    s2 = System(gravity=(0, 0, 0))
+    mass2 = s2.add(RigidBody(m, name="mass", position=(1.0, 0, 0), velocity=(-0.1, 0, 0)))
+    s2.add(Prismatic(s2.ground.marker(rotation=ALONG_X), mass2.marker(rotation=ALONG_X)))
+    s2.add(SpringDamper(s2.ground.marker(), mass2.marker(), stiffness=k, length=1.0,
+                        law=bump_stop(0.1 / omega - 2e-3, 1e6)))
+    x2 = s2.simulate(0.1, h=1e-4).bodies["mass"].position[:, 0] - 1.0
+    assert -0.1 / omega + 1.5e-3 < x2.min() < -0.1 / omega + 2e-3
+
+
+def test_gas_force_over_crank_angle_and_smooth_start():
+    """A tabulated force vs the crank angle; the motor's quasi-static torque follows it."""
+    s, main, slide = slider_crank(force=0.0, speed=0.2)
+    piston = next(b for b in s.bodies if b.name == "piston")
+    table = Table([0.0, 1.0, 2.0], [-50.0, -150.0, -50.0], period=2.0)
+    s.add(PointForce(piston.marker(), table, direction=(1.0, 0, 0), argument=main))
+    s.drivers[0].motion = SmoothStart(0.2, 0.5, 0.5)
+    r = s.simulate(1.5, h=1e-2, output_dt=0.1)
+    theta = r.joints["main"].coordinate
+    expected = -np.array([table(t) for t in theta]) * piston_rate(theta, 0.1, 0.3)
+    assert np.allclose(r.joints["motor"].effort, expected, rtol=STATICS_RTOL, atol=1e-3)
+    assert theta[-1] == pytest.approx(0.5 + 0.2 * (1.5 - 0.25), abs=1e-9)
