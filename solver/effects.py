@@ -104,7 +104,7 @@ class EffectEntry:
 
     @property
     def warning(self) -> bool:
-        return (not self.included) and np.isfinite(self.estimate) and self.estimate > WARN_LEVEL
+        return bool((not self.included) and np.isfinite(self.estimate) and self.estimate > WARN_LEVEL)
 
 
 @dataclass(frozen=True)
@@ -314,7 +314,7 @@ def build_report(choices: dict, estimates: dict, notes=()) -> EffectsReport:
         for e in EFFECTS:
             value, measure = est.get(e, (float("nan"), ""))
             shown = avail[e] and e not in chosen
-            entries.append(EffectEntry(e, e in chosen, avail[e], reasons.get(e, ""),
+            entries.append(EffectEntry(e, e in chosen, bool(avail[e]), reasons.get(e, ""),
                                        float(value) if shown else float("nan"), measure if shown else ""))
         bodies[name] = tuple(entries)
     return EffectsReport(bodies, tuple(notes))
