@@ -12,6 +12,7 @@ References (independent of the FFR solver):
 import contextlib
 import io
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,9 +23,10 @@ from sidprep.io import read_sid
 from sidprep.sid import inertia_matrix
 from solver.results import read_results
 
-PENDULUM = "examples/flexible_pendulum/scene.toml"
-SPINNING = "examples/spinning_body/scene.toml"
-SID_PATH = "examples/flexible_pendulum/bar.sid.h5"
+ROOT = Path(__file__).resolve().parents[1]
+PENDULUM = str(ROOT / "examples/flexible_pendulum/scene.toml")
+SPINNING = str(ROOT / "examples/spinning_body/scene.toml")
+SID_PATH = ROOT / "examples/flexible_pendulum/bar.sid.h5"
 SPIN_T_END = 2.0                 # s (the scene runs 10 s; shortened for CI time)
 
 PENDULUM_ENERGY_RTOL = 1e-5      # measured 1.4e-6 (h = 1 ms, rho_inf = 0.9)

@@ -4,6 +4,8 @@ Physics reference: a rigid physical pendulum built from a scene, small amplitude
 theta(t) = theta0 cos(omega t), omega^2 = m g d / I_pivot (closed form).
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -211,3 +213,16 @@ ramp_time = 0.5
     law = s.forces[2].law
     assert law(0.2, 0.0, 0.0) == pytest.approx(-1.0)          # constant - k (x - x0) - c xd
     assert np.allclose(s.forces[1].signal(0.5), [0, 0, 5])    # table interpolated over time
+
+
+def test_the_complete_example_of_the_documentation_builds(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs/scenes.md").read_text()
+    text = doc.split("```toml\n", 1)[1].split("```", 1)[0]
+    sid = (root / "examples/flexible_pendulum/bar.sid.h5").as_posix()
+    (tmp_path / "block.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = load_scene(write(tmp_path, text.replace('sid = "bar.sid.h5"', f'sid = "{sid}"')))
+    s = scene.system
+    assert [b.name for b in s.bodies] == ["bar", "block"] and [j.kind for j in s.joints] == ["revolute"]
+    assert [type(f).__name__ for f in s.forces] == ["SpringDamper", "PointForce", "JointFriction"]
+    assert scene.output.signals[0] == "hinge.coordinate" and scene.simulate_kwargs["h"] == 1e-3
