@@ -33,6 +33,8 @@ def register(subparsers) -> None:
     p.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
     p.add_argument("--stiffening", action="store_true", default=None,
                    help="compute the geometric-stiffening unit load cases (sid-spec 6)")
+    p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
+                   help="compare with a full-model eigen solve (default on; the costliest check)")
     p.add_argument("-o", "--output", metavar="OUT.sid.h5", help="output HDF5 file (default ./<mesh>.sid.h5)")
     p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None,
                    help="also write <out>.SID_FEM (default on)")
