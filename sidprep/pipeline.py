@@ -219,6 +219,8 @@ def master_compliance_full(red: Reduction) -> tuple[np.ndarray, np.ndarray]:
     bodies: inertia relief, then the rigid part removed (mean-axis deflection).
     """
     loads = np.setdiff1d(red.im.master_dofs.ravel(), [] if red.held is None else red.held)
+    if not len(loads):
+        return loads, np.zeros((0, 0))
     P = np.zeros((red.im.n_model, len(loads)))
     P[loads, np.arange(len(loads))] = 1.0
     R, M = red.rigid, red.M_model

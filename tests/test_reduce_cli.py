@@ -73,3 +73,25 @@ def test_bad_job_files(tmp_path, capsys):
     job.write_text('frame = "free"\n')
     assert main(["reduce", str(job)]) == 2
     assert "needs mesh" in capsys.readouterr().err
+
+
+def test_mm_t_s_units_and_a_body_without_interfaces(tmp_path, capsys):
+    """The bar in mm with MPa and t/mm^3 gives the SI body; no node sets: 3-2-1 CB boundary, no FRMs."""
+    import meshio
+
+    from sidprep.mesh import read_mesh
+
+    bar = read_mesh(MESHES / "bar.msh")
+    labels = {}
+    for units, scale, material in (("si", 1.0, ["--material", "steel"]),
+                                   ("mm-t-s", 1e3, ["--E", "210000", "--nu", "0.3", "--rho", "7.85e-9"])):
+        path = tmp_path / f"bar_{units}.vtu"
+        meshio.write(path, meshio.Mesh(bar.points * scale, [("tetra10", bar.cells)]))
+        assert main(["reduce", str(path), "--units", units, *material, "-q", "--json", "--no-obj", "--no-sid-fem",
+                     "-o", str(tmp_path / f"{units}.sid.h5")]) == 0
+        summary = json.loads(capsys.readouterr().out)
+        assert summary["checks"]["passed"] and summary["kinds"] == ["eigen"] * 6
+        labels[units] = read_sid_hdf5(tmp_path / f"{units}.sid.h5")
+    si, mm = labels["si"], labels["mm-t-s"]
+    assert mm.mass == pytest.approx(31.4, rel=1e-12) and mm.mass == pytest.approx(si.mass, rel=1e-12)
+    np.testing.assert_allclose(mm.frequencies_hz, si.frequencies_hz, rtol=1e-8)
