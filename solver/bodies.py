@@ -14,7 +14,7 @@ as (nq, nq, 3|6) arrays) and evaluates M_K and h_K = -(k_omega + k_e) + gravity.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,8 @@ import numpy as np
 from sidprep.sid import ge_tensor, gr_tensor
 from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
 from solver.kinematics import as_rotation, cross, exp_so3, skew
+
+_E3 = np.eye(3)
 
 #: relative size below which a split-off part of a SID member counts as round-off (zero)
 ROUNDOFF = 1e-12
@@ -92,6 +94,24 @@ class BodyModel:
     gravity: bool = True
     constant_mass: bool = True
 
+    def __post_init__(self):
+        """Flattened copies for BLAS mat-vecs (sid-spec 5.5): X1f[j, k*c + a] = X1[k, j, a]."""
+        nq = self.nq
+
+        def flat(t, c):
+            return None if t is None else np.ascontiguousarray(t.transpose(1, 0, 2).reshape(nq, nq * c))
+
+        extra = {
+            "I1f": None if self.I1 is None else self.I1.reshape(nq, 9),
+            "Ct1f": flat(self.Ct1, 3),
+            "Cr1f": flat(self.Cr1, 3),
+            "Oe1f": flat(self.Oe1, 6),
+            "Gr0f": None if self.Gr0 is None else self.Gr0.reshape(nq, 9),
+            "Gef": None if self.Ge is None else self.Ge.reshape(3, nq * nq),
+        }
+        for k, v in extra.items():
+            object.__setattr__(self, k, v)
+
     @property
     def nq(self) -> int:
         return self.Me.shape[0]
@@ -99,24 +119,25 @@ class BodyModel:
     def inertia_terms(self, q: np.ndarray):
         """md (3,), I (3, 3), Ct (nq, 3), Cr (nq, 3) at q (sid-spec 5.2)."""
         md, inertia, ct, cr = self.md0, self.I0, self.Ct0, self.Cr0
+        nq = self.nq
         if self.md1 is not None:
             md = md + q @ self.md1
-            inertia = inertia + np.tensordot(q, self.I1, 1)
+            inertia = inertia + (q @ self.I1f).reshape(3, 3)
         if self.P is not None:
             pq = np.einsum("abjk,j,k->ab", self.P, q, q)
-            inertia = inertia + np.trace(pq) * np.eye(3) - pq
-        if self.Ct1 is not None:
-            ct = ct + np.tensordot(q, self.Ct1, axes=(0, 1))
-        if self.Cr1 is not None:
-            cr = cr + np.tensordot(q, self.Cr1, axes=(0, 1))
+            inertia = inertia + np.trace(pq) * _E3 - pq
+        if self.Ct1f is not None:
+            ct = ct + (q @ self.Ct1f).reshape(nq, 3)
+        if self.Cr1f is not None:
+            cr = cr + (q @ self.Cr1f).reshape(nq, 3)
         return md, inertia, ct, cr
 
-    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+    def mass_matrix(self, q: np.ndarray, terms=None) -> np.ndarray:
         """M_K(q), (6 + nq, 6 + nq), for accelerations [a_O (K), omega_dot, q_ddot]."""
-        md, inertia, ct, cr = self.inertia_terms(q)
+        md, inertia, ct, cr = terms or self.inertia_terms(q)
         nq = self.nq
         m = np.empty((6 + nq, 6 + nq))
-        m[:3, :3] = self.mass * np.eye(3)
+        m[:3, :3] = self.mass * _E3
         m[3:6, :3] = skew(md)
         m[:3, 3:6] = m[3:6, :3].T
         m[3:6, 3:6] = inertia
@@ -125,29 +146,27 @@ class BodyModel:
         m[6:, 6:] = self.Me
         return m
 
-    def internal_forces(self, q, qd, w, g_k, mass_matrix) -> np.ndarray:
+    def internal_forces(self, q, qd, w, g_k, mass_matrix, terms=None) -> np.ndarray:
         """h_K = -k_omega - k_e + M_K[:, :3] g_K in K components, (6 + nq,) (sid-spec 5.2)."""
-        md, inertia, ct, _ = self.inertia_terms(q)
+        md, inertia, ct, _ = terms or self.inertia_terms(q)
         nq = self.nq
         h = np.empty(6 + nq)
-        wmd = cross(w, md)
-        h[:3] = -cross(w, wmd)
+        h[:3] = -cross(w, cross(w, md))
         h[3:6] = -cross(w, inertia @ w)
         he = -(self.Ke @ q)
-        if self.Gr0 is not None:
+        if self.Gr0f is not None:
             h[:3] -= 2.0 * cross(w, ct.T @ qd)
-        if self.Gr0 is not None:
-            h[3:6] -= np.einsum("kia,k,a->i", self.Gr0, qd, w)
-            he -= np.einsum("akj,a,j->k", self.Ge, w, qd)
+            h[3:6] -= (qd @ self.Gr0f).reshape(3, 3) @ w
+            he -= (w @ self.Gef).reshape(nq, nq) @ qd
         if self.P is not None:  # Gr1 part of Gr(q, qd), sid-spec 3.8
             r = np.einsum("iakj,k,j->ia", self.P, qd, q)
             h[3:6] -= 2.0 * (np.trace(r) * w - r @ w)
-        if self.Oe0 is not None or self.Oe1 is not None:
+        if self.Oe0 is not None or self.Oe1f is not None:
             wh = _omega_hat(w)
-            oe = self.Oe0 if self.Oe0 is not None else np.zeros((nq, 6))
-            if self.Oe1 is not None:
-                oe = oe + np.tensordot(q, self.Oe1, axes=(0, 1))
-            he -= oe @ wh
+            if self.Oe0 is not None:
+                he -= self.Oe0 @ wh
+            if self.Oe1f is not None:
+                he -= (q @ self.Oe1f).reshape(nq, 6) @ wh
         if self.ks0 is not None:
             he -= self.ks0 + self.ks1 @ q
         if self.De is not None:
@@ -233,7 +252,7 @@ class RigidBody(_MassBody):
 
     def configure(self, effects: set[str], gravity: bool) -> None:
         """Rigid bodies have only the gravity switch."""
-        self.model = BodyModel(**{**self.model.__dict__, "gravity": gravity})
+        self.model = replace(self.model, gravity=gravity)
 
 
 class FlexibleBody(_MassBody):

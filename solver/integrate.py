@@ -465,7 +465,7 @@ def _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec):
 
 # ---------------------------------------------------------------------------- driver
 def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=None, atol=1e-9, effects="auto",
-              output_dt=None, static_start=False, newton_tol=1e-10, max_steps=10_000_000,
+              output_dt=None, static_start=False, newton_tol=1e-8, max_steps=10_000_000,
               baumgarte=20.0) -> Result:
     """Run a simulation (see System.simulate for the parameters) and build the Result."""
     if t_end <= 0 or h <= 0:

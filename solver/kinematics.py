@@ -6,6 +6,8 @@ velocities are body components, so the Lie-group update is A_{n+1} = A_n exp(ske
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 #: below this rotation angle (rad) the Rodrigues coefficients use their Taylor series
@@ -14,24 +16,32 @@ SMALL_ANGLE = 1e-6
 
 def skew(a: np.ndarray) -> np.ndarray:
     """The tilde operator, skew(a) @ b == cross(a, b); (3,) -> (3, 3)."""
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    a0, a1, a2 = a.tolist()
+    return np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for two 3-vectors (np.cross has ~20 us of overhead per call)."""
-    a0, a1, a2 = a
-    b0, b1, b2 = b
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def exp_so3(theta: np.ndarray) -> np.ndarray:
     """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
-    angle2 = float(theta @ theta)
-    t = skew(theta)
+    x, y, z = theta.tolist()
+    angle2 = x * x + y * y + z * z
     if angle2 < SMALL_ANGLE**2:
-        return np.eye(3) + t + 0.5 * (t @ t)
-    angle = np.sqrt(angle2)
-    return np.eye(3) + (np.sin(angle) / angle) * t + ((1.0 - np.cos(angle)) / angle2) * (t @ t)
+        a, b = 1.0 - angle2 / 6.0, 0.5 - angle2 / 24.0
+    else:
+        angle = math.sqrt(angle2)
+        a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle2
+    # E + a t + b t t with t = skew(theta); t t = theta theta^T - angle2 E
+    return np.array([
+        [1.0 + b * (x * x - angle2), -a * z + b * x * y, a * y + b * x * z],
+        [a * z + b * x * y, 1.0 + b * (y * y - angle2), -a * x + b * y * z],
+        [-a * y + b * x * z, a * x + b * y * z, 1.0 + b * (z * z - angle2)],
+    ])
 
 
 def log_so3(rot: np.ndarray) -> np.ndarray:
