@@ -62,7 +62,7 @@ class Scene:
 
     path : the scene file; text, sha256 : its content (provenance); title : [scene] title;
     system : the built System; simulate_kwargs : keyword arguments of ``System.simulate``
-    (t_end, h, method, rho_inf, rtol, atol, output_dt, static_start, newton_tol);
+    (t_end, h, method, rho_inf, rtol, output_dt, static_start; atol, newton_tol if given);
     output : OutputSettings; sources : {body name: {"kind", "source"}} (results provenance);
     """
 
@@ -239,10 +239,11 @@ def _solver_settings(file: Path, root: dict, t_end_override: float | None) -> di
         "h": t.number("step", 1e-3, positive=True),
         "rho_inf": t.number("rho_inf", 0.9),
         "rtol": t.number("rtol", None, positive=True),
-        "atol": t.number("atol", 1e-9, positive=True),
         "static_start": t.boolean("static_start", False),
-        "newton_tol": t.number("newton_tol", 1e-10, positive=True),
     }
+    for key in ("atol", "newton_tol"):             # the solver's own defaults unless given
+        if t.has(key):
+            kw[key] = t.number(key, positive=True)
     if t_end_override is not None:
         t.raw("t_end", None)
         if t_end_override <= 0:
