@@ -27,7 +27,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.linalg
+
+from sidprep.errors import InputError
 
 from solver.bodies import FlexibleBody, RigidBody
 from solver.effects import EFFECTS, build_report, choose_effects, estimate_sizes, parse_effects
@@ -139,8 +140,12 @@ def project_positions(system, pose: Pose, t: float, rigid_only: bool = False) ->
         pose = system.advance(pose, delta)
     if rigid_only:
         return project_positions(system, pose, t)
-    raise RuntimeError(f"initial positions cannot satisfy the joints (max |g| = {np.max(np.abs(g[k])):.3g}); "
-                       "check marker positions / axes")
+    worst = int(np.flatnonzero(k)[np.argmax(np.abs(g[k]))])
+    name = next(c.name for c in system.constraints if system._row_slices[id(c)].start <= worst
+                < system._row_slices[id(c)].stop)
+    raise InputError(f"joint '{name}': the initial positions cannot satisfy it (residual "
+                     f"{np.max(np.abs(g[k])):.3g} m or rad); place its markers so that they coincide and "
+                     "their z axes align as the joint requires")
 
 
 def solve_kkt(mass, rhs_f, B, BF, rhs_g):
@@ -343,7 +348,8 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
     dmat, dmat_h = None, None
     while t < t_end - 1e-12 * max(1.0, t_end):
         if steps >= max_steps:
-            raise RuntimeError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s")
+            raise InputError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s; "
+                             "raise max_steps or the step size h")
         h = min(h, t_end - t)
         tn = t + h
         udn, lamn = ud.copy(), lam.copy()
@@ -377,7 +383,8 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
             h *= 0.5
             dmat = None
             if h < 1e-14 * max(1.0, t_end):
-                raise RuntimeError(f"generalised-alpha: Newton failed at t = {t:.6g} s (step size underflow)")
+                raise InputError(f"generalised-alpha: Newton did not converge at t = {t:.6g} s even with tiny "
+                                 "steps; check the scene (joint axes, loads, units) or raise newton_tol")
             continue
         an, pn, un = state(udn)
         if adaptive:
@@ -455,7 +462,7 @@ def _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec):
     sol = solve_ivp(rhs, (0.0, t_end), y0, method=method.upper().replace("DOP853", "DOP853"),
                     t_eval=t_eval, rtol=rtol if rtol is not None else 1e-8, atol=atol)
     if not sol.success:
-        raise RuntimeError(f"{method}: {sol.message}")
+        raise InputError(f"{method}: {sol.message}; use method = 'genalpha' for stiff scenes")
     for k, t in enumerate(sol.t):
         p, uk = unpack(sol.y[:, k])
         p = Pose(p.r, [a.copy() for a in p.A], p.q)
@@ -473,7 +480,7 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
               baumgarte=20.0) -> Result:
     """Run a simulation (see System.simulate for the parameters) and build the Result."""
     if t_end <= 0 or h <= 0:
-        raise ValueError("t_end and h must be positive")
+        raise InputError(f"simulate: t_end = {t_end} and h = {h} must be positive; fix the [solver] values")
     cpu0 = time.process_time()
     system._compile()
     choices = configure_effects(system, effects)
@@ -484,7 +491,7 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
     elif method in ("rk45", "dop853"):
         stats = _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec)
     else:
-        raise ValueError(f"unknown method {method!r}; use 'genalpha', 'rk45' or 'dop853'")
+        raise InputError(f"unknown integration method {method!r}; use 'genalpha', 'rk45' or 'dop853'")
     cpu_integration = time.process_time() - cpu0
     result = postprocess(system, rec, choices)
     dropped = [f"{c.name} row {r - system._row_slices[id(c)].start}" for c in system.constraints
