@@ -577,5 +577,12 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
 
 
 def simulate(scene: Scene):
-    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> solver.system.Result."""
-    return scene.system.simulate(**scene.simulate_kwargs)
+    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> solver.system.Result.
+
+    The solver's own InputErrors (e.g. Newton failure, joints that cannot close) are re-raised
+    with the scene file named first.
+    """
+    try:
+        return scene.system.simulate(**scene.simulate_kwargs)
+    except InputError as exc:
+        raise InputError(f"{scene.path}: {exc}") from None

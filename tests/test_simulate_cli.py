@@ -69,3 +69,37 @@ def test_errors_are_one_line_with_exit_code_2(scene, tmp_path, capsys, argv_tail
 def test_missing_scene_file(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "none.toml")]) == 2
     assert "no such scene file" in capsys.readouterr().err
+
+
+RIGID_ROD_TIED_TOO_FAR = """
+[solver]
+t_end = 0.01
+[bodies.rod]
+type = "rigid"
+mass = 1.0
+inertia = [0.1, 0.1, 0.1]
+[markers.a]
+body = "rod"
+[markers.b]
+body = "rod"
+position = [1, 0, 0]
+[markers.p]
+body = "ground"
+[markers.q]
+body = "ground"
+position = [5, 0, 0]
+[joints.ja]
+type = "spherical"
+markers = ["p", "a"]
+[joints.jb]
+type = "spherical"
+markers = ["q", "b"]
+"""
+
+
+def test_solver_errors_name_the_scene_file(tmp_path, capsys):
+    scene = tmp_path / "rod.toml"
+    scene.write_text(RIGID_ROD_TIED_TOO_FAR)                 # a 1 m rod between points 5 m apart
+    code = main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "-q"])
+    err = capsys.readouterr().err
+    assert (code, err.count("\n")) == (2, 1) and err.startswith(f"sidprep: error: {scene}: "), err
