@@ -226,3 +226,16 @@ def test_the_complete_example_of_the_documentation_builds(tmp_path):
     assert [b.name for b in s.bodies] == ["bar", "block"] and [j.kind for j in s.joints] == ["revolute"]
     assert [type(f).__name__ for f in s.forces] == ["SpringDamper", "PointForce", "JointFriction"]
     assert scene.output.signals[0] == "hinge.coordinate" and scene.simulate_kwargs["h"] == 1e-3
+
+
+def test_the_python_mirror_of_the_documentation_runs(tmp_path, monkeypatch):
+    root = Path(__file__).resolve().parents[1]
+    code = (root / "docs/scenes.md").read_text().split("```python\n", 1)[1].split("```", 1)[0]
+    code = code.replace("examples/", f"{root.as_posix()}/examples/").replace("simulate(1.0,", "simulate(0.02,")
+    monkeypatch.chdir(tmp_path)
+    namespace = {}
+    exec(compile(code, "docs/scenes.md", "exec"), namespace)
+    toml = load_scene(root / "examples/flexible_pendulum/scene.toml", t_end=0.02)
+    assert np.allclose(namespace["result"].joints["hinge"].coordinate, simulate(toml).joints["hinge"].coordinate,
+                       rtol=0, atol=1e-12)                    # script and scene are the same model
+    assert (tmp_path / "pendulum.png").is_file()
