@@ -478,7 +478,7 @@ class Marker:
             rot = exp_so3(self.psi @ q) @ rot
             jt[:, 6:] = A @ self.phi
             jr[:, 6:] = A @ self.psi
-        jt[:, :3] = np.eye(3)
+        jt[:, :3] = _E3
         jt[:, 3:6] = -A @ skew(d)
         jr[:, 3:6] = A
         return r + A @ d, A @ rot, jt, jr, d

@@ -33,12 +33,12 @@ def random_nodal_sid(n=7, nq=4, seed=0, node_count=3, stiffness_scale=100.0):
 
 
 def bar_sid(length=1.0, mass=2.0, sections=11, width=0.02, freqs=(500.0, 800.0, 1200.0, 1500.0),
-            damping=0.0):
+            damping=0.0, stiffening=None):
     """Lumped-mass bar along x from the origin: 4 points (+-width/2, +-width/2) per section.
 
     Modes vanish at x = 0: (x/L)^2 in z and y, (x/L)^3 in z, x/L axial, mass-orthonormalised;
     Ke = diag(w^2), De = diag(2 zeta w).  SID nodes: the root (x = 0, on the axis, id 1) and
-    the tip (id 2), added as massless points.  Returns the SID.
+    the tip (id 2), added as massless points; ``stiffening`` is passed to sid_invariants.
     """
     x = np.repeat(np.linspace(0.0, length, sections), 4)
     c = 0.5 * width * np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]] * sections)
@@ -61,7 +61,8 @@ def bar_sid(length=1.0, mass=2.0, sections=11, width=0.02, freqs=(500.0, 800.0, 
     w = 2 * np.pi * np.asarray(freqs)
     Phi3 = Phi.reshape(n, 3, 4)
     nodes = [(1, X[n - 2], Phi3[n - 2]), (2, X[n - 1], Phi3[n - 1])]
-    return sid_invariants(X, np.diag(m), Phi, nodes, Ke=np.diag(w**2), De=np.diag(2 * damping * w))
+    return sid_invariants(X, np.diag(m), Phi, nodes, Ke=np.diag(w**2), De=np.diag(2 * damping * w),
+                          stiffening=stiffening)
 
 
 def test_mode_pairs_recovered_from_kom_and_kr():

@@ -91,3 +91,41 @@ def test_only_named_terms_are_assembled():
     assert m.Oe0 is None and m.Oe1 is None and m.Gr0 is None and m.De is None and m.constant_mass
     body.configure({"coupling", "centrifugal_stiffening"}, gravity=False)
     assert body.model.Oe1 is not None and body.model.Oe0 is None
+
+
+def test_load_stiffening_by_a_tip_force():
+    """A compressive tip force with K0F: the modal stiffness becomes Ke - P K0F_x (sid-spec 5.2
+    h_ext,e = phi(q)^T F), checked against the linear modal ODE; left out, the report warns."""
+    from scipy.integrate import solve_ivp
+
+    from solver.forces import PointForce
+    from solver.joints import Fixed
+
+    nq, load = 4, 300.0
+    rng = np.random.default_rng(2)
+    a = rng.normal(size=(nq, nq))
+    g = a @ a.T / nq  # symmetric positive: the softening per newton of compression
+    k0f = np.zeros((3, nq, nq))
+    k0f[0] = -g  # sid-spec 6.2 sign rule: a unit tension (+x) gives a negative K0F_x (stiffening)
+    sid = bar_sid(freqs=FREQS, stiffening={"K0F/1": k0f})
+    q0 = np.array([1e-3, 0.0, 5e-4, 0.0])
+
+    def run(effects, h):
+        s = System(gravity=(0, 0, 0), effects=effects)
+        bar = s.add(FlexibleBody(sid, name="rotor", q0=q0))
+        s.add(Fixed(s.ground.marker(), bar.node_marker(0)))
+        s.add(PointForce(bar.node_marker(1), (-load, 0.0, 0.0)))
+        return s.simulate(0.3, h=h, rho_inf=1.0, output_dt=0.01)
+
+    keff = sid.Ke.M0 - load * g
+    phi_tip = sid.nodes[1].phi.M0
+    rhs = phi_tip.T @ np.array([-load, 0.0, 0.0])
+    ode = solve_ivp(lambda t, y: np.concatenate([y[nq:], rhs - keff @ y[:nq]]), (0, 0.3),
+                    np.concatenate([q0, np.zeros(nq)]), t_eval=np.arange(31) * 0.01, rtol=1e-10, atol=1e-14)
+    r = run(["coupling", "load_stiffening"], 2.5e-4)
+    q = r.bodies["rotor"].q
+    assert np.max(np.abs(q - ode.y[:nq].T)) < 2e-3 * np.max(np.abs(ode.y[:nq]))
+    left_out = run(["coupling"], 1e-3)
+    e = entry(left_out.effects, "load_stiffening")
+    w1sq = (2 * np.pi * FREQS[0]) ** 2
+    assert e.estimate == pytest.approx(load * np.linalg.norm(g, 2) / w1sq, rel=1e-6) and e.warning

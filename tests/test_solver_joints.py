@@ -104,6 +104,16 @@ def test_prismatic_friction_decelerates_at_mu_n_over_m():
     assert r.energy["dissipated"][-1] == pytest.approx(0.5 * m * (v0**2 - v[-1] ** 2), rel=1e-4)
 
 
+def test_revolute_friction_torque_decelerates_a_wheel():
+    inertia, mu, normal, radius, w0 = 0.05, 0.2, 100.0, 0.02, 5.0
+    s = System(gravity=(0, 0, 0))
+    wheel = s.add(RigidBody(1.0, inertia=[inertia, inertia, inertia], name="wheel", omega=(0, 0, w0)))
+    hub = s.add(Revolute(s.ground.marker(), wheel.marker()))
+    s.add(JointFriction(hub, mu, radius=radius, preload=normal, regularisation=1e-4))
+    r = s.simulate(0.2, h=1e-3)
+    assert np.allclose(r.joints[hub.name].rate, w0 - mu * normal * radius / inertia * r.t, rtol=1e-6)
+
+
 def test_spring_mass_frequency_and_bump_stop():
     m, k = 0.5, 200.0
     s = System(gravity=(0, 0, 0))
