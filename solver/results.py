@@ -82,11 +82,12 @@ class ResultsFile:
 def energy_summary(result: Result) -> dict:
     """Initial and final total energy (J) and the largest drift of it, relative to the energy scale.
 
-    The scale is max(|E_total(0)|, max_t E_kinetic), so that a body released from rest with
-    E_total(0) = 0 still gets a meaningful relative drift.
+    The scale is max(|E_total(0)|, the largest range max_t - min_t of any energy term), so that
+    a body released from rest with E_total(0) = 0 still gets a meaningful relative drift.
     """
     total = np.asarray(result.energy["total"])
-    scale = max(abs(total[0]), float(np.max(result.energy.get("kinetic", 0.0))), 1e-300)
+    ranges = [float(np.ptp(e)) for kind, e in result.energy.items() if kind != "total" and len(e)]
+    scale = max([abs(total[0]), *ranges, 1e-300])
     return {
         "initial": float(total[0]),
         "final": float(total[-1]),

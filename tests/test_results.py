@@ -62,8 +62,8 @@ def test_hdf5_round_trip_is_exact(tmp_path):
         read_results(tmp_path / "missing.h5")
 
 
-def test_energy_summary_scales_by_kinetic_energy_when_total_starts_at_zero():
-    s = energy_summary(make_result())
+def test_energy_summary_scales_by_the_largest_energy_range_when_total_starts_at_zero():
+    s = energy_summary(make_result())            # kinetic 0 .. 3 J, gravity -0 .. -2.997 J, total 0 .. 0.003 J
     assert s["initial"] == 0.0 and s["final"] == pytest.approx(0.003)
     assert s["max_rel_drift"] == pytest.approx(0.003 / 3.0)
 
