@@ -21,7 +21,7 @@ import numpy as np
 
 from sidprep.sid import ge_tensor, gr_tensor
 from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
-from solver.kinematics import as_rotation, cross, exp_so3, skew
+from solver.kinematics import as_rotation, cross, exp_so3, jit, skew
 
 _E3 = np.eye(3)
 
@@ -60,6 +60,95 @@ def mode_pairs_from_kom_kr(kom: np.ndarray, kr: np.ndarray) -> np.ndarray:
     p[1, 2], p[2, 1] = 0.5 * (yz - kr[0]), 0.5 * (yz + kr[0])
     p[0, 2], p[2, 0] = 0.5 * (xz + kr[1]), 0.5 * (xz - kr[1])
     return p
+
+
+@jit
+def _body_equations(q, qd, w, gk, mass, md0, I0, Me, Ke, md1, I1f, Ct0, Ct1f, Cr0, Cr1f, Gr0f, Gef, Oe0,
+                    Oe1f, ks0, ks1, De, flags):  # pragma: no cover - compiled
+    """M_K (6+nq, 6+nq) and h_K (6+nq,) of sid-spec 5.2, loops compiled by numba.
+
+    flags: [inertia_change, Ct.M1, Cr.M1, coriolis, Oe0, Oe.M1, preload, damping, gravity].
+    Same mathematics as BodyModel.mass_matrix / internal_forces (the reference implementation).
+    """
+    nq = q.shape[0]
+    n = 6 + nq
+    md = md0.copy()
+    inertia = I0.copy()
+    ct = Ct0.copy()
+    cr = Cr0.copy()
+    for j in range(nq):
+        qj = q[j]
+        if flags[0]:
+            for a in range(3):
+                md[a] += qj * md1[j, a]
+                for b in range(3):
+                    inertia[a, b] += qj * I1f[j, 3 * a + b]
+        if flags[1]:
+            for k in range(nq):
+                for a in range(3):
+                    ct[k, a] += qj * Ct1f[j, 3 * k + a]
+        if flags[2]:
+            for k in range(nq):
+                for a in range(3):
+                    cr[k, a] += qj * Cr1f[j, 3 * k + a]
+    m = np.zeros((n, n))
+    for a in range(3):
+        m[a, a] = mass
+        for b in range(3):
+            m[3 + a, 3 + b] = inertia[a, b]
+    m[3, 1], m[3, 2], m[4, 0], m[4, 2], m[5, 0], m[5, 1] = -md[2], md[1], md[2], -md[0], -md[1], md[0]
+    for a in range(3):
+        for b in range(3):
+            m[a, 3 + b] = m[3 + b, a]
+    for k in range(nq):
+        for a in range(3):
+            m[6 + k, a] = ct[k, a]
+            m[a, 6 + k] = ct[k, a]
+            m[6 + k, 3 + a] = cr[k, a]
+            m[3 + a, 6 + k] = cr[k, a]
+        for j in range(nq):
+            m[6 + k, 6 + j] = Me[k, j]
+    h = np.zeros(n)
+    wmd = np.cross(w, md)
+    h[0:3] = -np.cross(w, wmd)
+    iw = inertia @ w
+    h[3:6] = -np.cross(w, iw)
+    wh = np.array([w[0] * w[0], w[1] * w[1], w[2] * w[2], w[0] * w[1], w[1] * w[2], w[0] * w[2]])
+    if flags[3]:
+        ctq = np.zeros(3)
+        g = np.zeros((3, 3))
+        for k in range(nq):
+            for a in range(3):
+                ctq[a] += ct[k, a] * qd[k]
+                for b in range(3):
+                    g[a, b] += qd[k] * Gr0f[k, 3 * a + b]
+        h[0:3] -= 2.0 * np.cross(w, ctq)
+        h[3:6] -= g @ w
+    for k in range(nq):
+        he = 0.0
+        for j in range(nq):
+            he -= Ke[k, j] * q[j]
+            if flags[3]:
+                for a in range(3):
+                    he -= w[a] * Gef[a, k * nq + j] * qd[j]
+            if flags[5]:
+                for i in range(6):
+                    he -= q[j] * Oe1f[j, 6 * k + i] * wh[i]
+            if flags[6]:
+                he -= ks1[k, j] * q[j]
+            if flags[7]:
+                he -= De[k, j] * qd[j]
+        if flags[4]:
+            for i in range(6):
+                he -= Oe0[k, i] * wh[i]
+        if flags[6]:
+            he -= ks0[k]
+        h[6 + k] = he
+    if flags[8]:
+        for i in range(n):
+            for a in range(3):
+                h[i] += m[i, a] * gk[a]
+    return m, h
 
 
 @dataclass(frozen=True)
@@ -111,6 +200,29 @@ class BodyModel:
         }
         for k, v in extra.items():
             object.__setattr__(self, k, v)
+        none2 = np.zeros((0, 0))
+        flags = np.array([self.md1 is not None, self.Ct1 is not None, self.Cr1 is not None, self.Gr0 is not None,
+                          self.Oe0 is not None, self.Oe1 is not None, self.ks0 is not None,
+                          self.De is not None, self.gravity], dtype=np.int64)
+
+        def arr(x, empty=none2):
+            return empty if x is None else np.ascontiguousarray(x, dtype=float)
+
+        packed = (float(self.mass), arr(self.md0), arr(self.I0), arr(self.Me), arr(self.Ke), arr(self.md1),
+                  arr(extra["I1f"]), arr(self.Ct0), arr(extra["Ct1f"]), arr(self.Cr0), arr(extra["Cr1f"]),
+                  arr(extra["Gr0f"]), arr(extra["Gef"]), arr(self.Oe0), arr(extra["Oe1f"]),
+                  arr(self.ks0, np.zeros(0)), arr(self.ks1), arr(self.De), flags)
+        object.__setattr__(self, "_packed", packed)
+
+    def equations(self, q, qd, w, g_k):
+        """(M_K, h_K) at the state: the compiled kernel, or the reference methods when the
+        second-order terms (P) are on."""
+        if self.P is not None:
+            terms = self.inertia_terms(q)
+            mk = self.mass_matrix(q, terms)
+            return mk, self.internal_forces(q, qd, w, g_k, mk, terms)
+        c = np.ascontiguousarray
+        return _body_equations(c(q), c(qd), c(w), c(g_k), *self._packed)
 
     @property
     def nq(self) -> int:
@@ -440,6 +552,26 @@ def _ge(s) -> np.ndarray:
     return 0.5 * (ge - ge.transpose(0, 2, 1))  # physically antisymmetric (sid-spec 3.9)
 
 
+@jit
+def _marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
+    """p, A R(Psi q) AP0, JT = [E, -A d~, A Phi], JR = [0, A, A Psi], d = c + Phi q (sid-spec 5.2)."""
+    nq = q.shape[0]
+    d = position + phi @ q
+    rot = A @ exp_so3(psi @ q) @ rotation
+    jt = np.zeros((3, 6 + nq))
+    jr = np.zeros((3, 6 + nq))
+    ad = -A @ skew(d)
+    for a in range(3):
+        jt[a, a] = 1.0
+        for b in range(3):
+            jt[a, 3 + b] = ad[a, b]
+            jr[a, 3 + b] = A[a, b]
+    if nq:
+        jt[:, 6:] = A @ phi
+        jr[:, 6:] = A @ psi
+    return r + A @ d, rot, jt, jr, d
+
+
 @dataclass(eq=False)
 class Marker:
     """A frame on a body: fixed in K, or on a SID node (moves with Phi_n q, rotates by Psi_n q).
@@ -458,30 +590,26 @@ class Marker:
     psi: np.ndarray | None = None
     k0f: np.ndarray | None = None
     k0m: np.ndarray | None = None
+    _fixed: tuple | None = None
+    _shapes: tuple | None = None
 
     def kinematics(self, r, A, q):
         """Marker pose and velocity Jacobians for body pose (r, A, q).
 
         Returns p (3,) inertial position, Am (3, 3) marker -> inertial, JT (3, ndof), JR (3, ndof)
         with v_marker = JT u_body and omega_marker = JR u_body (inertial components),
-        and d (3,) the marker position in K.
+        and d (3,) the marker position in K (sid-spec 5.2 node kinematics).
         """
-        nd = self.body.ndof
-        jt = np.zeros((3, nd))
-        jr = np.zeros((3, nd))
-        if nd == 0:
-            return r + A @ self.position, A @ self.rotation, jt, jr, self.position
-        d = self.position
-        rot = self.rotation
-        if self.phi is not None and self.body.nq:
-            d = d + self.phi @ q
-            rot = exp_so3(self.psi @ q) @ rot
-            jt[:, 6:] = A @ self.phi
-            jr[:, 6:] = A @ self.psi
-        jt[:, :3] = _E3
-        jt[:, 3:6] = -A @ skew(d)
-        jr[:, 3:6] = A
-        return r + A @ d, A @ rot, jt, jr, d
+        if self.body.ndof == 0:
+            if self._fixed is None:
+                empty = np.zeros((3, 0))
+                self._fixed = (r + A @ self.position, A @ self.rotation, empty, empty, self.position)
+            return self._fixed
+        if self._shapes is None:
+            nq = self.body.nq
+            self._shapes = (np.zeros((3, nq)), np.zeros((3, nq))) if self.phi is None else (
+                np.ascontiguousarray(self.phi), np.ascontiguousarray(self.psi))
+        return _marker_kinematics(r, A, q, self.position, self.rotation, *self._shapes)
 
     def force_jacobians(self, A, q, jt, jr):
         """Jacobians transposed onto the body for a force / torque at the marker (sid-spec 5.2).

@@ -346,13 +346,17 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
 
     steps = 0
     dmat, dmat_h = None, None
+    ud_prev = lam_prev = h_prev = None
     while t < t_end - 1e-12 * max(1.0, t_end):
         if steps >= max_steps:
             raise InputError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s; "
                              "raise max_steps or the step size h")
         h = min(h, t_end - t)
         tn = t + h
-        udn, lamn = ud.copy(), lam.copy()
+        if ud_prev is not None and h == h_prev:  # linear extrapolation predictor
+            udn, lamn = 2.0 * ud - ud_prev, 2.0 * lam - lam_prev
+        else:
+            udn, lamn = ud.copy(), lam.copy()
         converged, renewed = False, False
         if dmat is None or dmat_h != h:
             dmat, dmat_h, renewed = tangent(udn, lamn, tn), h, True
@@ -395,11 +399,13 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
                 stats["rejected"] += 1
                 h *= max(H_SHRINK, factor)
                 continue
+        ud_prev, lam_prev, h_prev = ud, lam, h
         t, pose, u, ud, a, lam = tn, pn, un, udn, an, lamn
         steps += 1
         stats["steps"] = steps
         stats["h_min"] = min(stats["h_min"], h)
         stats["h_max"] = max(stats["h_max"], h)
+        system._accept_ctx = ctx
         system.accept(pose)
         rec.power_step(system, ctx, h)
         rec.offer(t, pose, u, ud, lam, force=t >= t_end - 1e-12 * max(1.0, t_end))

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from solver.bodies import Marker
-from solver.kinematics import cross
+from solver.kinematics import cross, jit
 
 # constraint rows as (kind, axis of marker 1, axis of marker 2); kind "p" = position, "a" = angle
 _ROWS = {
@@ -40,6 +40,29 @@ _ROWS = {
 
 #: joint coordinate kinds: rotation about z (angle) and / or translation along z
 _COORDINATE = {"revolute": "angle", "cylindrical": "angle", "prismatic": "slide"}
+
+
+@jit
+def _joint_rows(rows, p1, a1, p2, a2):  # pragma: no cover - compiled
+    """Rows (kind, axis 1, axis 2) -> g (m,) and c (4, m, 3) = (cT1, cR1, cT2, cR2), module doc."""
+    m = rows.shape[0]
+    d = p2 - p1
+    g = np.empty(m)
+    c = np.zeros((4, m, 3))
+    for r in range(m):
+        e = a1[:, rows[r, 1]].copy()
+        if rows[r, 0] == 0:
+            g[r] = e @ d
+            c[0, r] = -e
+            c[1, r] = cross(e, d)
+            c[2, r] = e
+        else:
+            b = a2[:, rows[r, 2]].copy()
+            g[r] = e @ b
+            axb = cross(e, b)
+            c[1, r] = axb
+            c[3, r] = -axb
+    return g, c
 
 
 class Joint:
@@ -56,6 +79,7 @@ class Joint:
         self.marker1, self.marker2 = marker1, marker2
         self.name = name or f"{self.kind}:{marker1.name}-{marker2.name}"
         self.rows = _ROWS[self.kind]
+        self._rows = np.array([[kind == "a", i, -1 if j is None else j] for kind, i, j in self.rows], dtype=np.int64)
         self._angle_ref = 0.0
 
     @property
@@ -64,25 +88,7 @@ class Joint:
 
     def constraint(self, k1, k2):
         """g (m,), cT1, cR1, cT2, cR2 (m, 3) at the marker kinematics k1, k2 = (p, A, ...)."""
-        p1, a1 = k1[0], k1[1]
-        p2, a2 = k2[0], k2[1]
-        d = p2 - p1
-        m = len(self.rows)
-        g = np.empty(m)
-        c = np.zeros((4, m, 3))
-        for r, (kind, i, j) in enumerate(self.rows):
-            e = a1[:, i]
-            if kind == "p":
-                g[r] = e @ d
-                c[0, r] = -e
-                c[1, r] = cross(e, d)
-                c[2, r] = e
-            else:
-                b = a2[:, j]
-                g[r] = e @ b
-                axb = cross(e, b)
-                c[1, r] = axb
-                c[3, r] = -axb
+        g, c = _joint_rows(self._rows, k1[0], k1[1], k2[0], k2[1])
         return g, c[0], c[1], c[2], c[3]
 
     # ------------------------------------------------------------ joint coordinate

@@ -14,22 +14,31 @@ import numpy as np
 SMALL_ANGLE = 1e-6
 
 
+def jit(fn):
+    """numba.njit(cache=True) when numba is installed, else the plain Python function."""
+    try:
+        from numba import njit
+    except ImportError:  # pragma: no cover - numba is a soft dependency
+        return fn
+    return njit(cache=True)(fn)
+
+
+@jit
 def skew(a: np.ndarray) -> np.ndarray:
     """The tilde operator, skew(a) @ b == cross(a, b); (3,) -> (3, 3)."""
-    a0, a1, a2 = a.tolist()
-    return np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
+@jit
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for two 3-vectors (np.cross has ~20 us of overhead per call)."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+@jit
 def exp_so3(theta: np.ndarray) -> np.ndarray:
     """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
-    x, y, z = theta.tolist()
+    x, y, z = theta[0], theta[1], theta[2]
     angle2 = x * x + y * y + z * z
     if angle2 < SMALL_ANGLE**2:
         a, b = 1.0 - angle2 / 6.0, 0.5 - angle2 / 24.0

@@ -249,7 +249,6 @@ class System:
             r += c.nrows
         self.m_all = r
         self.kept = np.ones(r, bool)
-        self._mk_cache = [None] * len(self.bodies)
 
     def initial_pose(self) -> tuple[Pose, np.ndarray]:
         """Pose and velocities from the bodies' initial values (not yet consistent)."""
@@ -281,9 +280,7 @@ class System:
             q = ctx.pose.q[i]
             ub = ctx.u[sl]
             model = b.model
-            terms = model.inertia_terms(q)
-            mk = self._mass_k(i, model, q, terms)
-            h = model.internal_forces(q, ub[6:], ub[3:6], A.T @ g, mk, terms)
+            mk, h = model.equations(q, ub[6:], ub[3:6], A.T @ g)
             h[:3] = A @ h[:3]
             ctx.f[sl] += h
             m = mk.copy()
@@ -291,15 +288,6 @@ class System:
             m[3:, :3] = m[:3, 3:].T
             mass[sl, sl] = m
         return mass
-
-    def _mass_k(self, i, model, q, terms):
-        """M_K of body i: assembled once when no first-order term is switched on."""
-        if model.constant_mass:
-            cached = self._mk_cache[i]
-            if cached is None:
-                cached = self._mk_cache[i] = model.mass_matrix(q, terms)
-            return cached
-        return model.mass_matrix(q, terms)
 
     def constraint_rows(self, ctx: Context, force_rows: bool = True):
         """g (m_all,), B (m_all, n), B_F (m_all, n) and the per-row marker coefficients."""
@@ -361,8 +349,13 @@ class System:
         return (plus - minus) / (2 * eps)
 
     def accept(self, pose: Pose) -> None:
-        """Update joint-angle unwrapping references after an accepted step."""
-        ctx = Context(self, pose, np.zeros(self.n), 0.0, None)
+        """Called once per accepted step: update the joint-angle unwrapping references.
+
+        The integrator leaves its last evaluation (within a Newton correction of ``pose``) in
+        ``self._accept_ctx`` so that the marker kinematics are not recomputed.
+        """
+        ctx = getattr(self, "_accept_ctx", None) or Context(self, pose, np.zeros(self.n), 0.0, None)
+        self._accept_ctx = None
         for j in self.joints:
             if j.coordinate_kind:
                 j.accept(ctx.kin(j.marker1), ctx.kin(j.marker2))
