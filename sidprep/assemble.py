@@ -30,8 +30,8 @@ from sidprep.mesh import TET10_EDGES, FEMesh
 #: quadrature degree of the stiffness (exact for affine P2) and of the consistent mass
 STIFFNESS_QUAD_DEGREE = 2
 MASS_QUAD_DEGREE = 4
-#: elements per batch: bounds the temporaries to ~CHUNK * 30 * 30 * 8 bytes * a few
-CHUNK = 16384
+#: elements per batch: bounds the temporaries to a few arrays of CHUNK * 30 * 30 * 8 bytes (30 MB)
+CHUNK = 4096
 
 
 def shape_functions(order: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,9 +109,6 @@ class BlockPattern:
         n = self.n_nodes
         return sp.bsr_matrix((data, self.indices, self.indptr), shape=(3 * n, 3 * n)).tocsr()
 
-    def expand(self, scalar: sp.csr_matrix) -> sp.csr_matrix:
-        """Ms (x) I3 on this pattern: the (3n, 3n) matrix of a scalar (n, n) one."""
-        return self.from_blocks(scalar.data[:, None, None] * np.eye(3)[None])
 
 
 def block_pattern(cells: np.ndarray, n_nodes: int) -> BlockPattern:
@@ -217,8 +214,7 @@ def mass_matrix(mesh: FEMesh, material: Material, lumped: bool = False,
     :func:`lumped_scalar_mass`)."""
     if lumped:
         return sp.diags(np.repeat(lumped_scalar_mass(mesh, material.rho), 3)).tocsr()
-    pattern = pattern or block_pattern(mesh.cells, mesh.n_nodes)
-    return pattern.expand(scalar_mass_matrix(mesh, material.rho, pattern))
+    return sp.kron(scalar_mass_matrix(mesh, material.rho, pattern), sp.identity(3), format="csr")
 
 
 def stiffness_and_mass(mesh: FEMesh, material: Material) -> tuple[sp.csr_matrix, sp.csr_matrix]:

@@ -4,7 +4,10 @@ One interface, interchangeable backends:
 
 * ``factorize(A, backend)``: "cholmod" (supernodal Cholesky of the ``sksparse_minimal`` wheel,
   SPD matrices, fill-reducing ordering), "superlu" (scipy, any nonsingular matrix), "auto"
-  (CHOLMOD when importable, else SuperLU).
+  (CHOLMOD when importable, else SuperLU).  The wheel bundles the netlib reference BLAS; when the
+  PyPI wheel ``mkl`` is installed, its BLAS/LAPACK is loaded with global symbol visibility before
+  CHOLMOD, so CHOLMOD's dgemm_/dsyrk_/dpotrf_/dtrsm_ calls bind to it (ELF symbol interposition;
+  factorisation 3-4x faster at 101k DOF).  SIDPREP_FAST_BLAS=0 turns this off.
 * ``eigen_modes(K, M, ...)``: shift-invert Lanczos (ARPACK through ``scipy.sparse.linalg.eigsh``)
   with the factorisation of K - sigma M as OPinv, or ``backend="lobpcg"``: LOBPCG preconditioned
   with smoothed-aggregation AMG (pyamg) on K - sigma M, for models beyond direct-solver memory.
@@ -19,7 +22,12 @@ singular and lost up to 2e-4 relative accuracy on a 262k-DOF free bar
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import functools
+import os
+import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -46,6 +54,28 @@ FMAX_FIRST_COUNT = 20
 FMAX_GROWTH = 2
 
 
+#: optimised BLAS/LAPACK libraries interposed under CHOLMOD, searched in <prefix>/lib (wheel "mkl")
+FAST_BLAS_LIBRARIES = ("libmkl_rt.so.3", "libmkl_rt.so.2", "libmkl_rt.so")
+
+
+@functools.cache
+def fast_blas() -> str:
+    """Load an optimised BLAS for CHOLMOD (see the module docstring); returns its path or
+    "reference" (the wheel's own netlib BLAS).  Must run before CHOLMOD's first BLAS call."""
+    if os.environ.get("SIDPREP_FAST_BLAS", "1") == "0":
+        return "reference"
+    for prefix in dict.fromkeys((sys.prefix, sys.base_prefix)):
+        for name in FAST_BLAS_LIBRARIES:
+            path = Path(prefix) / "lib" / name
+            if path.exists():
+                try:
+                    ctypes.CDLL(str(path), mode=ctypes.RTLD_GLOBAL)
+                except OSError:
+                    continue
+                return str(path)
+    return "reference"
+
+
 class Factorization:
     """A factorised square matrix; ``solve(b)`` for b of shape (n,) or (n, k)."""
 
@@ -61,13 +91,14 @@ class CholmodFactorization(Factorization):
     backend = "cholmod"
 
     def __init__(self, A: sp.spmatrix):
-        from sksparse_minimal import SparseCholesky
+        self.blas = fast_blas()
+        from sksparse_minimal import SparseCholesky  # after fast_blas: extensions bind at load
 
         # CHOLMOD reads the lower triangle of a CSC matrix; the CSR arrays of triu(A) are exactly
         # the CSC arrays of tril(A) (A symmetric), so no transpose copy is made.
-        U = sp.triu(A, format="csr")
-        U.sort_indices()
+        U = upper_triangle(A)
         L = sp.csc_matrix((U.data, U.indices, U.indptr), shape=A.shape)
+        del U
         try:
             self._chol = SparseCholesky(L)
         except Exception as exc:  # CHOLMOD raises a plain exception for non-SPD input
@@ -75,6 +106,18 @@ class CholmodFactorization(Factorization):
 
     def solve(self, b):
         return self._chol.solve_A(np.asarray(b, dtype=np.float64))
+
+
+def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:
+    """triu(A) as CSR with sorted indices, without the COO copies of scipy.sparse.triu."""
+    A = sp.csr_matrix(A)
+    A.sort_indices()
+    rows = np.repeat(np.arange(A.shape[0], dtype=A.indices.dtype), np.diff(A.indptr))
+    keep = A.indices >= rows
+    indptr = np.zeros_like(A.indptr)
+    np.cumsum(np.bincount(rows[keep], minlength=A.shape[0]), out=indptr[1:])
+    del rows
+    return sp.csr_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
 
 
 class SuperLUFactorization(Factorization):
@@ -90,6 +133,7 @@ class SuperLUFactorization(Factorization):
 
 
 def cholmod_available() -> bool:
+    fast_blas()  # Python loads extension modules with RTLD_NOW: the BLAS must come first
     try:
         import sksparse_minimal  # noqa: F401
     except ImportError:
