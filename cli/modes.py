@@ -74,7 +74,7 @@ def run(args) -> int:
     import json
 
     from sidprep.assemble import stiffness_and_mass
-    from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
+    from sidprep.linalg import clamp_dofs, eigen_modes, fast_blas, node_dofs, rigid_body_modes
     from sidprep.material import material_from_options, unit_system
     from sidprep.mesh import read_mesh
     from sidprep.progress import Phases, peak_memory_mb
@@ -113,7 +113,8 @@ def run(args) -> int:
         "mass_kg": mass_kg, "rigid_modes": nr,
         "rigid_frequencies_hz": f[:nr].tolist(), "rigid_residuals": res.residuals[:nr].tolist(),
         "frequencies_hz": f[nr:].tolist(), "residuals": res.residuals[nr:].tolist(),
-        "backend": res.backend, "sigma_rad2_s2": res.sigma,
+        "backend": res.backend, "blas": fast_blas() if res.backend == "cholmod" else None,
+        "sigma_rad2_s2": res.sigma,
         "timings_s": {k: round(v, 3) for k, v in ph.timings_s.items()},
         "peak_memory_mb": round(peak_memory_mb(), 1), "notes": notes,
     }

@@ -1,5 +1,11 @@
 """Factorisations and the eigen solver against dense LAPACK (scipy.linalg.eigh) on small models."""
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.linalg as sla
@@ -102,3 +108,19 @@ def test_bad_solver_options_are_input_errors(kwargs, fragment):
     K = sp.identity(30, format="csr")
     with pytest.raises(InputError, match=fragment):
         eigen_modes(K, K, **kwargs)
+
+
+def test_interposed_blas_gives_the_reference_blas_result():
+    """CHOLMOD with the optimised BLAS (if installed) vs the wheel's own reference BLAS."""
+    script = ("import json, numpy as np, sys; sys.path.insert(0, 'tests'); from test_assemble import *; "
+              "from sidprep.assemble import stiffness_and_mass; from sidprep.linalg import eigen_modes, fast_blas; "
+              "K, M = stiffness_and_mass(femesh(skfem_box(n=2), 2)[0], MAT); "
+              "print(fast_blas()); print(json.dumps(eigen_modes(K, M, count=4, backend='cholmod').eigenvalues[6:].tolist()))")
+    out = {}
+    for flag in ("0", "1"):
+        proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
+                              cwd=Path(__file__).resolve().parents[1], env=dict(os.environ, SIDPREP_FAST_BLAS=flag))
+        blas, values = proc.stdout.strip().splitlines()
+        out[flag] = (blas, np.array(json.loads(values)))
+    assert out["0"][0] == "reference"
+    assert np.allclose(out["1"][1], out["0"][1], rtol=DIRECT_RTOL)
