@@ -165,6 +165,7 @@ def modal_basis(K, M, *, rigid=None, held=(), load_dofs=(), n_modes=None, fmax=N
         P = np.zeros((len(free), len(loads)))
         P[loads, np.arange(len(loads))] = 1.0
         U = frequency_response_modes(Kf, Mf, P, 2 * np.pi * omega_hz)
+        U = U / np.sqrt(np.einsum("ij,ij->j", U, Mf @ U))     # unit M-norm: forces and moments alike
         against = np.hstack([R, E])
         f_frm, F = orthonormalize(Kf, Mf, m_orthogonalize(U, against, Mf))
         ok = select_by_cutoff(f_frm, cutoff)

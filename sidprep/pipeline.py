@@ -166,7 +166,7 @@ def default_interfaces(mesh) -> list[tuple[str, str]]:
     return out
 
 
-def reduce_body(mesh, material, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fmax=None,
+def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fmax=None,
                 frm=True, cutoff_factor=5.0, phases=None) -> Reduction:
     """Steps 2-4 of the module docstring for an assembled FE model.
 
@@ -380,7 +380,7 @@ def reduce_job(options: ReduceOptions) -> dict:
         K_fe = stiffness_matrix(mesh, material)
         M_fe = mass_matrix(mesh, material)
         Ms = scalar_mass_matrix(mesh, material.rho)
-    red = reduce_body(mesh, material, K_fe, M_fe, interfaces, frame=o.frame, n_modes=o.modes, fmax=o.fmax,
+    red = reduce_body(mesh, K_fe, M_fe, interfaces, frame=o.frame, n_modes=o.modes, fmax=o.fmax,
                       frm=o.frm, cutoff_factor=o.cutoff_factor, phases=ph)
     stiff = None
     if o.stiffening:

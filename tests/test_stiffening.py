@@ -29,7 +29,7 @@ def bar():
     mesh = read_mesh(BAR)
     steel = builtin_material("steel")
     K, M = stiffness_matrix(mesh, steel), mass_matrix(mesh, steel)
-    red = reduce_body(mesh, steel, K, M, [make_interface(mesh, "fixed_end"), make_interface(mesh, "free_end")],
+    red = reduce_body(mesh, K, M, [make_interface(mesh, "fixed_end"), make_interface(mesh, "free_end")],
                       frame="fixed_end", n_modes=6)
     parts = stiffening_parts(mesh, steel, M, red.im, red.static_solve, red.Phi_fe)
     return mesh, steel, red, parts
