@@ -21,7 +21,7 @@ import numpy as np
 
 from sidprep.sid import ge_tensor, gr_tensor
 from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
-from solver.kinematics import as_rotation, cross, exp_so3, jit, skew
+from solver.kinematics import COMPILED, as_rotation, cross, exp_so3, jit, skew
 
 _E3 = np.eye(3)
 
@@ -215,9 +215,9 @@ class BodyModel:
         object.__setattr__(self, "_packed", packed)
 
     def equations(self, q, qd, w, g_k):
-        """(M_K, h_K) at the state: the compiled kernel, or the reference methods when the
-        second-order terms (P) are on."""
-        if self.P is not None:
+        """(M_K, h_K) at the state: the compiled kernel, or the numpy reference methods when the
+        second-order terms (P) are on or numba is not available."""
+        if self.P is not None or not COMPILED:
             terms = self.inertia_terms(q)
             mk = self.mass_matrix(q, terms)
             return mk, self.internal_forces(q, qd, w, g_k, mk, terms)

@@ -14,13 +14,22 @@ import numpy as np
 SMALL_ANGLE = 1e-6
 
 
-def jit(fn):
-    """numba.njit(cache=True) when numba is installed, else the plain Python function."""
+def _numba_njit():
     try:
-        from numba import njit
+        import numba
     except ImportError:  # pragma: no cover - numba is a soft dependency
-        return fn
-    return njit(cache=True)(fn)
+        return None
+    return None if numba.config.DISABLE_JIT else numba.njit(cache=True)
+
+
+_NJIT = _numba_njit()
+#: True when the numerical kernels are compiled (else the numpy reference paths are used)
+COMPILED = _NJIT is not None
+
+
+def jit(fn):
+    """numba.njit(cache=True) when numba is available, else the plain Python function."""
+    return fn if _NJIT is None else _NJIT(fn)
 
 
 @jit
