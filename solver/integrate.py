@@ -358,8 +358,10 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         else:
             udn, lamn = ud.copy(), lam.copy()
         converged, renewed = False, False
-        if dmat is None or dmat_h != h:
+        if dmat is None:
             dmat, dmat_h, renewed = tangent(udn, lamn, tn), h, True
+        elif dmat_h != h:  # stiffness part scales with h^2; a poor fit is caught by the monitor
+            dmat, dmat_h = dmat * (h / dmat_h) ** 2, h
         last = np.inf
         it = 0
         while True:
