@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -42,18 +43,24 @@ def load() -> str:
     return "%.1f" % os.getloadavg()[0]
 
 
+def children_cpu_s() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def run_reduce(mesh: Path, repeat: int, extra=()) -> dict:
-    """Median wall time of ``sidprep reduce MESH`` in a fresh process, plus the last JSON summary."""
-    walls, summary = [], None
+    """Median wall and CPU time of ``sidprep reduce MESH`` in a fresh process, plus the last summary."""
+    walls, cpus, summary = [], [], None
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(repeat):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), children_cpu_s()
             out = subprocess.run([sys.executable, "-m", "cli.main", "reduce", str(mesh), "-q", "--json", *extra],
                                  cwd=tmp, env={**os.environ, "PYTHONPATH": str(ROOT)},
                                  capture_output=True, text=True, check=True)
             walls.append(time.perf_counter() - t0)
+            cpus.append(children_cpu_s() - c0)
             summary = json.loads(out.stdout)
-    return {"wall_s": float(np.median(walls)), "walls": walls, "summary": summary, "load": load()}
+    return {"wall_s": float(np.median(walls)), "cpu_s": float(np.median(cpus)), "summary": summary, "load": load()}
 
 
 def bar_mesh(h: float, folder: Path):
@@ -92,11 +99,12 @@ def plain_scipy_cb(K, M, b, n_modes):
 
 
 def timed(fn, *args, **kw):
+    """(result, wall s, CPU s of this process, peak RSS MB)."""
     from sidprep.progress import peak_memory_mb
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     out = fn(*args, **kw)
-    return out, time.perf_counter() - t0, peak_memory_mb()
+    return out, time.perf_counter() - t0, time.process_time() - c0, peak_memory_mb()
 
 
 def cb_comparison(h: float, folder: Path, skip_scipy: bool) -> dict:
@@ -110,11 +118,11 @@ from sidprep.reduce import craig_bampton
 geo, mesh = bench.bar_mesh({h}, Path({str(folder)!r}))
 K, M, b = bench.cb_inputs(mesh)
 if sys.argv[1] == "sidprep":
-    r, t, mem = bench.timed(craig_bampton, K, M, b, n_modes={CB_MODES})
+    r, t, cpu, mem = bench.timed(craig_bampton, K, M, b, n_modes={CB_MODES})
     f = r.fixed_interface_hz
 else:
-    (f, _, _), t, mem = bench.timed(bench.plain_scipy_cb, K, M, b, {CB_MODES})
-print(json.dumps({{"dof": int(K.shape[0]), "time_s": t, "peak_mb": mem, "f_hz": [float(x) for x in f]}}))
+    (f, _, _), t, cpu, mem = bench.timed(bench.plain_scipy_cb, K, M, b, {CB_MODES})
+print(json.dumps({{"dof": int(K.shape[0]), "time_s": t, "cpu_s": cpu, "peak_mb": mem, "f_hz": [float(x) for x in f]}}))
 """
     out = {}
     for which in ("sidprep",) + (() if skip_scipy else ("scipy",)):
@@ -139,19 +147,23 @@ def main() -> int:
         big = run_reduce(geo, max(1, args.repeat // 2))
         rows.append((f"bar h={args.big_size:g}", big))
         cb = cb_comparison(args.cb_size, Path(tmp), args.skip_scipy)
-    print("| model | DOF | wall s (median) | " + " | ".join(rod["summary"]["timings_s"]) + " | peak MB | load |")
-    print("|---|---|---|" + "---|" * len(rod["summary"]["timings_s"]) + "---|---|")
+    phases = list(rod["summary"]["timings_s"])
+    print("| model | DOF | wall s (median) | CPU s | " + " | ".join(phases) + " | peak MB | load |")
+    print("|---|---|---|---|" + "---|" * len(phases) + "---|---|")
     for name, r in rows:
         s = r["summary"]
-        print(f"| {name} | {s['dof']} | {r['wall_s']:.2f} | " + " | ".join(f"{v:.2f}" for v in s["timings_s"].values())
+        print(f"| {name} | {s['dof']} | {r['wall_s']:.2f} | {r['cpu_s']:.2f} | "
+              + " | ".join(f"{s['timings_s'].get(p, 0.0):.2f}" for p in phases)
               + f" | {s['peak_memory_mb']:.0f} | {r['load']} |")
     print()
-    print("| Craig-Bampton, 20 modes | DOF | time s | peak MB | f1 Hz | load |")
-    print("|---|---|---|---|---|---|")
+    print("| Craig-Bampton, 20 modes | DOF | wall s | CPU s | peak MB | f1 Hz | load |")
+    print("|---|---|---|---|---|---|---|")
     for which, r in cb.items():
-        print(f"| {which} | {r['dof']} | {r['time_s']:.2f} | {r['peak_mb']:.0f} | {r['f_hz'][0]:.3f} | {r['load']} |")
+        print(f"| {which} | {r['dof']} | {r['time_s']:.2f} | {r['cpu_s']:.2f} | {r['peak_mb']:.0f} | "
+              f"{r['f_hz'][0]:.3f} | {r['load']} |")
     if "scipy" in cb:
-        print(f"\nspeed-up sidprep vs plain scipy: {cb['scipy']['time_s'] / cb['sidprep']['time_s']:.1f}x, "
+        print(f"\nsidprep vs plain scipy: {cb['scipy']['time_s'] / cb['sidprep']['time_s']:.1f}x wall, "
+              f"{cb['scipy']['cpu_s'] / cb['sidprep']['cpu_s']:.1f}x CPU, "
               f"memory ratio {cb['scipy']['peak_mb'] / cb['sidprep']['peak_mb']:.1f}x")
     return 0
 

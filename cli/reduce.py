@@ -29,6 +29,8 @@ def register(subparsers) -> None:
     n.add_argument("--fmax", type=float, help="keep all eigenmodes up to this frequency (Hz)")
     p.add_argument("--frm", action=argparse.BooleanOptionalAction, default=None,
                    help="frequency-response modes at the interface masters (default on)")
+    p.add_argument("--frm-nodes", action="append", metavar="NODESET",
+                   help="extra FRM load nodes: every node of this node set gets unit x, y, z forces (repeat)")
     p.add_argument("--cutoff-factor", type=float, help="FRM cut-off / highest frequency of interest (default 5)")
     p.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
     p.add_argument("--stiffening", action="store_true", default=None,
@@ -52,8 +54,9 @@ def options_from_args(args):
     base = options_from_job(args.mesh) if args.mesh.lower().endswith(".toml") else ReduceOptions(mesh=args.mesh)
     given = {f.name: getattr(args, f.name) for f in fields(ReduceOptions)
              if f.name not in ("mesh", "verbose") and getattr(args, f.name, None) is not None}
-    if "interfaces" in given:
-        given["interfaces"] = tuple(given["interfaces"])
+    for key in ("interfaces", "frm_nodes"):
+        if key in given:
+            given[key] = tuple(given[key])
     return replace(base, verbose=not args.quiet, **given)
 
 

@@ -122,7 +122,7 @@ def interest_range(elastic_hz: np.ndarray, n_modes=None, fmax=None) -> tuple[np.
     return keep, float(fmax)
 
 
-def modal_basis(K, M, *, rigid=None, held=(), load_dofs=(), n_modes=None, fmax=None,
+def modal_basis(K, M, *, rigid=None, held=(), loads=None, n_modes=None, fmax=None,
                 frm=True, cutoff_factor=CUTOFF_FACTOR) -> ModalBasis:
     """The FEMBS second step on a small reduced model (module docstring).
 
@@ -131,7 +131,7 @@ def modal_basis(K, M, *, rigid=None, held=(), load_dofs=(), n_modes=None, fmax=N
     K, M : (nr, nr) dense reduced stiffness (N/m) and mass (kg)
     rigid : (nr, 6) rigid-body motions for the free frame (None for an attached frame)
     held : reduced DOF indices fixed by the attached frame (its master's 6 DOF)
-    load_dofs : reduced DOF indices that get a unit FRM load (interface master DOFs)
+    loads : (nr, nl) FRM unit loads in reduced coordinates (rows of held DOFs are ignored)
     n_modes | fmax : eigenmodes of interest (count, or all up to fmax Hz)
     frm : compute frequency-response modes; cutoff_factor : FRM cut-off / highest frequency of interest
     """
@@ -158,12 +158,11 @@ def modal_basis(K, M, *, rigid=None, held=(), load_dofs=(), n_modes=None, fmax=N
     vectors, freqs = [E], [f_eig]
     omega_hz = cutoff = float("nan")
     rejected = np.zeros(0)
-    loads = np.flatnonzero(np.isin(free, np.asarray(load_dofs, dtype=np.int64)))
-    if frm and len(loads):
+    P = np.zeros((len(free), 0)) if loads is None else np.asarray(loads, dtype=float)[free]
+    P = P[:, np.abs(P).max(axis=0, initial=0.0) > 0] if P.shape[1] else P
+    if frm and P.shape[1]:
         omega_hz = OMEGA_FRACTION * float(f_eig[0])
         cutoff = cutoff_factor * f_high
-        P = np.zeros((len(free), len(loads)))
-        P[loads, np.arange(len(loads))] = 1.0
         U = frequency_response_modes(Kf, Mf, P, 2 * np.pi * omega_hz)
         U = U / np.sqrt(np.einsum("ij,ij->j", U, Mf @ U))     # unit M-norm: forces and moments alike
         against = np.hstack([R, E])

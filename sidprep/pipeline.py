@@ -55,6 +55,7 @@ class ReduceOptions:
     material: str | None = None
     units: str = "si"
     interfaces: tuple[str, ...] = ()
+    frm_nodes: tuple[str, ...] = ()
     frame: str = "free"
     modes: int | None = None
     fmax: float | None = None
@@ -132,6 +133,7 @@ def options_from_job(path) -> ReduceOptions:
     if isinstance(data.get("damping"), list):
         data["damping"] = tuple(data["damping"])
     data["interfaces"] = tuple(data.get("interfaces", ()))
+    data["frm_nodes"] = tuple(data.get("frm_nodes", ()))
     return ReduceOptions(**data)
 
 
@@ -167,10 +169,11 @@ def default_interfaces(mesh) -> list[tuple[str, str]]:
 
 
 def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fmax=None,
-                frm=True, cutoff_factor=5.0, phases=None) -> Reduction:
+                frm=True, cutoff_factor=5.0, load_nodes=(), phases=None) -> Reduction:
     """Steps 2-4 of the module docstring for an assembled FE model.
 
-    interfaces : list of sidprep.interfaces.Interface; frame : "free" or an interface name.
+    interfaces : list of sidprep.interfaces.Interface; frame : "free" or an interface name;
+    load_nodes : FE node indices that get 3 unit FRM forces each, besides every master DOF.
     """
     from sidprep.interfaces import interface_model, rigid_modes_model
     from sidprep.modes import modal_basis
@@ -200,12 +203,25 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
         z_rigid = np.zeros((cb.K.shape[0], 6))
         z_rigid[:len(boundary)] = rigid[boundary]
         basis = modal_basis(cb.K, cb.M, rigid=z_rigid if held is None else None, held=held_r,
-                            load_dofs=np.arange(im.master_dofs.size), n_modes=n_modes, fmax=fmax,
+                            loads=frm_loads(im, cb, load_nodes), n_modes=n_modes, fmax=fmax,
                             frm=frm, cutoff_factor=cutoff_factor)
         Phi_model = cb.basis @ basis.Z
         Phi_fe = np.asarray(im.T @ Phi_model)
     return Reduction(im, K_model, M_model, cb, basis, Phi_model, Phi_fe, held, rigid,
                      support_dofs(rigid, boundary, held))
+
+
+def frm_loads(im, cb, load_nodes=()) -> np.ndarray:
+    """FRM unit loads in Craig-Bampton coordinates: every master DOF, then x, y, z forces on each
+    load node (projected: basis^T T^T e); (nr, 6 n_if + 3 n_nodes)."""
+    nr = cb.K.shape[0]
+    P = np.zeros((nr, im.master_dofs.size))
+    P[np.flatnonzero(np.isin(cb.boundary_dofs, im.master_dofs.ravel())), np.arange(im.master_dofs.size)] = 1.0
+    nodes = np.asarray(load_nodes, dtype=np.int64)
+    if len(nodes):
+        dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
+        P = np.hstack([P, cb.basis.T @ np.asarray(im.T[dofs].T.todense())])
+    return P
 
 
 # ---------------------------------------------------------------------------------------------
@@ -355,7 +371,7 @@ def output_paths(o: ReduceOptions) -> dict[str, Path]:
 def reduce_job(options: ReduceOptions) -> dict:
     """Run a reduction job and write its files; returns a JSON-ready summary (paths, checks, timings)."""
     from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
-    from sidprep.interfaces import make_interface
+    from sidprep.interfaces import make_interface, select_patch
     from sidprep.io.obj import write_obj
     from sidprep.io.sid_fem import write_sid_fem
     from sidprep.io.sid_hdf5 import write_sid_hdf5
@@ -380,8 +396,9 @@ def reduce_job(options: ReduceOptions) -> dict:
         K_fe = stiffness_matrix(mesh, material)
         M_fe = mass_matrix(mesh, material)
         Ms = scalar_mass_matrix(mesh, material.rho)
+    load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
     red = reduce_body(mesh, K_fe, M_fe, interfaces, frame=o.frame, n_modes=o.modes, fmax=o.fmax,
-                      frm=o.frm, cutoff_factor=o.cutoff_factor, phases=ph)
+                      frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
     stiff = None
     if o.stiffening:
         with ph("stiffening", "unit load cases"):

@@ -106,3 +106,20 @@ def test_damping_options():
 
 def test_labels_follow_the_simpack_pattern():
     assert mode_labels([51.626], first=7) == ("Eigen Mode    7 :       51.626 Hz",)
+
+
+def test_extra_frm_load_nodes_capture_a_local_static_load(bar):
+    """A unit force on a mid-span surface node: its static deflection is recovered once the node is an
+    FRM load node (basis compliance vs the exact full-model solve)."""
+    mesh, K, M, itfs = bar
+    node = int(np.argmin(np.linalg.norm(mesh.points - [0.5, 0.025, 0.08], axis=1)))
+    errors = []
+    for load_nodes in ((), (node,)):
+        red = reduce_body(mesh, K, M, itfs[:1], frame="fixed_end", n_modes=2, cutoff_factor=1e3,
+                          load_nodes=load_nodes)
+        col = red.im.T[3 * node + 2].toarray().ravel()            # z force on the node, model DOFs
+        u_full = (red.im.T @ red.static_solve(col[:, None]))[3 * node + 2, 0]
+        phi = red.Phi_fe[3 * node + 2]
+        u_red = phi @ (phi / (2 * np.pi * red.basis.frequencies_hz) ** 2)
+        errors.append(abs(u_red - u_full) / abs(u_full))
+    assert errors[1] < 0.02 < errors[0]
