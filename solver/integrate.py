@@ -119,16 +119,21 @@ def independent_rows(B: np.ndarray, tol: float = REDUNDANCY_TOL) -> np.ndarray:
     return kept
 
 
+def rigid_columns(system) -> np.ndarray:
+    """Boolean mask of the rigid-body coordinates (6 per body) among the n velocities."""
+    rigid = np.zeros(system.n, bool)
+    for sl in system._slices:
+        rigid[sl.start:sl.start + 6] = True
+    return rigid
+
+
 def project_positions(system, pose: Pose, t: float, rigid_only: bool = False) -> Pose:
     """Minimum-norm Gauss-Newton projection onto g(x, t) = 0 (kept rows).
 
     rigid_only moves the rigid-body coordinates only (keeps q); if that cannot satisfy the
     constraints (e.g. a body clamped at two nodes) the modal coordinates are moved as well.
     """
-    cols = np.ones(system.n, bool)
-    if rigid_only:
-        for sl in system._slices:
-            cols[sl.start + 6:sl.stop] = False
+    cols = rigid_columns(system) if rigid_only else np.ones(system.n, bool)
     for _ in range(50):
         ctx = Context(system, pose, np.zeros(system.n), t, None)
         g, B, _, _ = system.constraint_rows(ctx, force_rows=False)
@@ -171,11 +176,26 @@ def accelerations(system, pose: Pose, u: np.ndarray, t: float, lam=None, iterati
 
 
 def project_velocities(system, pose: Pose, u: np.ndarray, t: float) -> np.ndarray:
-    """Mass-weighted projection of u onto B u + b_t = 0: the smallest kinetic-energy change."""
+    """u corrected onto B u + b_t = 0, changing the rigid-body velocities only where possible.
+
+    Minimum-norm correction over the rigid-body columns (rotations weighted by the system
+    length L), so that the given modal velocities stay (a body driven at speed starts spinning
+    undeformed, not with the elastic velocities of an impulsive start).  When the rigid columns
+    cannot satisfy the constraints, the mass-weighted projection over all coordinates is used.
+    """
     if not system.kept.any():
         return u
-    mass, _, _, B, _, _ = system.evaluate(pose, u, t)
     err = system.velocity_constraint(pose, u, t)
+    ctx = Context(system, pose, u, t, None)
+    B = system.constraint_rows(ctx, force_rows=False)[1][system.kept]
+    rigid = rigid_columns(system)
+    scale = 1.0 / length_weights(system)[0][rigid]
+    du = np.zeros(system.n)
+    du[rigid] = scale * np.linalg.lstsq(B[:, rigid] * scale, -err, rcond=None)[0]
+    if np.max(np.abs(system.velocity_constraint(pose, u + du, t)), initial=0.0) <= POSITION_TOL * (
+            1.0 + np.max(np.abs(u))):
+        return u + du
+    mass, _, _, B, _, _ = system.evaluate(pose, u, t)
     return u + solve_kkt(mass, np.zeros(system.n), B, B, -err)[0]
 
 
