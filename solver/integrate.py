@@ -30,7 +30,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 
-from solver.bodies import FlexibleBody, RigidBody
+from solver.bodies import RigidBody
 from solver.effects import EFFECTS, build_report, choose_effects, estimate_sizes, parse_effects
 from solver.kinematics import matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
 from solver.system import REDUNDANCY_TOL, BodyHistory, Context, JointHistory, Pose, Result

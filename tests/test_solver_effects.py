@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from test_solver_bodies import bar_sid
 
-from sidprep.sid import sid_invariants
 from solver.effects import EFFECTS, WARN_LEVEL, parse_effects
 from solver.joints import ConstantSpeed, Driver, Revolute
 from solver.system import FlexibleBody, System
