@@ -275,20 +275,25 @@ def _lanczos(K, M, k, sigma, solver) -> tuple[np.ndarray, np.ndarray]:
     return lam, phi
 
 
-def _lobpcg(K, M, k, sigma, near_null) -> tuple[np.ndarray, np.ndarray]:
+def _lobpcg_solver(K, M, sigma, near_null):
+    """k -> lowest (lambda, phi) by LOBPCG on K - sigma M with a smoothed-aggregation AMG
+    V-cycle as preconditioner (near-null space: the rigid-body fields, if given)."""
     import pyamg
 
     A = (K - sigma * M).tocsr()
-    B = near_null if near_null is not None else None
-    ml = pyamg.smoothed_aggregation_solver(A, B=B, symmetry="symmetric", strength="symmetric",
+    ml = pyamg.smoothed_aggregation_solver(A, B=near_null, symmetry="symmetric", strength="symmetric",
                                            max_coarse=500)
     precond = ml.aspreconditioner(cycle="V")
-    X = np.random.default_rng(START_SEED).standard_normal((K.shape[0], k))
-    if near_null is not None:  # rigid-body fields span the lowest modes of a free body well
-        X[:, : min(k, near_null.shape[1])] = near_null[:, :k]
     tol = LOBPCG_RTOL * abs(sigma) * np.sqrt(M.diagonal().mean())
-    mu, phi = spla.lobpcg(A, X, B=M, M=precond, largest=False, tol=tol, maxiter=LOBPCG_MAXITER)
-    return mu + sigma, phi
+
+    def solve(k):
+        X = np.random.default_rng(START_SEED).standard_normal((K.shape[0], k))
+        if near_null is not None:  # rigid-body fields span the lowest modes of a free body well
+            X[:, : min(k, near_null.shape[1])] = near_null[:, :k]
+        mu, phi = spla.lobpcg(A, X, B=M, M=precond, largest=False, tol=tol, maxiter=LOBPCG_MAXITER)
+        return mu + sigma, phi
+
+    return solve
 
 
 def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fmax: float | None = None,
@@ -325,8 +330,8 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     phase = phases if phases is not None else (lambda name, detail="": contextlib.nullcontext())
 
     if backend == "lobpcg":
-        def solve(k):
-            return _lobpcg(K, M, k, sigma, near_null)
+        with phase("preconditioner", "smoothed-aggregation AMG"):
+            solve = _lobpcg_solver(K, M, sigma, near_null)
         used = "lobpcg"
     else:
         try:
