@@ -114,7 +114,7 @@ def interest_range(elastic_hz: np.ndarray, n_modes=None, fmax=None) -> tuple[np.
             raise InputError(f"--modes {n_modes}: the reduced model has only {len(elastic_hz)} elastic modes; "
                              "ask for fewer or refine the first reduction")
         keep = np.arange(len(elastic_hz)) < n_modes
-        return keep, float(elastic_hz[n_modes - 1]) if n_modes else 0.0
+        return keep, float(elastic_hz[n_modes - 1])
     keep = elastic_hz <= fmax
     if not keep.any():
         raise InputError(f"--fmax {fmax:g} Hz: no elastic mode below it (the first is {elastic_hz[0]:.4g} Hz); "
@@ -190,6 +190,9 @@ def modal_damping(frequencies_hz: np.ndarray, damping) -> np.ndarray:
     """
     w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
     if isinstance(damping, dict):
+        if set(damping) != {"rayleigh"} or np.shape(damping["rayleigh"]) != (2,):
+            raise InputError(f"damping {damping}: a table must be {{rayleigh = [alpha, beta]}} "
+                             "(De = alpha Me + beta Ke); or give one ratio or one per mode")
         alpha, beta = damping["rayleigh"]
         return np.diag(alpha + beta * w ** 2)
     zeta = np.broadcast_to(np.asarray(damping, dtype=float), w.shape) if np.ndim(damping) == 0 \

@@ -147,6 +147,9 @@ def check_options(o: ReduceOptions) -> None:
         raise InputError(f"--fmax {o.fmax}: must be > 0 Hz")
     if not o.cutoff_factor >= 1:
         raise InputError(f"--cutoff-factor {o.cutoff_factor}: must be >= 1 (FEMBS default 5)")
+    if isinstance(o.damping, dict):                    # the form, before the expensive work
+        from sidprep.modes import modal_damping
+        modal_damping(np.ones(1), o.damping)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -102,6 +102,8 @@ def test_damping_options():
     np.testing.assert_allclose(modal_damping(f, {"rayleigh": (0.5, 1e-4)}), np.diag(0.5 + 1e-4 * w ** 2))
     with pytest.raises(InputError, match="one ratio or one per mode"):
         modal_damping(f, [0.1, 0.2, 0.3])
+    with pytest.raises(InputError, match="rayleigh = \\[alpha, beta\\]"):
+        modal_damping(f, {"raleigh": (1, 2)})
 
 
 def test_labels_follow_the_simpack_pattern():
