@@ -304,6 +304,33 @@ def fe_checks(red: Reduction, mesh, M_fe, sid, full_frequencies=True) -> dict:
     return checks
 
 
+def structured_checks(checks: dict) -> dict:
+    """The FE comparison as named checks {value, tolerance, passed, severity, description} for the
+    SID metadata (sidprep.checks reads this form)."""
+    def entry(value, tol, severity, description):
+        return {"value": float(value), "tolerance": tol, "severity": severity, "description": description,
+                "passed": bool(tol is None or value <= tol)}
+
+    out = {
+        "FE mass": entry(checks["mass_rel_error"], MASS_CHECK_TOL, "error",
+                         f"SID mass vs full consistent mass matrix ({checks['mass_fe_kg']:.6g} kg), relative"),
+        "FE centre of mass": entry(checks["cm_rel_error"], MASS_CHECK_TOL, "error", "mdCM vs full FE, relative"),
+        "FE inertia": entry(checks["inertia_rel_error"], MASS_CHECK_TOL, "error", "J vs full FE, relative"),
+        "FE zero-energy modes": entry(abs(checks["zero_energy_modes"] - checks["zero_energy_modes_expected"]), 0.0,
+                                      "error", f"reduced model: {checks['zero_energy_modes']} zero-energy modes, "
+                                               f"expected {checks['zero_energy_modes_expected']}"),
+        "FE static deflection": entry(checks["static_deflection_max_rel_error"], STATIC_CHECK_TOL, "warning",
+                                      "largest relative error of a master's deflection under a unit force "
+                                      "(FEMBS promise < 1 %)"),
+        "FE static rotation": entry(checks["static_rotation_max_rel_error"], None, "info",
+                                    "largest relative error of a master's rotation under a unit moment"),
+    }
+    if "eigen_frequency_max_rel_error" in checks:
+        out["FE eigenfrequencies"] = entry(checks["eigen_frequency_max_rel_error"], FREQUENCY_CHECK_TOL, "error",
+                                           "eigen-kind coordinates vs a full-model eigen solve, relative")
+    return out
+
+
 def format_checks(checks: dict) -> str:
     """The check table printed at export."""
     lines = ["FE comparison (reduced body vs full FE model):",
@@ -416,7 +443,7 @@ def reduce_job(options: ReduceOptions) -> dict:
     sid = build_sid(red, mesh, Ms, damping=o.damping, stiffening=stiff, metadata=metadata)
     with ph("checks", "reduced vs full FE model"):
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
-    sid = replace(sid, metadata={**sid.metadata, "checks": checks})
+    sid = replace(sid, metadata={**sid.metadata, "checks": structured_checks(checks)})
     paths = output_paths(o)
     with ph("write", ", ".join(str(p) for p in paths.values())):
         write_sid_hdf5(sid, paths["hdf5"])

@@ -8,7 +8,8 @@ import pytest
 
 from cli.main import main
 from sidprep.io.sid_fem import read_sid_fem
-from sidprep.io.sid_hdf5 import read_sid_hdf5
+from sidprep.checks import failed_checks
+from sidprep.io.sid_hdf5 import read_checks, read_sid_hdf5
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 
@@ -23,6 +24,9 @@ def test_defaults_on_the_piston_rod_write_three_files_and_pass_the_checks(tmp_pa
     checks = summary["checks"]
     assert checks["passed"] and checks["zero_energy_modes"] == 6
     assert checks["eigen_frequency_max_rel_error"] < 1e-3
+    stored = read_checks(tmp_path / files["hdf5"])
+    assert stored["FE mass"]["passed"] and stored["FE eigenfrequencies"]["passed"]
+    assert not failed_checks(stored)                                       # sid-spec 4.8 identities too
     sid = read_sid_hdf5(tmp_path / files["hdf5"])
     assert [n.name for n in sid.nodes] == ["big_end", "small_end"]
     assert sid.mode_kinds[:6] == ("eigen",) * 6 and "frm" in sid.mode_kinds
