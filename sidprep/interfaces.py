@@ -27,7 +27,6 @@ import scipy.sparse as sp
 from sidprep.errors import InputError
 
 KINDS = ("rbe2", "rbe3")
-SELECTIONS = ("plane", "cylinder", "sphere")
 #: a patch whose weighted second moment of lever arms has a condition number above this is
 #: treated as collinear (cannot carry rotations)
 COLLINEAR_COND = 1e8
@@ -96,9 +95,11 @@ def nodes_on_sphere(points, center, radius, tol):
     return np.flatnonzero(np.abs(r - radius) <= tol)
 
 
-_SELECTORS = {"plane": (nodes_on_plane, ("point", "normal", "tol")),
-              "cylinder": (nodes_on_cylinder, ("point", "axis", "radius", "tol")),
-              "sphere": (nodes_on_sphere, ("center", "radius", "tol"))}
+#: geometric selections: type -> (function, its parameters after ``points``)
+SELECTORS = {"plane": (nodes_on_plane, ("point", "normal", "tol")),
+             "cylinder": (nodes_on_cylinder, ("point", "axis", "radius", "tol")),
+             "sphere": (nodes_on_sphere, ("center", "radius", "tol"))}
+SELECTIONS = tuple(SELECTORS)
 
 
 def select_patch(mesh, selection) -> np.ndarray:
@@ -109,9 +110,9 @@ def select_patch(mesh, selection) -> np.ndarray:
                              f"valid: {', '.join(sorted(mesh.node_sets)) or '(none)'} or a plane/cylinder/sphere selection")
         return np.asarray(mesh.node_sets[selection], dtype=np.int64)
     kind = selection.get("type")
-    if kind not in _SELECTORS:
+    if kind not in SELECTORS:
         raise InputError(f"interface selection type {kind!r} is unknown; valid: {', '.join(SELECTIONS)}")
-    func, keys = _SELECTORS[kind]
+    func, keys = SELECTORS[kind]
     missing = [k for k in keys if k not in selection]
     if missing:
         raise InputError(f"interface selection '{kind}' needs {', '.join(keys)}; missing {', '.join(missing)}")

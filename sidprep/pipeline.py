@@ -54,7 +54,7 @@ class ReduceOptions:
     rho: float | None = None
     material: str | None = None
     units: str = "si"
-    interfaces: tuple[str, ...] = ()
+    interfaces: tuple = ()
     frm_nodes: tuple[str, ...] = ()
     frame: str = "free"
     modes: int | None = None
@@ -112,6 +112,29 @@ def parse_interface(spec: str) -> tuple[str, str]:
     return name, kind
 
 
+#: keys of an interface table in a job file, besides the selection's own (type, point, normal, ...)
+INTERFACE_KEYS = ("name", "kind", "master_point", "node_set")
+
+
+def interface_from_spec(mesh, spec):
+    """An Interface from "NAME[:rbe2|rbe3]" (a node set) or a job-file table {name, kind,
+    master_point, node_set | type = plane|cylinder|sphere + its parameters and tol}."""
+    from sidprep.interfaces import SELECTIONS, SELECTORS, make_interface
+
+    if isinstance(spec, str):
+        name, kind = parse_interface(spec)
+        return make_interface(mesh, name, kind=kind)
+    spec = dict(spec)
+    valid = set(INTERFACE_KEYS) | {"type"} | {k for _, keys in SELECTORS.values() for k in keys}
+    unknown = sorted(set(spec) - valid)
+    if unknown or "name" not in spec:
+        raise InputError(f"interface {spec}: needs name and a node_set or type ({', '.join(SELECTIONS)}); "
+                         f"unknown key(s) {', '.join(unknown) or '-'}; valid: {', '.join(sorted(valid))}")
+    selection = {k: v for k, v in spec.items() if k not in INTERFACE_KEYS} or spec.get("node_set")
+    return make_interface(mesh, spec["name"], selection=selection, kind=spec.get("kind", "rbe2"),
+                          master_point=spec.get("master_point"))
+
+
 def options_from_job(path) -> ReduceOptions:
     """Read a TOML job file holding the ReduceOptions fields (paths relative to the file)."""
     try:
@@ -156,8 +179,8 @@ def check_options(o: ReduceOptions) -> None:
 # the reduction
 # ---------------------------------------------------------------------------------------------
 
-def default_interfaces(mesh) -> list[tuple[str, str]]:
-    """Node sets that look like interfaces: patches able to carry 6 DOF, as RBE2."""
+def default_interfaces(mesh) -> list[str]:
+    """Node sets that look like interfaces: patches able to carry 6 DOF, as RBE2 ("NAME:rbe2")."""
     from sidprep.interfaces import check_patch
 
     out = []
@@ -167,7 +190,7 @@ def default_interfaces(mesh) -> list[tuple[str, str]]:
         except InputError:
             continue
         if len(nodes) < 0.5 * mesh.n_nodes:
-            out.append((name, "rbe2"))
+            out.append(f"{name}:rbe2")
     return out
 
 
@@ -401,7 +424,7 @@ def output_paths(o: ReduceOptions) -> dict[str, Path]:
 def reduce_job(options: ReduceOptions) -> dict:
     """Run a reduction job and write its files; returns a JSON-ready summary (paths, checks, timings)."""
     from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
-    from sidprep.interfaces import make_interface, select_patch
+    from sidprep.interfaces import select_patch
     from sidprep.io.obj import write_obj
     from sidprep.io.sid_fem import write_sid_fem
     from sidprep.io.sid_hdf5 import write_sid_hdf5
@@ -420,8 +443,7 @@ def reduce_job(options: ReduceOptions) -> dict:
         mesh = read_mesh(o.mesh)
         if units.length_to_m != 1.0:
             mesh = mesh.scaled(units.length_to_m)
-    specs = [parse_interface(s) for s in o.interfaces] or default_interfaces(mesh)
-    interfaces = [make_interface(mesh, name, kind=kind) for name, kind in specs]
+    interfaces = [interface_from_spec(mesh, s) for s in (o.interfaces or default_interfaces(mesh))]
     with ph("assemble", f"{mesh.n_dof} DOF"):
         K_fe = stiffness_matrix(mesh, material)
         M_fe = mass_matrix(mesh, material)

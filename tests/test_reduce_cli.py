@@ -41,7 +41,8 @@ def test_defaults_on_the_piston_rod_write_three_files_and_pass_the_checks(tmp_pa
 
 def test_job_file_with_rbe3_attached_frame_and_stiffening(tmp_path, capsys):
     job = tmp_path / "bar.toml"
-    job.write_text(f'mesh = "{MESHES / "bar.msh"}"\ninterfaces = ["fixed_end:rbe2", "free_end:rbe3"]\n'
+    job.write_text(f'mesh = "{MESHES / "bar.msh"}"\ninterfaces = ["fixed_end:rbe2", {{name = "tip", kind = "rbe3", '
+                   'type = "plane", point = [1.0, 0, 0], normal = [1, 0, 0], tol = 1e-6}]\n'
                    'frame = "fixed_end"\nfmax = 300.0\nstiffening = true\nobj = false\n'
                    f'output = "{tmp_path / "out" / "bar.sid.h5"}"\ndamping = [0.01, 0.02, 0.03]\n')
     assert main(["reduce", str(job), "--quiet", "--no-frm", "--json"]) == 0
@@ -50,6 +51,8 @@ def test_job_file_with_rbe3_attached_frame_and_stiffening(tmp_path, capsys):
     sid = read_sid_hdf5(tmp_path / "out" / "bar.sid.h5")
     np.testing.assert_allclose(sid.frequencies_hz[:3], [41.93, 66.77, 259.97], rtol=2e-3)
     assert "K0F/1" in sid.stiffening and sid.Ct.M1 is not None
+    assert [n.name for n in sid.nodes] == ["fixed_end", "tip"]
+    np.testing.assert_allclose(sid.nodes[1].origin.M0.ravel(), [1.0, 0.025, 0.04], atol=1e-12)
     np.testing.assert_allclose(sid.nodes[0].phi.M0, 0, atol=1e-15)         # the frame master is held
 
 
@@ -99,3 +102,11 @@ def test_mm_t_s_units_and_a_body_without_interfaces(tmp_path, capsys):
     si, mm = labels["si"], labels["mm-t-s"]
     assert mm.mass == pytest.approx(31.4, rel=1e-12) and mm.mass == pytest.approx(si.mass, rel=1e-12)
     np.testing.assert_allclose(mm.frequencies_hz, si.frequencies_hz, rtol=1e-8)
+
+
+def test_bad_interface_table(tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text(f'mesh = "{MESHES / "bar.msh"}"\ninterfaces = [{{name = "x", type = "plane", bogus = 1}}]\n')
+    assert main(["reduce", str(job)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown key(s) bogus" in err and "valid:" in err and not list(tmp_path.glob("*.h5"))
