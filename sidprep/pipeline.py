@@ -116,15 +116,20 @@ def parse_interface(spec: str) -> tuple[str, str]:
 INTERFACE_KEYS = ("name", "kind", "master_point", "node_set")
 
 
-def interface_from_spec(mesh, spec):
+#: interface-table entries that are lengths (converted with the unit system's length factor)
+LENGTH_KEYS = ("master_point", "point", "center", "radius", "tol")
+
+
+def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
     """An Interface from "NAME[:rbe2|rbe3]" (a node set) or a job-file table {name, kind,
-    master_point, node_set | type = plane|cylinder|sphere + its parameters and tol}."""
+    master_point, node_set | type = plane|cylinder|sphere + its parameters and tol}; lengths of
+    the table are in the job's unit system (``length_to_m`` converts them to the mesh's metres)."""
     from sidprep.interfaces import SELECTIONS, SELECTORS, make_interface
 
     if isinstance(spec, str):
         name, kind = parse_interface(spec)
         return make_interface(mesh, name, kind=kind)
-    spec = dict(spec)
+    spec = {k: (np.asarray(v, dtype=float) * length_to_m if k in LENGTH_KEYS else v) for k, v in dict(spec).items()}
     valid = set(INTERFACE_KEYS) | {"type"} | {k for _, keys in SELECTORS.values() for k in keys}
     unknown = sorted(set(spec) - valid)
     if unknown or "name" not in spec:
@@ -443,7 +448,7 @@ def reduce_job(options: ReduceOptions) -> dict:
         mesh = read_mesh(o.mesh)
         if units.length_to_m != 1.0:
             mesh = mesh.scaled(units.length_to_m)
-    interfaces = [interface_from_spec(mesh, s) for s in (o.interfaces or default_interfaces(mesh))]
+    interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     with ph("assemble", f"{mesh.n_dof} DOF"):
         K_fe = stiffness_matrix(mesh, material)
         M_fe = mass_matrix(mesh, material)
