@@ -15,6 +15,8 @@ def register(subparsers) -> None:
                     "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
                     "node set that can carry 6 DOF as an RBE2 interface, free frame, 6 eigenmodes + FRMs.")
     p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
+    p.add_argument("--size", type=float, help="element size when MESH is a geometry file (its length unit)")
+    p.add_argument("--order", type=int, choices=(1, 2), help="tet4 (1) or tet10 (2, default) for geometry files")
     mat = p.add_argument_group("material (default steel)")
     mat.add_argument("--E", type=float, help="Young's modulus (Pa, or MPa with --units mm-t-s)")
     mat.add_argument("--nu", type=float, help="Poisson's ratio")

@@ -49,6 +49,8 @@ class ReduceOptions:
     """Everything a reduction job needs (CLI options or a TOML job file, same names)."""
 
     mesh: str
+    size: float | None = None
+    order: int = 2
     E: float | None = None
     nu: float | None = None
     rho: float | None = None
@@ -445,7 +447,7 @@ def reduce_job(options: ReduceOptions) -> dict:
     material_name = o.material if (o.material or o.E is not None or o.nu is not None or o.rho is not None) else "steel"
     material = material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=material_name, units=o.units)
     with ph("mesh", o.mesh):
-        mesh = read_mesh(o.mesh)
+        mesh = read_mesh(o.mesh, size=o.size, order=o.order)
         if units.length_to_m != 1.0:
             mesh = mesh.scaled(units.length_to_m)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
