@@ -34,7 +34,10 @@ def register(subparsers) -> None:
     p.add_argument("--frm-nodes", action="append", metavar="NODESET",
                    help="extra FRM load nodes: every node of this node set gets unit x, y, z forces (repeat)")
     p.add_argument("--cutoff-factor", type=float, help="FRM cut-off / highest frequency of interest (default 5)")
-    p.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
+    d = p.add_mutually_exclusive_group()
+    d.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
+    d.add_argument("--rayleigh", type=float, nargs=2, metavar=("ALPHA", "BETA"),
+                   help="Rayleigh damping De = alpha Me + beta Ke instead (1/s, s)")
     p.add_argument("--stiffening", action="store_true", default=None,
                    help="compute the geometric-stiffening unit load cases (sid-spec 6)")
     p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
@@ -56,6 +59,8 @@ def options_from_args(args):
     base = options_from_job(args.mesh) if args.mesh.lower().endswith(".toml") else ReduceOptions(mesh=args.mesh)
     given = {f.name: getattr(args, f.name) for f in fields(ReduceOptions)
              if f.name not in ("mesh", "verbose") and getattr(args, f.name, None) is not None}
+    if getattr(args, "rayleigh", None):
+        given["damping"] = {"rayleigh": tuple(args.rayleigh)}
     for key in ("interfaces", "frm_nodes"):
         if key in given:
             given[key] = tuple(given[key])

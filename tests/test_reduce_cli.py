@@ -45,7 +45,7 @@ def test_job_file_with_rbe3_attached_frame_and_stiffening(tmp_path, capsys):
                    'type = "plane", point = [1.0, 0, 0], normal = [1, 0, 0], tol = 1e-6}]\n'
                    'frame = "fixed_end"\nfmax = 300.0\nstiffening = true\nobj = false\n'
                    f'output = "{tmp_path / "out" / "bar.sid.h5"}"\ndamping = [0.01, 0.02, 0.03]\n')
-    assert main(["reduce", str(job), "--quiet", "--no-frm", "--json"]) == 0
+    assert main(["reduce", str(job), "--quiet", "--no-frm", "--json", "--rayleigh", "2.0", "4e-5"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert set(summary["files"]) == {"hdf5", "sid_fem"}
     sid = read_sid_hdf5(tmp_path / "out" / "bar.sid.h5")
@@ -54,6 +54,8 @@ def test_job_file_with_rbe3_attached_frame_and_stiffening(tmp_path, capsys):
     assert [n.name for n in sid.nodes] == ["fixed_end", "tip"]
     np.testing.assert_allclose(sid.nodes[1].origin.M0.ravel(), [1.0, 0.025, 0.04], atol=1e-12)
     np.testing.assert_allclose(sid.nodes[0].phi.M0, 0, atol=1e-15)         # the frame master is held
+    w = 2 * np.pi * sid.frequencies_hz                                      # --rayleigh overrides the file
+    np.testing.assert_allclose(np.diag(sid.De.M0), 2.0 + 4e-5 * w ** 2, rtol=1e-12)
 
 
 @pytest.mark.parametrize("argv, message", [
