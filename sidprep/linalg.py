@@ -90,13 +90,16 @@ class CholmodFactorization(Factorization):
 
     backend = "cholmod"
 
-    def __init__(self, A: sp.spmatrix):
+    def __init__(self, A: sp.spmatrix, upper: bool = False):
+        """``upper``: A already holds only its upper triangle as CSR with sorted indices."""
         self.blas = fast_blas()
         from sksparse_minimal import SparseCholesky  # after fast_blas: extensions bind at load
 
         # CHOLMOD reads the lower triangle of a CSC matrix; the CSR arrays of triu(A) are exactly
         # the CSC arrays of tril(A) (A symmetric), so no transpose copy is made.
-        U = upper_triangle(A)
+        U = A if upper else upper_triangle(A)
+        if not U.has_sorted_indices:
+            U.sort_indices()
         L = sp.csc_matrix((U.data, U.indices, U.indptr), shape=A.shape)
         del U
         try:
@@ -141,18 +144,30 @@ def cholmod_available() -> bool:
     return True
 
 
+def _direct_backend(backend: str) -> str:
+    if backend == "auto":
+        return "cholmod" if cholmod_available() else "superlu"
+    if backend not in ("cholmod", "superlu"):
+        raise InputError(f"--backend {backend}: unknown factorisation backend; use auto, cholmod or superlu")
+    return backend
+
+
 def factorize(A: sp.spmatrix, backend: str = "auto") -> Factorization:
     """Factorise the square sparse matrix ``A`` (symmetric positive definite for "cholmod").
 
     backend: "auto" (CHOLMOD if installed, else SuperLU), "cholmod" or "superlu".
     """
-    if backend == "auto":
-        backend = "cholmod" if cholmod_available() else "superlu"
-    if backend == "cholmod":
+    if _direct_backend(backend) == "cholmod":
         return CholmodFactorization(A)
-    if backend == "superlu":
-        return SuperLUFactorization(A)
-    raise InputError(f"--backend {backend}: unknown factorisation backend; use auto, cholmod or superlu")
+    return SuperLUFactorization(A)
+
+
+def factorize_shifted(K: sp.spmatrix, M: sp.spmatrix, sigma: float, backend: str = "auto") -> Factorization:
+    """Factorisation of K - sigma M (K, M symmetric).  For CHOLMOD only the upper triangle is ever
+    formed: no full copy of K - sigma M is alive while the factor is built (peak memory)."""
+    if _direct_backend(backend) == "cholmod":
+        return CholmodFactorization(upper_triangle(K) - sigma * upper_triangle(M), upper=True)
+    return SuperLUFactorization(K - sigma * M)
 
 
 @dataclass(frozen=True)
@@ -336,7 +351,7 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     else:
         try:
             with phase("factorize", f"K - sigma M, {n} DOF"):
-                solver = factorize(K - sigma * M, backend)
+                solver = factorize_shifted(K, M, sigma, backend)
         except np.linalg.LinAlgError as exc:
             raise InputError(f"K - sigma M is not positive definite ({exc}); the stiffness or mass "
                              "matrix is not symmetric positive semi-definite - check the mesh") from None
