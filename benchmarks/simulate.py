@@ -59,7 +59,7 @@ class Body:
 
 def reduced_bar(mesh_path: Path, nq: int) -> Body:
     """Assemble, clamp ``fixed_end``, lowest ``nq`` eigenmodes (sidprep's FE side)."""
-    from sidprep.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix
+    from sidprep.assemble import block_pattern, mass_matrix, scalar_mass_matrix, stiffness_matrix
     from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs
     from sidprep.material import material_from_options
     from sidprep.mesh import read_mesh
@@ -69,7 +69,7 @@ def reduced_bar(mesh_path: Path, nq: int) -> Body:
     pattern = block_pattern(mesh.cells, mesh.n_nodes)
     K = stiffness_matrix(mesh, steel, pattern)
     Ms = scalar_mass_matrix(mesh, steel.rho, pattern)
-    M = pattern.expand(Ms)
+    M = mass_matrix(mesh, steel, pattern=pattern)
     fixed = mesh.node_sets["fixed_end"]
     free = clamp_dofs(mesh.n_dof, node_dofs(fixed))
     modes = eigen_modes(free.restrict(K), free.restrict(M), count=nq)
