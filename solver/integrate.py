@@ -32,8 +32,8 @@ from sidprep.errors import InputError
 
 from solver.bodies import RigidBody
 from solver.effects import EFFECTS, build_report, choose_effects, estimate_sizes, parse_effects
-from solver.kinematics import matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
-from solver.system import REDUNDANCY_TOL, BodyHistory, Context, JointHistory, Pose, Result
+from solver.kinematics import exp_so3, jit, matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
+from solver.system import REDUNDANCY_TOL, BodyHistory, Context, JointHistory, Pose, Result, _Kernel, _system_kernel
 
 #: Gauss-Newton tolerance of the initial position projection (constraint residual, m or rad)
 POSITION_TOL = 1e-12
@@ -45,6 +45,8 @@ SLOW_CONTRACTION = 0.3
 RECOVER_STEPS = 4
 #: step-size factor limits of the error control
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
+#: output samples per call of the compiled integration loop (it resumes until t_end)
+CHUNK = 4096
 
 
 # ---------------------------------------------------------------------------- set-up helpers
@@ -336,7 +338,7 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
 
     def residual(udn, lamn, tn):
         an, pn, un = state(udn)
-        mass, f, g, B, BF, ctx = system.evaluate(pn, un, tn, lamn)
+        mass, f, g, B, BF, ctx = system.evaluate(pn, un, tn, lamn, compiled=True)
         r = np.empty(n + m)
         r[:n] = mass @ udn - f + BF.T @ lamn
         r[n:] = g / (h * h * beta * ca)
@@ -438,6 +440,228 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
     return stats
 
 
+# ---------------------------------------------------------------------------- compiled loop
+@jit
+def _advance_arrays(R, A, Q, dx, data):  # pragma: no cover - compiled
+    """System.advance on the flat arrays of _Kernel: r + dr, A exp(dtheta), q + dq."""
+    qoff, uoff = data[0], data[1]
+    R2, A2, Q2 = R.copy(), np.empty_like(A), Q.copy()
+    for i in range(R.shape[0]):
+        s = uoff[i]
+        R2[i] += dx[s:s + 3]
+        A2[i] = A[i] @ exp_so3(dx[s + 3:s + 6].copy())
+        nq = qoff[i + 1] - qoff[i]
+        Q2[qoff[i]:qoff[i + 1]] += dx[s + 6:s + 6 + nq]
+    return R2, A2, Q2
+
+
+@jit
+def _ga_state(udn, R, A, Q, u, ud, a, h, prm, data):  # pragma: no cover - compiled
+    """(a_{n+1}, R, A, Q, u_{n+1}) of the generalised-alpha update for ud_{n+1} (module doc)."""
+    am, af, gamma, beta = prm[0], prm[1], prm[2], prm[3]
+    an = (af * ud + (1 - af) * udn - am * a) / (1 - am)
+    R2, A2, Q2 = _advance_arrays(R, A, Q, h * u + h * h * ((0.5 - beta) * a + beta * an), data)
+    return an, R2, A2, Q2, u + h * ((1 - gamma) * a + gamma * an)
+
+
+@jit
+def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data):  # pragma: no cover - compiled
+    """[M ud - f + B^T lambda; g / (h^2 beta')], M and B (kept rows) at the updated state."""
+    _, R2, A2, Q2, un = _ga_state(udn, R, A, Q, u, ud, a, h, prm, data)
+    mass, f, g, B = _system_kernel(R2, A2, Q2, un, data)
+    n, m = udn.shape[0], kept.shape[0]
+    Bk = np.empty((m, n))
+    r = np.empty(n + m)
+    for k in range(m):
+        Bk[k] = B[kept[k]]
+        r[n + k] = g[kept[k]] / (h * h * prm[4])
+    r[:n] = mass @ udn - f + Bk.T @ lamn
+    return r, mass, Bk
+
+
+@jit
+def _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data):  # pragma: no cover - compiled
+    """D = d r1 / d ud - M by forward differences (damping and stiffness part of the iteration
+    matrix, the same as ``tangent`` in _genalpha)."""
+    n = udn.shape[0]
+    r0, mass, _ = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
+    d = np.empty((n, n))
+    eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
+    for i in range(n):
+        e = max(1e-7 * abs(udn[i]), eps_pos)
+        x = udn.copy()
+        x[i] += e
+        d[:, i] = (_ga_residual(x, lamn, R, A, Q, u, ud, a, h, prm, kept, data)[0][:n] - r0[:n]) / e
+    return d - mass
+
+
+@jit
+def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, length, tol, adaptive, rtol, atol,
+             out_dt, next_out, carry, stats, damping, capacity, data):  # pragma: no cover - compiled
+    """The loop of _genalpha for a _Kernel system, compiled; stops at t_end or after ``capacity``
+    output samples (the caller resumes it).
+
+    carry = [ud_prev (n), lam_prev (m), D (n*n), h_prev, dmat_h, have_prev, have_d, dissipated,
+    last_power] packed in one float array; stats = [steps, rejected, newton it., jacobians, h_min,
+    h_max, status] (status 0 done, 1 max_steps, 2 Newton failure, 3 buffer full).
+    damping (nb,) flags: body has modal damping (De = packed[17]).
+    """
+    qoff, uoff, bodies = data[0], data[1], data[3]
+    n, m = u.shape[0], kept.shape[0]
+    ca = prm[4] / prm[3]
+    ud_prev = carry[:n].copy()
+    lam_prev = carry[n:n + m].copy()
+    dmat = carry[n + m:n + m + n * n].reshape(n, n).copy()
+    h_prev, dmat_h = carry[-6], carry[-5]
+    have_prev, have_d = carry[-4] > 0, carry[-3] > 0
+    dissipated, last_power = carry[-2], carry[-1]
+    ts = np.empty(capacity)
+    Rs = np.empty((capacity,) + R.shape)
+    As = np.empty((capacity,) + A.shape)
+    Qs = np.empty((capacity, Q.shape[0]))
+    us = np.empty((capacity, n))
+    uds = np.empty((capacity, n))
+    lams = np.empty((capacity, m))
+    diss = np.empty(capacity)
+    ns = 0
+    factor = 1.0
+    end_tol = 1e-12 * max(1.0, t_end)
+    jac = np.zeros((n + m, n + m))
+    stats[6] = 0.0
+    while t < t_end - end_tol:
+        if stats[0] >= stats[7]:
+            stats[6] = 1.0
+            break
+        h = min(h, t_end - t)
+        if have_prev and h == h_prev:
+            udn, lamn = 2.0 * ud - ud_prev, 2.0 * lam - lam_prev
+        else:
+            udn, lamn = ud.copy(), lam.copy()
+        renewed = False
+        if not have_d:
+            dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
+            dmat_h, renewed, have_d = h, True, True
+            stats[3] += 1
+        elif dmat_h != h:
+            dmat = dmat * (h / dmat_h) ** 2
+            dmat_h = h
+        last = np.inf
+        it = 0
+        converged = False
+        while True:
+            r, mass, Bk = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
+            jac[:n, :n] = mass + dmat
+            jac[:n, n:] = Bk.T
+            jac[n:, :n] = Bk
+            dz = -np.linalg.solve(jac, r)
+            udn += dz[:n]
+            lamn += dz[n:]
+            it += 1
+            err = np.max(np.abs(dz[:n]) * w) * h * h * prm[3] * ca / length
+            if not np.isfinite(err):
+                break
+            if err <= tol:
+                converged = True
+                break
+            if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
+                if renewed:
+                    break
+                dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
+                dmat_h, renewed = h, True
+                stats[3] += 1
+                it, last = 0, np.inf
+                continue
+            last = err
+        stats[2] += it
+        if not converged:
+            stats[1] += 1
+            h *= 0.5
+            have_d = False
+            if h < 1e-14 * max(1.0, t_end):
+                stats[6] = 2.0
+                break
+            continue
+        an, R2, A2, Q2, un = _ga_state(udn, R, A, Q, u, ud, a, h, prm, data)
+        if adaptive:
+            e = h * h * abs(prm[3] - 1.0 / 6.0) * np.abs(udn - ud) * w / (atol + rtol * length)
+            est = np.sqrt(np.mean(e * e)) if n else 0.0
+            factor = SAFETY * est ** (-1.0 / 3.0) if est > 0 else H_GROW
+            if est > 1.0:
+                stats[1] += 1
+                h *= max(H_SHRINK, factor)
+                continue
+        ud_prev, lam_prev, h_prev, have_prev = ud, lam, h, True
+        t += h
+        R, A, Q, u, ud, a, lam = R2, A2, Q2, un, udn, an, lamn
+        stats[0] += 1
+        stats[4] = min(stats[4], h)
+        stats[5] = max(stats[5], h)
+        power = 0.0
+        for i in range(R.shape[0]):
+            if damping[i]:
+                qd = u[uoff[i] + 6:uoff[i] + 6 + qoff[i + 1] - qoff[i]]
+                power += qd @ (bodies[i][17] @ qd)
+        dissipated += 0.5 * h * (power + last_power)
+        last_power = power
+        final = t >= t_end - end_tol
+        if final or out_dt <= 0.0 or t >= next_out - 1e-12 * max(1.0, abs(t)):
+            ts[ns], Rs[ns], As[ns], Qs[ns], us[ns], uds[ns], lams[ns], diss[ns] = t, R, A, Q, u, ud, lam, dissipated
+            ns += 1
+            while out_dt > 0.0 and next_out <= t + 1e-12 * max(1.0, abs(t)):
+                next_out += out_dt
+        if adaptive:
+            h *= min(H_GROW, max(H_SHRINK, factor))
+        elif h < h_nominal and int(stats[0]) % RECOVER_STEPS == 0:
+            h = min(2.0 * h, h_nominal)
+        if ns == capacity and not final:
+            stats[6] = 3.0
+            break
+    carry[:n], carry[n:n + m], carry[n + m:n + m + n * n] = ud_prev, lam_prev, dmat.ravel()
+    carry[-6], carry[-5] = h_prev, dmat_h
+    carry[-4] = 1.0 if have_prev else 0.0
+    carry[-3] = 1.0 if have_d else 0.0
+    carry[-2], carry[-1] = dissipated, last_power
+    return (R, A, Q, u, ud, a, lam, t, h, next_out, ts[:ns], Rs[:ns], As[:ns], Qs[:ns], us[:ns], uds[:ns],
+            lams[:ns], diss[:ns])
+
+
+def _genalpha_compiled(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps):
+    """_genalpha with the whole loop compiled (systems covered by _Kernel): same method, same
+    parameters; it runs in chunks of CHUNK output samples."""
+    kernel = system._kernel
+    am, af, gamma, beta = genalpha_parameters(rho_inf)
+    prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
+    w, length = length_weights(system)
+    kept = np.flatnonzero(system.kept).astype(np.int64)
+    n, m = system.n, kept.size
+    carry = np.zeros(n + m + n * n + 6)
+    stats = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0, 0.0, float(max_steps)])
+    damping = np.array([b.model.De is not None for b in system.bodies])
+    R, A, Q = kernel.arrays(pose)
+    a, t, next_out = ud.copy(), 0.0, 0.0
+    rec.offer(t, pose, u, ud, lam, force=True)
+    next_out = rec.next
+    while True:
+        (R, A, Q, u, ud, a, lam, t, h, next_out, ts, Rs, As, Qs, us, uds, lams, diss) = _ga_loop(
+            R, A, Q, u, ud, a, lam, t, t_end, h, h, prm, kept, w, length, newton_tol, rtol is not None,
+            rtol or 0.0, atol, rec.dt or 0.0, next_out, carry, stats, damping, CHUNK, kernel.data)
+        for k in range(ts.size):
+            rec.samples.append((ts[k], kernel.pose(Rs[k], As[k], Qs[k]), us[k], uds[k], lams[k]))
+            rec.flows.append((diss[k], 0.0))
+        if stats[6] == 1:
+            raise InputError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s; "
+                             "raise max_steps or the step size h")
+        if stats[6] == 2:
+            raise InputError(f"generalised-alpha: Newton did not converge at t = {t:.6g} s even with tiny "
+                             "steps; check the scene (joint axes, loads, units) or raise newton_tol")
+        if stats[6] == 0:
+            break
+    keys = ("steps", "rejected", "newton_iterations", "jacobians", "h_min", "h_max")
+    out = {k: float(v) if k.startswith("h_") else int(v) for k, v in zip(keys, stats)}
+    out["compiled_loop"] = True
+    return out
+
+
 # ---------------------------------------------------------------------------- explicit
 #: right-hand-side evaluations per step of the explicit methods (FSAL)
 _STAGES = {"rk45": 6, "dop853": 12}
@@ -512,10 +736,13 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
     cpu0 = time.process_time()
     system._compile()
     choices = configure_effects(system, effects)
+    system._kernel = _Kernel(system) if _Kernel.usable(system) else None
     pose, u, ud, lam = consistent_initial_state(system, static_start)
     rec = _Recorder(output_dt)
+    rec.angle_refs = [j._angle_ref for j in system.joints]
     if method == "genalpha":
-        stats = _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps)
+        run = _genalpha_compiled if system._kernel is not None else _genalpha
+        stats = run(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps)
     elif method in ("rk45", "dop853"):
         stats = _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec)
     else:
@@ -557,8 +784,12 @@ def postprocess(system, rec: _Recorder, choices) -> Result:
     node_loads = {b.name: {} for b in system.bodies if b.nq}
     acc_in = acc_diss = 0.0
     last = (0.0, 0.0)
+    for j, ref in zip(system.joints, rec.angle_refs):  # unwrap the joint angles along the samples
+        j._angle_ref = ref
     for k, (t, pose, u, ud, lam) in enumerate(rec.samples):
         mass, f, g, B, BF, ctx = system.evaluate(pose, u, t, lam)
+        system._accept_ctx = ctx
+        system.accept(pose)
         cerr[k] = np.max(np.abs(g)) if g.size else 0.0
         full = np.zeros(system.m_all)
         full[system.kept] = lam

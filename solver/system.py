@@ -25,13 +25,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from solver.bodies import Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody
+from solver.bodies import Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody, _body_equations, _marker_kinematics
 from solver.effects import EFFECTS, EffectsReport
 from solver.forces import (JointForce, JointFriction, PointForce, PointTorque, SpringDamper, Table,
                            bump_stop)
 from solver.joints import (ConstantSpeed, Cylindrical, Driver, Fixed, Joint, JOINT_TYPES, Planar,
-                           Prismatic, Revolute, SmoothStart, Spherical, TabulatedMotion)
-from solver.kinematics import exp_so3
+                           Prismatic, Revolute, SmoothStart, Spherical, TabulatedMotion, _joint_rows)
+from solver.kinematics import COMPILED, exp_so3, jit
 
 __all__ = [
     "System", "Result", "BodyHistory", "JointHistory", "Ground", "RigidBody", "FlexibleBody", "Marker",
@@ -104,6 +104,133 @@ class Result:
     constraint_error: np.ndarray
     effects: EffectsReport
     stats: dict = field(default_factory=dict)
+
+
+@jit
+def _system_kernel(R, A, Q, u, data):  # pragma: no cover - compiled
+    """M (n, n), f (n,), g (m_all,), B (m_all, n) of a system of bodies and joints, in one call.
+
+    The same mathematics as System.mass_and_forces + constraint_rows (the Python path): body
+    equations with the rotated translational row, marker kinematics, joint rows.  R (nb, 3),
+    A (nb, 3, 3), Q (sum nq,) with offsets qoff (nb + 1,); u (n,) with body offsets uoff (nb,);
+    bodies: packed BodyModel arrays; markers: body index (-1 = ground), c, AP0 R_m, Phi, Psi;
+    rows[j] the row codes of joint j, joint_mk (nj, 2) its markers, roff (nj + 1,) row offsets;
+    data = (qoff, uoff, gravity, bodies, mk_body, mk_pos, mk_rot, mk_phi, mk_psi, rows, joint_mk, roff).
+    """
+    qoff, uoff, gravity, bodies, mk_body, mk_pos, mk_rot, mk_phi, mk_psi, rows, joint_mk, roff = data
+    n = u.shape[0]
+    mass = np.zeros((n, n))
+    f = np.zeros(n)
+    for i in range(len(bodies)):
+        p = bodies[i]
+        s = uoff[i]
+        nq = qoff[i + 1] - qoff[i]
+        Ai = A[i]
+        mk, h = _body_equations(Q[qoff[i]:qoff[i + 1]].copy(), u[s + 6:s + 6 + nq].copy(), u[s + 3:s + 6].copy(),
+                                Ai.T @ gravity, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10],
+                                p[11], p[12], p[13], p[14], p[15], p[16], p[17], p[18])
+        top = Ai @ np.ascontiguousarray(mk[:3, 3:])
+        mk[:3, 3:] = top
+        mk[3:, :3] = top.T
+        mass[s:s + 6 + nq, s:s + 6 + nq] = mk
+        f[s:s + 3] += Ai @ h[:3]
+        f[s + 3:s + 6 + nq] += h[3:]
+    m_all = roff[-1]
+    g = np.zeros(m_all)
+    B = np.zeros((m_all, n))
+    for j in range(joint_mk.shape[0]):
+        r0, r1 = roff[j], roff[j + 1]
+        ps = []
+        axes = []
+        jts = []
+        jrs = []
+        for side in range(2):
+            k = joint_mk[j, side]
+            b = mk_body[k]
+            if b < 0:
+                ps.append(mk_pos[k].copy())
+                axes.append(mk_rot[k].copy())
+                jts.append(np.zeros((3, 0)))
+                jrs.append(np.zeros((3, 0)))
+            else:
+                pk, ak, jt, jr, _ = _marker_kinematics(R[b], A[b], Q[qoff[b]:qoff[b + 1]].copy(), mk_pos[k],
+                                                       mk_rot[k], mk_phi[k], mk_psi[k])
+                ps.append(pk)
+                axes.append(ak)
+                jts.append(jt)
+                jrs.append(jr)
+        gj, c = _joint_rows(rows[j], ps[0], axes[0], ps[1], axes[1])
+        g[r0:r1] = gj
+        for side in range(2):
+            b = mk_body[joint_mk[j, side]]
+            if b >= 0:
+                s = uoff[b]
+                B[r0:r1, s:s + jts[side].shape[1]] += c[2 * side] @ jts[side] + c[2 * side + 1] @ jrs[side]
+    return mass, f, g, B
+
+
+def _typed_list(items: list, dummy=None):
+    """numba typed List of items; an empty one still typed like ``dummy``."""
+    from numba.typed import List
+
+    out = List(items or [dummy])
+    if not items:
+        out.pop()
+    return out
+
+
+def _writable_float(x) -> np.ndarray:
+    """A C-contiguous writable float64 copy (numba typed lists need one array type)."""
+    return np.array(x, dtype=float, order="C")
+
+
+class _Kernel:
+    """Flat arrays of a system of bodies and joints for ``_system_kernel`` (no drivers, force
+    elements, load stiffening or second-order inertia: those take the Python path)."""
+
+    def __init__(self, system: "System"):
+        markers = list({id(mk): mk for c in system.joints for mk in (c.marker1, c.marker2)}.values())
+        index = {id(mk): k for k, mk in enumerate(markers)}
+        self.qoff = np.concatenate([[0], np.cumsum([b.nq for b in system.bodies])]).astype(np.int64)
+        self.uoff = np.array([sl.start for sl in system._slices], dtype=np.int64)
+        self.bodies = _typed_list([tuple(np.array(v) if isinstance(v, np.ndarray) else v for v in b.model._packed)
+                            for b in system.bodies])
+        self.mk_body = np.array([system._index.get(id(mk.body), -1) for mk in markers], dtype=np.int64)
+        inertial = [mk.kinematics(np.zeros(3), np.eye(3), None) if mk.body.ndof == 0 else None for mk in markers]
+        own = _writable_float
+        vec, mat = np.zeros(3), np.zeros((3, 3))
+        self.mk_pos = _typed_list([own(mk.position if k is None else k[0]) for mk, k in zip(markers, inertial)], vec)
+        self.mk_rot = _typed_list([own(mk.rotation if k is None else k[1]) for mk, k in zip(markers, inertial)], mat)
+        self.mk_phi = _typed_list([own(np.zeros((3, mk.body.nq)) if mk.phi is None else mk.phi) for mk in markers],
+                                  mat)
+        self.mk_psi = _typed_list([own(np.zeros((3, mk.body.nq)) if mk.psi is None else mk.psi) for mk in markers],
+                                  mat)
+        self.rows = _typed_list([np.array(j._rows, dtype=np.int64) for j in system.joints],
+                                np.zeros((0, 3), dtype=np.int64))
+        self.joint_mk = np.array([[index[id(j.marker1)], index[id(j.marker2)]] for j in system.joints],
+                                 dtype=np.int64).reshape(-1, 2)
+        self.roff = np.concatenate([[0], np.cumsum([j.nrows for j in system.joints])]).astype(np.int64)
+        self.data = (self.qoff, self.uoff, np.asarray(system.gravity, float), self.bodies, self.mk_body,
+                     self.mk_pos, self.mk_rot, self.mk_phi, self.mk_psi, self.rows, self.joint_mk, self.roff)
+
+    @staticmethod
+    def usable(system: "System") -> bool:
+        """True when every element of the system is covered by the compiled kernel."""
+        return COMPILED and bool(system.bodies) and not system.drivers and not system.forces and all(
+            b.model.P is None and not (b.load_stiffening and any(
+                mk.k0f is not None or mk.k0m is not None for mk in b.markers)) for b in system.bodies)
+
+    def __call__(self, pose: "Pose", u: np.ndarray):
+        """(M, f, g, B) at (pose, u), all constraint rows."""
+        return _system_kernel(*self.arrays(pose), u, self.data)
+
+    def arrays(self, pose: "Pose"):
+        """(R (nb, 3), A (nb, 3, 3), Q (sum nq,)) of a Pose."""
+        return np.array(pose.r), np.array(pose.A), np.concatenate(pose.q)
+
+    def pose(self, R, A, Q) -> "Pose":
+        """The Pose of the flat arrays (inverse of ``arrays``)."""
+        return Pose(list(R.copy()), list(A.copy()), [Q[a:b].copy() for a, b in zip(self.qoff[:-1], self.qoff[1:])])
 
 
 class Pose:
@@ -325,9 +452,19 @@ class System:
             b[self._row_slices[id(d)]] = d.rate_term(t)
         return b
 
-    def evaluate(self, pose: Pose, u: np.ndarray, t: float, lam: np.ndarray | None = None):
-        """(M, f, g, B, B_F, ctx) at a state; g, B, B_F restricted to the kept rows."""
+    def evaluate(self, pose: Pose, u: np.ndarray, t: float, lam: np.ndarray | None = None, compiled: bool = False):
+        """(M, f, g, B, B_F, ctx) at a state; g, B, B_F restricted to the kept rows.
+
+        compiled=True uses the one-call kernel when the system allows it (``_Kernel.usable``);
+        its ctx then carries no per-joint coefficients or loads (enough for the integrator).
+        """
         ctx = Context(self, pose, u, t, lam)
+        kernel = getattr(self, "_kernel", None) if compiled else None
+        if kernel is not None:
+            mass, f, g, B = kernel(pose, u)
+            ctx.f = f
+            k = self.kept
+            return mass, f, g[k], B[k], B[k], ctx
         mass = self.mass_and_forces(ctx)
         for fe in self.forces:
             fe.apply(ctx)
