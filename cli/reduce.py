@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 from dataclasses import fields, replace
 
 
@@ -68,11 +67,6 @@ def options_from_args(args):
 
 
 def run(args) -> int:
-    # one BLAS thread unless the user says otherwise: ARPACK's dense steps slow down 3x with two
-    # OpenBLAS threads on a busy 2-core machine (docs/performance-reduce.md); no effect once
-    # numpy is loaded (e.g. under pytest)
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
     from sidprep.pipeline import reduce_job, summary_json
 
     summary = reduce_job(options_from_args(args))

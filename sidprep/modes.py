@@ -32,9 +32,10 @@ CUTOFF_FACTOR = 5.0
 OMEGA_FRACTION = 0.5
 #: directions whose M-norm falls below this fraction of their original norm are linearly dependent
 DEPENDENCE_TOL = 1e-8
-#: a mode whose frequency is below this fraction of the highest one of the reduced model has zero
-#: energy (round-off of a rigid-body mode; real elastic modes sit many decades higher)
-ZERO_FREQUENCY_RATIO = 1e-6
+#: an eigenvalue within this factor of the round-off level (the energy of the exact rigid-body
+#: motions, sidprep.modes.rigid_energy) is a zero-energy mode; piston rod and bar: the rigid
+#: eigenvalues sit at ~1e-13 x lambda_max, the first elastic one at ~1e-4
+ZERO_ENERGY_MARGIN = 1e4
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,8 @@ class ModalBasis:
     Z : (nr, nq) M-orthonormal vectors (Z^T M Z = E, Z^T K Z = diag((2 pi f)^2));
     frequencies_hz : (nq,); kinds : per coordinate, "eigen" or "frm";
     frm_omega_hz : the FRM excitation frequency Omega / 2pi (NaN when no FRM was computed);
-    cutoff_hz : FRM cut-off (NaN when none); rejected_frm_hz : frequencies of the dropped FRMs.
+    cutoff_hz : FRM cut-off (NaN when none); rejected_frm_hz : frequencies of the dropped FRMs;
+    zero_energy_modes : zero-energy modes of the reduced model (held DOFs removed).
     """
 
     Z: np.ndarray
@@ -53,6 +55,7 @@ class ModalBasis:
     frm_omega_hz: float = float("nan")
     cutoff_hz: float = float("nan")
     rejected_frm_hz: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    zero_energy_modes: int = 0
 
     @property
     def labels(self) -> tuple[str, ...]:
@@ -138,15 +141,13 @@ def modal_basis(K, M, *, rigid=None, held=(), loads=None, n_modes=None, fmax=Non
     nr = K.shape[0]
     free = np.setdiff1d(np.arange(nr), np.asarray(held, dtype=np.int64))
     Kf, Mf = K[np.ix_(free, free)], M[np.ix_(free, free)]
-    if rigid is None:
-        R = np.zeros((len(free), 0))
-        lam, Z = eigen_pairs(Kf, Mf)
-    else:
-        R = orthonormalize(Kf, Mf, rigid[free])[1]
-        n_zero = zero_energy_count(eigen_pairs(Kf, Mf)[0])
-        if n_zero != 6 or R.shape[1] != 6:
-            raise InputError(f"the free body has {n_zero} zero-energy modes instead of 6; it is a mechanism or "
-                             "falls apart — check the mesh (sidprep info) or attach the frame to an interface")
+    lam, Z = eigen_pairs(Kf, Mf)
+    R = np.zeros((len(free), 0)) if rigid is None else orthonormalize(Kf, Mf, rigid[free])[1]
+    n_zero = zero_energy_count(lam, rigid_energy(Kf, R) if R.shape[1] else None)
+    if n_zero != (0 if rigid is None else 6) or R.shape[1] not in (0, 6):
+        raise InputError(f"the reduced body has {n_zero} zero-energy modes instead of {0 if rigid is None else 6}; "
+                         "it is a mechanism or falls apart — check the mesh (sidprep info) and the interfaces")
+    if R.shape[1]:
         C = sla.null_space(R.T @ Mf)                  # M-orthogonal complement of rigid motion
         lam, Y = eigen_pairs(C.T @ Kf @ C, C.T @ Mf @ C)
         Z = C @ Y
@@ -173,13 +174,21 @@ def modal_basis(K, M, *, rigid=None, held=(), loads=None, n_modes=None, fmax=Non
         kinds += ["frm"] * int(ok.sum())
     Zfull = np.zeros((nr, len(kinds)))
     Zfull[free] = np.hstack(vectors)
-    return ModalBasis(Zfull, np.concatenate(freqs), tuple(kinds), omega_hz, cutoff, rejected)
+    return ModalBasis(Zfull, np.concatenate(freqs), tuple(kinds), omega_hz, cutoff, rejected, n_zero)
 
 
-def zero_energy_count(lam: np.ndarray) -> int:
-    """Eigenvalues whose frequency is below ZERO_FREQUENCY_RATIO x the highest of the pencil."""
-    f = hz(lam)
-    return int((f < ZERO_FREQUENCY_RATIO * f.max()).sum())
+def rigid_energy(K: np.ndarray, R: np.ndarray) -> float:
+    """Largest eigenvalue of R^T K R for M-orthonormal rigid motions R: the round-off level at
+    which this pencil shows a zero-energy mode, (rad/s)^2."""
+    return float(np.abs(np.linalg.eigvalsh(_sym(R.T @ K @ R))).max())
+
+
+def zero_energy_count(lam: np.ndarray, noise: float | None = None) -> int:
+    """Eigenvalues within ZERO_ENERGY_MARGIN x the round-off level ``noise`` (default: machine
+    epsilon x the largest eigenvalue); measured noise keeps soft bodies (f1 << f_max) elastic."""
+    if noise is None:
+        noise = np.finfo(float).eps * np.abs(lam).max()
+    return int((np.abs(lam) <= ZERO_ENERGY_MARGIN * noise).sum())
 
 
 def modal_damping(frequencies_hz: np.ndarray, damping) -> np.ndarray:

@@ -12,6 +12,7 @@ constraint-mode right-hand side and the shift-invert eigen solve.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +73,21 @@ class ReducedModel:
         return u
 
 
+def single_blas_thread():
+    """Context: one BLAS thread in every BLAS loaded (OpenBLAS of numpy/scipy, the MKL that
+    sidprep.linalg.fast_blas interposes under CHOLMOD - loaded first so that the limit covers it).
+    Two threads on the busy 2-core machine made the piston rod's eigen solve 40x and its
+    factorisation 20x slower (docs/performance-reduce.md).  A no-op without threadpoolctl."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    from sidprep.linalg import fast_blas
+
+    fast_blas()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
     """(boundary (nb,), interior (ni,)) DOF indices; boundary keeps the given order."""
     b = np.asarray(boundary_dofs, dtype=np.int64)
@@ -129,19 +145,20 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
     """
     from sidprep.linalg import factorize
 
-    K, M = sp.csr_matrix(K), sp.csr_matrix(M)
-    b, i = split_dofs(K.shape[0], boundary_dofs)
-    K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
-    try:
-        factor = factorize(K_ii.tocsc())
-    except Exception as exc:  # singular interior: the boundary does not hold the body
-        raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
-                         "statically — add an interface or use the free frame") from exc
-    Psi = constraint_modes(K, factor, b, i)
-    if n_modes == 0 or (n_modes is None and fmax is None):
-        f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
-    else:
-        f, Phi_m = fixed_interface_modes(K_ii, M_ii, factor, n_modes, fmax)
+    with single_blas_thread():
+        K, M = sp.csr_matrix(K), sp.csr_matrix(M)
+        b, i = split_dofs(K.shape[0], boundary_dofs)
+        K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
+        try:
+            factor = factorize(K_ii.tocsc())
+        except (np.linalg.LinAlgError, RuntimeError) as exc:  # singular interior: the boundary does not hold it
+            raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
+                             "statically — add an interface or use the free frame") from exc
+        Psi = constraint_modes(K, factor, b, i)
+        if n_modes == 0 or (n_modes is None and fmax is None):
+            f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
+        else:
+            f, Phi_m = fixed_interface_modes(K_ii, M_ii, factor, n_modes, fmax)
     basis = np.zeros((K.shape[0], len(b) + len(f)))
     basis[i, :len(b)] = Psi
     basis[b, np.arange(len(b))] = 1.0
