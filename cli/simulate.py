@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 from pathlib import Path
 
 #: signals plotted / exported when the scene's [output] names none
@@ -74,33 +73,6 @@ def animation_surfaces(scene) -> dict:
     return surfaces
 
 
-#: wall-clock seconds between progress lines during the integration
-PROGRESS_EVERY_S = 5.0
-
-
-def report_progress(system, kw: dict, stream=sys.stderr) -> None:
-    """Print a progress line on ``stream`` at most every PROGRESS_EVERY_S during the integration.
-
-    System.simulate has no progress hook, so this counts accepted steps through the System's
-    per-step ``accept`` call (an instance attribute wrapper; the class is untouched).  With a
-    fixed generalised-alpha step the simulated time is steps * h.
-    """
-    accept = system.accept
-    fixed = kw["method"] == "genalpha" and kw["rtol"] is None
-    state = {"steps": 0, "t0": time.monotonic(), "last": time.monotonic()}
-
-    def counting_accept(pose):
-        accept(pose)
-        state["steps"] += 1
-        now = time.monotonic()
-        if now - state["last"] >= PROGRESS_EVERY_S:
-            state["last"] = now
-            where = f", t = {state['steps'] * kw['h']:.4g} of {kw['t_end']:g} s" if fixed else ""
-            print(f"    step {state['steps']}{where} ({now - state['t0']:.0f} s)", file=stream, flush=True)
-
-    system.accept = counting_accept
-
-
 def run(args) -> int:
     from sidprep.progress import Phases
     from solver.results import json_safe, plot_signals, write_csv, write_results
@@ -116,8 +88,6 @@ def run(args) -> int:
         return out.with_name(base + suffix)
 
     kw = scene.simulate_kwargs
-    if not args.quiet:
-        report_progress(scene.system, kw)
     with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
         result = simulate(scene)
     outputs = {}
