@@ -21,7 +21,7 @@ import numpy as np
 
 from sidprep.sid import ge_tensor, gr_tensor
 from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
-from solver.kinematics import COMPILED, as_rotation, cross, exp_so3, jit, skew
+from solver.kinematics import COMPILED, as_rotation, cross, exp_so3, jit, matmul, skew
 
 _E3 = np.eye(3)
 
@@ -556,20 +556,30 @@ def _ge(s) -> np.ndarray:
 def _marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
     """p, A R(Psi q) AP0, JT = [E, -A d~, A Phi], JR = [0, A, A Psi], d = c + Phi q (sid-spec 5.2)."""
     nq = q.shape[0]
-    d = position + phi @ q
-    rot = A @ exp_so3(psi @ q) @ rotation
+    d = position.copy()
+    rv = np.zeros(3)
+    for a in range(3):
+        for k in range(nq):
+            d[a] += phi[a, k] * q[k]
+            rv[a] += psi[a, k] * q[k]
+    rot = matmul(matmul(A, exp_so3(rv)), rotation)
     jt = np.zeros((3, 6 + nq))
     jr = np.zeros((3, 6 + nq))
-    ad = -A @ skew(d)
+    ad = -matmul(A, skew(d))
     for a in range(3):
         jt[a, a] = 1.0
         for b in range(3):
             jt[a, 3 + b] = ad[a, b]
             jr[a, 3 + b] = A[a, b]
-    if nq:
-        jt[:, 6:] = A @ phi
-        jr[:, 6:] = A @ psi
-    return r + A @ d, rot, jt, jr, d
+        for k in range(nq):
+            for b in range(3):
+                jt[a, 6 + k] += A[a, b] * phi[b, k]
+                jr[a, 6 + k] += A[a, b] * psi[b, k]
+    p = r.copy()
+    for a in range(3):
+        for b in range(3):
+            p[a] += A[a, b] * d[b]
+    return p, rot, jt, jr, d
 
 
 @dataclass(eq=False)

@@ -45,6 +45,19 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @jit
+def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a @ b by loops: for the small (3 x k) products of the kernels, where a BLAS call costs
+    more than the arithmetic; (p, r) x (r, k) -> (p, k)."""
+    out = np.zeros((a.shape[0], b.shape[1]))
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            aij = a[i, j]
+            for k in range(b.shape[1]):
+                out[i, k] += aij * b[j, k]
+    return out
+
+
+@jit
 def exp_so3(theta: np.ndarray) -> np.ndarray:
     """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
     x, y, z = theta[0], theta[1], theta[2]

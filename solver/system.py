@@ -25,13 +25,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from solver.bodies import Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody, _body_equations, _marker_kinematics
+from solver.bodies import (Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody, _body_equations,
+                           _marker_kinematics)
 from solver.effects import EFFECTS, EffectsReport
 from solver.forces import (JointForce, JointFriction, PointForce, PointTorque, SpringDamper, Table,
                            bump_stop)
 from solver.joints import (ConstantSpeed, Cylindrical, Driver, Fixed, Joint, JOINT_TYPES, Planar,
                            Prismatic, Revolute, SmoothStart, Spherical, TabulatedMotion, _joint_rows)
-from solver.kinematics import COMPILED, exp_so3, jit
+from solver.kinematics import COMPILED, exp_so3, jit, matmul
 
 __all__ = [
     "System", "Result", "BodyHistory", "JointHistory", "Ground", "RigidBody", "FlexibleBody", "Marker",
@@ -107,6 +108,24 @@ class Result:
 
 
 @jit
+def _kernel_marker(R, A, Q, qoff, b, position, rotation, phi, psi):  # pragma: no cover - compiled
+    """(p, A_marker, JT, JR) of a marker on body b (-1: ground, position/rotation inertial)."""
+    if b < 0:
+        return position, rotation, np.zeros((3, 0)), np.zeros((3, 0))
+    p, rot, jt, jr, _ = _marker_kinematics(R[b], A[b], Q[qoff[b]:qoff[b + 1]], position, rotation, phi, psi)
+    return p, rot, jt, jr
+
+
+@jit
+def _add_rows(B, r0, col, ct, cr, jt, jr):  # pragma: no cover - compiled
+    """B[r0:r0+m, col:col+ndof] += ct JT + cr JR (row coefficients times marker Jacobians)."""
+    for r in range(ct.shape[0]):
+        for a in range(3):
+            for k in range(jt.shape[1]):
+                B[r0 + r, col + k] += ct[r, a] * jt[a, k] + cr[r, a] * jr[a, k]
+
+
+@jit
 def _system_kernel(R, A, Q, u, data):  # pragma: no cover - compiled
     """M (n, n), f (n,), g (m_all,), B (m_all, n) of a system of bodies and joints, in one call.
 
@@ -126,46 +145,36 @@ def _system_kernel(R, A, Q, u, data):  # pragma: no cover - compiled
         s = uoff[i]
         nq = qoff[i + 1] - qoff[i]
         Ai = A[i]
+        gk = np.zeros(3)
+        for a in range(3):
+            for b in range(3):
+                gk[a] += Ai[b, a] * gravity[b]
         mk, h = _body_equations(Q[qoff[i]:qoff[i + 1]].copy(), u[s + 6:s + 6 + nq].copy(), u[s + 3:s + 6].copy(),
-                                Ai.T @ gravity, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10],
+                                gk, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10],
                                 p[11], p[12], p[13], p[14], p[15], p[16], p[17], p[18])
-        top = Ai @ np.ascontiguousarray(mk[:3, 3:])
+        top = matmul(Ai, mk[:3, 3:])
         mk[:3, 3:] = top
         mk[3:, :3] = top.T
         mass[s:s + 6 + nq, s:s + 6 + nq] = mk
-        f[s:s + 3] += Ai @ h[:3]
+        for a in range(3):
+            for b in range(3):
+                f[s + a] += Ai[a, b] * h[b]
         f[s + 3:s + 6 + nq] += h[3:]
     m_all = roff[-1]
     g = np.zeros(m_all)
     B = np.zeros((m_all, n))
     for j in range(joint_mk.shape[0]):
         r0, r1 = roff[j], roff[j + 1]
-        ps = []
-        axes = []
-        jts = []
-        jrs = []
-        for side in range(2):
-            k = joint_mk[j, side]
-            b = mk_body[k]
-            if b < 0:
-                ps.append(mk_pos[k].copy())
-                axes.append(mk_rot[k].copy())
-                jts.append(np.zeros((3, 0)))
-                jrs.append(np.zeros((3, 0)))
-            else:
-                pk, ak, jt, jr, _ = _marker_kinematics(R[b], A[b], Q[qoff[b]:qoff[b + 1]].copy(), mk_pos[k],
-                                                       mk_rot[k], mk_phi[k], mk_psi[k])
-                ps.append(pk)
-                axes.append(ak)
-                jts.append(jt)
-                jrs.append(jr)
-        gj, c = _joint_rows(rows[j], ps[0], axes[0], ps[1], axes[1])
+        k1, k2 = joint_mk[j, 0], joint_mk[j, 1]
+        b1, b2 = mk_body[k1], mk_body[k2]
+        p1, a1, jt1, jr1 = _kernel_marker(R, A, Q, qoff, b1, mk_pos[k1], mk_rot[k1], mk_phi[k1], mk_psi[k1])
+        p2, a2, jt2, jr2 = _kernel_marker(R, A, Q, qoff, b2, mk_pos[k2], mk_rot[k2], mk_phi[k2], mk_psi[k2])
+        gj, c = _joint_rows(rows[j], p1, a1, p2, a2)
         g[r0:r1] = gj
-        for side in range(2):
-            b = mk_body[joint_mk[j, side]]
-            if b >= 0:
-                s = uoff[b]
-                B[r0:r1, s:s + jts[side].shape[1]] += c[2 * side] @ jts[side] + c[2 * side + 1] @ jrs[side]
+        if b1 >= 0:
+            _add_rows(B, r0, uoff[b1], c[0], c[1], jt1, jr1)
+        if b2 >= 0:
+            _add_rows(B, r0, uoff[b2], c[2], c[3], jt2, jr2)
     return mass, f, g, B
 
 
