@@ -47,6 +47,16 @@ RECOVER_STEPS = 4
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
 #: output samples per call of the compiled integration loop (it resumes until t_end)
 CHUNK = 4096
+#: planar detection: relative size below which an out-of-plane coupling counts as zero (the
+#: couplings that FE-mesh asymmetry leaves in nominally planar modes are ~1e-4 of the mode)
+PLANAR_TOL = 1e-3
+#: planar detection: tolerance of the geometry (parallel joint axes, plane normal along a
+#: coordinate axis, gravity and initial velocities in the plane), relative
+PLANAR_AXIS_TOL = 1e-9
+#: planar detection: random in-plane test states checked against the full 3D equations
+PLANAR_SAMPLES = 2
+#: planar detection: size of the random in-plane test displacements, in system lengths L
+PLANAR_MOTION = 1e-4
 
 
 # ---------------------------------------------------------------------------- set-up helpers
@@ -168,12 +178,15 @@ def solve_kkt(mass, rhs_f, B, BF, rhs_g):
     return sol[:n], sol[n:]
 
 
-def accelerations(system, pose: Pose, u: np.ndarray, t: float, lam=None, iterations: int = 3):
-    """Index-1 accelerations and multipliers (iterated when forces depend on lambda, friction)."""
+def accelerations(system, pose: Pose, u: np.ndarray, t: float, lam=None, iterations: int = 3, free=None):
+    """Index-1 accelerations and multipliers (iterated when forces depend on lambda, friction);
+    with ``free`` (coordinate indices) the other accelerations are zero (planar scenes)."""
     gam = system.gamma(pose, u, t)
+    free = np.arange(system.n) if free is None else free
+    ud = np.zeros(system.n)
     for _ in range(iterations if system.m_all else 1):
         mass, f, _, B, BF, _ = system.evaluate(pose, u, t, lam)
-        ud, lam = solve_kkt(mass, f, B, BF, -gam)
+        ud[free], lam = solve_kkt(mass[np.ix_(free, free)], f[free], B[:, free], BF[:, free], -gam)
     return ud, lam
 
 
@@ -266,6 +279,138 @@ def consistent_initial_state(system, static_start: bool):
     return pose, u, ud, lam
 
 
+# ---------------------------------------------------------------------------- planar scenes
+def _plane_normal(system, pose) -> np.ndarray | None:
+    """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
+    normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
+    ctx = Context(system, pose, np.zeros(system.n), 0.0, None)
+
+    def axes(kinds):
+        return [ctx.kin(j.marker1)[1][:, 2] for j in system.joints if j.kind in kinds]
+
+    normals, slides = axes(("revolute", "cylindrical", "planar")), axes(("prismatic",))
+    if not normals:
+        return None
+    n = normals[0]
+    if any(np.linalg.norm(np.cross(n, z)) > PLANAR_AXIS_TOL for z in normals) or any(abs(n @ z) > PLANAR_AXIS_TOL
+                                                                                  for z in slides):
+        return None
+    return n
+
+
+def _out_of_plane_modes(body, axis: int, length: float) -> np.ndarray:
+    """Mask (nq,) of modes that in-plane motion (rotation about K axis ``axis``, translation and
+    marker loads in the plane) does not excite, up to PLANAR_TOL of each mode's own size: no
+    coupling with the in-plane rigid motion (Ct0 vs sqrt(m Me_kk), Cr0 vs sqrt(tr J Me_kk)), no
+    centrifugal load Oe0 w_hat for w along the axis (vs sqrt(tr J Me_kk)), no in-plane motion
+    of any marker ([phi; L psi] column of the mode)."""
+    model = body.model
+    ip = [a for a in range(3) if a != axis]
+    me = np.sqrt(np.abs(np.diag(model.Me)))
+    inertia = np.sqrt(np.trace(model.I0))
+    out = np.ones(body.nq, bool)
+    if model.Ct0.size:
+        out &= np.all(np.abs(model.Ct0[:, ip]) <= PLANAR_TOL * np.sqrt(model.mass) * me[:, None], axis=1)
+        out &= np.abs(model.Cr0[:, axis]) <= PLANAR_TOL * inertia * me
+    if model.Oe0 is not None:
+        out &= np.abs(model.Oe0[:, axis]) <= PLANAR_TOL * inertia * me
+    for mk in body.markers:
+        if mk.phi is not None:
+            size = np.maximum(np.linalg.norm(np.vstack([mk.phi, length * mk.psi]), axis=0), 1e-300)
+            inplane = np.vstack([mk.phi[ip], length * mk.psi[axis]])
+            out &= np.all(np.abs(inplane) <= PLANAR_TOL * size, axis=0)
+    return out
+
+
+def planar_coordinates(system, pose, u, t: float = 0.0):
+    """(free coordinate indices, kept-row mask, note) when the scene moves in one plane, else None.
+
+    Planar: the revolute / cylindrical / planar joint axes share one normal n along an inertial
+    axis and along a body axis of every body, gravity and the initial velocities lie in the
+    plane, and the out-of-plane coordinates O (translation along n, the two tilts, the modes
+    that in-plane motion does not excite) start at zero.  The decoupling is then verified on the
+    full 3D equations at random in-plane states: every constraint row acts either on in-plane
+    coordinates or on O only, and the O-rows of the equations of motion (mass couplings, forces,
+    reactions of the in-plane rows) are balanced by reactions of the O-only rows, so that O
+    stays zero.  Only the in-plane coordinates are integrated; the O-only rows are dropped (their
+    reactions are recovered at the output samples, ``out_of_plane_reactions``).
+    """
+    if not system.bodies:
+        return None
+    n = _plane_normal(system, pose)
+    if n is None or abs(system.gravity @ n) > PLANAR_AXIS_TOL * max(np.linalg.norm(system.gravity), 1.0):
+        return None
+    ax = int(np.argmax(np.abs(n)))
+    if abs(abs(n[ax]) - 1.0) > PLANAR_AXIS_TOL:
+        return None
+    weights, length = length_weights(system)
+    free = np.zeros(system.n, bool)
+    for i, b in enumerate(system.bodies):
+        nk = pose.A[i].T @ n
+        axk = int(np.argmax(np.abs(nk)))
+        if abs(abs(nk[axk]) - 1.0) > PLANAR_AXIS_TOL:
+            return None
+        sl = system._slices[i]
+        idx = np.arange(sl.start, sl.stop)
+        free[idx[[a for a in range(3) if a != ax]]] = True
+        free[idx[3 + axk]] = True
+        if b.nq:
+            free[idx[6:]] = ~_out_of_plane_modes(b, axk, length)
+            if np.any(pose.q[i][~free[idx[6:]]]):
+                return None
+    out = ~free
+    scale = max(np.max(np.abs(u)), 1e-300)
+    if np.any(np.abs(u[out]) > PLANAR_AXIS_TOL * scale):
+        return None
+    rng = np.random.default_rng(0)
+    rows = None
+    for _ in range(PLANAR_SAMPLES):
+        trial = system.advance(pose, np.where(free, PLANAR_MOTION * length * rng.standard_normal(system.n)
+                                             / weights, 0.0))
+        vel = np.where(free, u + rng.standard_normal(system.n) / weights, 0.0)
+        mass, f, _, B, _, _ = system.evaluate(trial, vel, t)
+        inplane = np.linalg.norm(B[:, free], axis=1) > PLANAR_TOL * np.linalg.norm(B, axis=1)
+        if rows is not None and np.any(rows != inplane):
+            return None
+        rows = inplane
+        acc = np.where(free, rng.standard_normal(system.n) / weights, 0.0)
+        lam = rng.standard_normal(B.shape[0]) * np.where(inplane, 1.0, 0.0)
+        load = mass @ acc - f + B.T @ lam        # out-of-plane rows: must be reactions of out rows
+        scale = np.abs(mass @ acc) + np.abs(f) + np.abs(B.T) @ np.abs(lam)
+        b_out = B[~inplane][:, out]
+        react = np.linalg.lstsq(b_out.T, -load[out], rcond=None)[0] if b_out.size else np.zeros(0)
+        if np.any(np.abs(load[out] + b_out.T @ react) > PLANAR_TOL * np.max(scale)):
+            return None
+    keep = system.kept.copy()
+    keep[keep] = rows
+    names = "xyz"
+    modes = [f"{b.name}: {int(np.sum(free[sl][6:]))} of {b.nq} modes" for b, sl in zip(system.bodies, system._slices)
+             if b.nq]
+    note = (f"planar scene (normal {names[ax]}): integrated {int(free.sum())} of {system.n} coordinates, the "
+            f"in-plane translations, the rotation about {names[ax]}" + (" and the in-plane modes (" + ", ".join(modes)
+                                                                     + ")" if modes else ""))
+    return np.flatnonzero(free), keep, note
+
+
+def out_of_plane_reactions(system, pose, u, ud, t, lam):
+    """Multipliers of all rows kept in 3D (system.kept_3d) from those of a planar run: the
+    reactions of the dropped out-of-plane rows balance the out-of-plane equations of motion
+    (least squares over the out-of-plane coordinates, planar_coordinates)."""
+    planar_rows = system.kept[system.kept_3d]
+    out = np.ones(system.n, bool)
+    out[system.free] = False
+    kept, system.kept = system.kept, system.kept_3d
+    try:
+        mass, f, _, _, BF, _ = system.evaluate(pose, u, t)
+    finally:
+        system.kept = kept
+    load = mass @ ud - f + BF[planar_rows].T @ lam
+    full = np.zeros(planar_rows.size)
+    full[planar_rows] = lam
+    full[~planar_rows] = np.linalg.lstsq(BF[~planar_rows][:, out].T, -load[out], rcond=None)[0]
+    return full
+
+
 # ---------------------------------------------------------------------------- generalised alpha
 class _Recorder:
     """Samples (t, pose, u, ud, lambda) at the output times, plus the energy-flow integrals."""
@@ -323,6 +468,8 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
     w, length = length_weights(system)
     n = system.n
     m = int(system.kept.sum())
+    free = system.free
+    nf = free.size
     t = 0.0
     a = ud.copy()
     stats = {"steps": 0, "rejected": 0, "newton_iterations": 0, "jacobians": 0, "h_min": np.inf, "h_max": 0.0}
@@ -337,33 +484,34 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         return an, system.advance(pose, dx), u + h * ((1 - gamma) * a + gamma * an)
 
     def residual(udn, lamn, tn):
+        """r over the free coordinates and the kept rows; M, B, B_F restricted to them."""
         an, pn, un = state(udn)
         mass, f, g, B, BF, ctx = system.evaluate(pn, un, tn, lamn, compiled=True)
-        r = np.empty(n + m)
-        r[:n] = mass @ udn - f + BF.T @ lamn
-        r[n:] = g / (h * h * beta * ca)
-        return r, mass, B, BF, ctx
+        r = np.empty(nf + m)
+        r[:nf] = (mass @ udn - f + BF.T @ lamn)[free]
+        r[nf:] = g / (h * h * beta * ca)
+        return r, mass[np.ix_(free, free)], B[:, free], BF[:, free], ctx
 
     def tangent(udn, lamn, tn):
         """D = d r1 / d ud - M by finite differences: the damping / stiffness part of the
         iteration matrix (h gamma' C_t + h^2 beta' K_t), re-used over steps."""
         r0, mass, _, _, _ = residual(udn, lamn, tn)
-        d = np.empty((n, n))
+        d = np.empty((nf, nf))
         eps_pos = np.sqrt(np.finfo(float).eps) / (h * h * beta * ca)
-        for i in range(n):
+        for col, i in enumerate(free):
             e = max(1e-7 * abs(udn[i]), eps_pos)
             x = udn.copy()
             x[i] += e
-            d[:, i] = (residual(x, lamn, tn)[0][:n] - r0[:n]) / e
+            d[:, col] = (residual(x, lamn, tn)[0][:nf] - r0[:nf]) / e
         stats["jacobians"] += 1
         return d - mass
 
     def newton_matrix(mass, B, BF):
         """[M + D, B_F^T; B, 0]: mass and constraint blocks exact at the current iterate."""
-        jac = np.zeros((n + m, n + m))
-        jac[:n, :n] = mass + dmat
-        jac[:n, n:] = BF.T
-        jac[n:, :n] = B
+        jac = np.zeros((nf + m, nf + m))
+        jac[:nf, :nf] = mass + dmat
+        jac[:nf, nf:] = BF.T
+        jac[nf:, :nf] = B
         return jac
 
     steps = 0
@@ -389,10 +537,10 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         while True:
             r, mass, B, BF, ctx = residual(udn, lamn, tn)
             dz = -np.linalg.solve(newton_matrix(mass, B, BF), r)
-            udn += dz[:n]
-            lamn += dz[n:]
+            udn[free] += dz[:nf]
+            lamn += dz[nf:]
             it += 1
-            err = np.max(np.abs(dz[:n]) * w) * h * h * beta * ca / length
+            err = np.max(np.abs(dz[:nf]) * w[free], initial=0.0) * h * h * beta * ca / length
             if not np.isfinite(err):
                 break
             if err <= newton_tol:
@@ -465,38 +613,48 @@ def _ga_state(udn, R, A, Q, u, ud, a, h, prm, data):  # pragma: no cover - compi
 
 
 @jit
-def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data):  # pragma: no cover - compiled
-    """[M ud - f + B^T lambda; g / (h^2 beta')], M and B (kept rows) at the updated state."""
+def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # pragma: no cover - compiled
+    """[M ud - f + B^T lambda; g / (h^2 beta')] over the free coordinates and kept rows, with M
+    and B restricted to them, at the updated state."""
     _, R2, A2, Q2, un = _ga_state(udn, R, A, Q, u, ud, a, h, prm, data)
     mass, f, g, B = _system_kernel(R2, A2, Q2, un, data)
-    n, m = udn.shape[0], kept.shape[0]
-    Bk = np.empty((m, n))
-    r = np.empty(n + m)
+    nf, m = free.shape[0], kept.shape[0]
+    full = mass @ udn - f
     for k in range(m):
-        Bk[k] = B[kept[k]]
-        r[n + k] = g[kept[k]] / (h * h * prm[4])
-    r[:n] = mass @ udn - f + Bk.T @ lamn
-    return r, mass, Bk
+        full += B[kept[k]] * lamn[k]
+    Bk = np.empty((m, nf))
+    mf = np.empty((nf, nf))
+    r = np.empty(nf + m)
+    for i in range(nf):
+        r[i] = full[free[i]]
+        for j in range(nf):
+            mf[i, j] = mass[free[i], free[j]]
+        for k in range(m):
+            Bk[k, i] = B[kept[k], free[i]]
+    for k in range(m):
+        r[nf + k] = g[kept[k]] / (h * h * prm[4])
+    return r, mf, Bk
 
 
 @jit
-def _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data):  # pragma: no cover - compiled
+def _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # pragma: no cover - compiled
     """D = d r1 / d ud - M by forward differences (damping and stiffness part of the iteration
     matrix, the same as ``tangent`` in _genalpha)."""
-    n = udn.shape[0]
-    r0, mass, _ = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
-    d = np.empty((n, n))
+    nf = free.shape[0]
+    r0, mass, _ = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
+    d = np.empty((nf, nf))
     eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
-    for i in range(n):
+    for col in range(nf):
+        i = free[col]
         e = max(1e-7 * abs(udn[i]), eps_pos)
         x = udn.copy()
         x[i] += e
-        d[:, i] = (_ga_residual(x, lamn, R, A, Q, u, ud, a, h, prm, kept, data)[0][:n] - r0[:n]) / e
+        d[:, col] = (_ga_residual(x, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)[0][:nf] - r0[:nf]) / e
     return d - mass
 
 
 @jit
-def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, length, tol, adaptive, rtol, atol,
+def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w, length, tol, adaptive, rtol, atol,
              out_dt, next_out, carry, stats, damping, capacity, data):  # pragma: no cover - compiled
     """The loop of _genalpha for a _Kernel system, compiled; stops at t_end or after ``capacity``
     output samples (the caller resumes it).
@@ -511,7 +669,8 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, lengt
     ca = prm[4] / prm[3]
     ud_prev = carry[:n].copy()
     lam_prev = carry[n:n + m].copy()
-    dmat = carry[n + m:n + m + n * n].reshape(n, n).copy()
+    nf = free.shape[0]
+    dmat = carry[n + m:n + m + nf * nf].reshape(nf, nf).copy()
     h_prev, dmat_h = carry[-6], carry[-5]
     have_prev, have_d = carry[-4] > 0, carry[-3] > 0
     dissipated, last_power = carry[-2], carry[-1]
@@ -526,7 +685,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, lengt
     ns = 0
     factor = 1.0
     end_tol = 1e-12 * max(1.0, t_end)
-    jac = np.zeros((n + m, n + m))
+    jac = np.zeros((nf + m, nf + m))
     stats[6] = 0.0
     while t < t_end - end_tol:
         if stats[0] >= stats[7]:
@@ -539,7 +698,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, lengt
             udn, lamn = ud.copy(), lam.copy()
         renewed = False
         if not have_d:
-            dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
+            dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
             dmat_h, renewed, have_d = h, True, True
             stats[3] += 1
         elif dmat_h != h:
@@ -549,15 +708,16 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, lengt
         it = 0
         converged = False
         while True:
-            r, mass, Bk = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
-            jac[:n, :n] = mass + dmat
-            jac[:n, n:] = Bk.T
-            jac[n:, :n] = Bk
+            r, mass, Bk = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
+            jac[:nf, :nf] = mass + dmat
+            jac[:nf, nf:] = Bk.T
+            jac[nf:, :nf] = Bk
             dz = -np.linalg.solve(jac, r)
-            udn += dz[:n]
-            lamn += dz[n:]
+            for i in range(nf):
+                udn[free[i]] += dz[i]
+            lamn += dz[nf:]
             it += 1
-            err = np.max(np.abs(dz[:n]) * w) * h * h * prm[3] * ca / length
+            err = (np.max(np.abs(dz[:nf]) * w[free]) if nf else 0.0) * h * h * prm[3] * ca / length
             if not np.isfinite(err):
                 break
             if err <= tol:
@@ -566,7 +726,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, lengt
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if renewed:
                     break
-                dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, data)
+                dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
                 dmat_h, renewed = h, True
                 stats[3] += 1
                 it, last = 0, np.inf
@@ -616,7 +776,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, w, lengt
         if ns == capacity and not final:
             stats[6] = 3.0
             break
-    carry[:n], carry[n:n + m], carry[n + m:n + m + n * n] = ud_prev, lam_prev, dmat.ravel()
+    carry[:n], carry[n:n + m], carry[n + m:n + m + nf * nf] = ud_prev, lam_prev, dmat.ravel()
     carry[-6], carry[-5] = h_prev, dmat_h
     carry[-4] = 1.0 if have_prev else 0.0
     carry[-3] = 1.0 if have_d else 0.0
@@ -643,7 +803,7 @@ def _genalpha_compiled(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, 
     next_out = rec.next
     while True:
         (R, A, Q, u, ud, a, lam, t, h, next_out, ts, Rs, As, Qs, us, uds, lams, diss) = _ga_loop(
-            R, A, Q, u, ud, a, lam, t, t_end, h, h, prm, kept, w, length, newton_tol, rtol is not None,
+            R, A, Q, u, ud, a, lam, t, t_end, h, h, prm, kept, system.free, w, length, newton_tol, rtol is not None,
             rtol or 0.0, atol, rec.dt or 0.0, next_out, carry, stats, damping, CHUNK, kernel.data)
         for k in range(ts.size):
             rec.samples.append((ts[k], kernel.pose(Rs[k], As[k], Qs[k]), us[k], uds[k], lams[k]))
@@ -738,6 +898,19 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
     choices = configure_effects(system, effects)
     system._kernel = _Kernel(system) if _Kernel.usable(system) else None
     pose, u, ud, lam = consistent_initial_state(system, static_start)
+    system.free, notes = np.arange(system.n), []
+    planar = planar_coordinates(system, pose, u) if system.planar is not False else None
+    if planar is None and system.planar:
+        raise InputError("simulate: planar = true but the scene is not planar (joint axes parallel to a coordinate "
+                         "axis, gravity and initial velocities in the plane, no out-of-plane coupling); remove it")
+    if planar is not None and method == "genalpha":
+        system.free, rows, note = planar
+        ctx = Context(system, pose, u, 0.0, None)
+        _, B, _, _ = system.constraint_rows(ctx, force_rows=False)
+        system.kept_3d = system.kept
+        system.kept = rows & independent_rows(np.where(rows[:, None], B, 0.0)[:, system.free])
+        ud, lam = accelerations(system, pose, u, 0.0, free=system.free)
+        notes.append(note)
     rec = _Recorder(output_dt)
     rec.angle_refs = [j._angle_ref for j in system.joints]
     if method == "genalpha":
@@ -748,18 +921,20 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
     else:
         raise InputError(f"unknown integration method {method!r}; use 'genalpha', 'rk45' or 'dop853'")
     cpu_integration = time.process_time() - cpu0
-    result = postprocess(system, rec, choices)
+    n_constraints = int(system.kept.sum())
+    result = postprocess(system, rec, choices, notes)
     dropped = [f"{c.name} row {r - system._row_slices[id(c)].start}" for c in system.constraints
                for r in range(system._row_slices[id(c)].start, system._row_slices[id(c)].stop)
                if not system.kept[r]]
     result.stats.update(stats, method=method, h=h, rho_inf=rho_inf if method == "genalpha" else None,
                         cpu_time=time.process_time() - cpu0, cpu_integration=cpu_integration,
-                        dropped_constraint_rows=dropped, n_coordinates=system.n,
-                        n_constraints=int(system.kept.sum()))
+                        dropped_constraint_rows=dropped, n_coordinates=int(system.free.size),
+                        planar=system.free.size < system.n,
+                        n_constraints=n_constraints)
     return result
 
 
-def postprocess(system, rec: _Recorder, choices) -> Result:
+def postprocess(system, rec: _Recorder, choices, notes=()) -> Result:
     """Histories, reactions, energies and the effects report from the recorded samples."""
     nt = len(rec.samples)
     bodies = {}
@@ -786,6 +961,10 @@ def postprocess(system, rec: _Recorder, choices) -> Result:
     last = (0.0, 0.0)
     for j, ref in zip(system.joints, rec.angle_refs):  # unwrap the joint angles along the samples
         j._angle_ref = ref
+    if system.free.size < system.n:  # planar run: reactions of all 3D rows
+        rec.samples = [(t, p, u, ud, out_of_plane_reactions(system, p, u, ud, t, lam))
+                       for t, p, u, ud, lam in rec.samples]
+        system.kept = system.kept_3d
     for k, (t, pose, u, ud, lam) in enumerate(rec.samples):
         mass, f, g, B, BF, ctx = system.evaluate(pose, u, t, lam)
         system._accept_ctx = ctx
@@ -841,7 +1020,7 @@ def postprocess(system, rec: _Recorder, choices) -> Result:
         estimates[name] = estimate_sizes(b, {"q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation,
                                              "acceleration": h.acceleration,
                                              "node_loads": list(node_loads[name].values())}, system.gravity)
-    report = build_report(choices, estimates)
+    report = build_report(choices, estimates, notes)
     t = np.array([s[0] for s in rec.samples])
     return Result(t, bodies, joints, markers, energy, cerr, report, {})
 

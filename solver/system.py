@@ -339,11 +339,14 @@ class System:
     gravity : (3,) m/s^2, inertial components (used when the gravity effect is on)
     effects : "auto" (default), "all", or a list of effect names (solver/effects.py), used by
         every flexible body that does not name its own
+    planar : None (default: detect a planar scene and integrate its in-plane coordinates only),
+        True (require it) or False (always the 3D coordinates); see integrate.planar_coordinates
     """
 
-    def __init__(self, gravity=(0.0, 0.0, -9.81), effects="auto"):
+    def __init__(self, gravity=(0.0, 0.0, -9.81), effects="auto", planar=None):
         self.gravity = np.asarray(gravity, float)
         self.effects = effects
+        self.planar = planar
         self.ground = Ground()
         self.bodies: list[_MassBody] = []
         self.joints: list[Joint] = []

@@ -177,3 +177,35 @@ def test_compiled_loop_equals_python_loop(monkeypatch, rtol):
         assert np.max(np.abs(a - b)) <= COMPILED_LOOP_TOL * max(np.max(np.abs(b)), 1e-6)
     assert np.max(np.abs(fast.joints[joint.name].force - slow.joints[joint.name].force)) <= \
         COMPILED_LOOP_TOL * np.max(np.abs(slow.joints[joint.name].force))
+
+
+#: planar vs 3D coordinates of the same planar scene: hinge angle (rad), modal coordinates and
+#: hinge force (relative to their largest values)
+PLANAR_ANGLE_ATOL, PLANAR_RTOL = 1e-9, 1e-6
+
+
+def test_planar_scene_integrates_the_in_plane_coordinates_only():
+    """The flexible pendulum (hinge about y, gravity -z) is detected as planar: x, z, rotation
+    about y and the in-plane modes are integrated; the result equals the 3D integration."""
+    from sidprep.errors import InputError
+
+    sid = bar_sid()
+
+    def run(planar, gravity=(0, 0, -9.81)):
+        s = System(gravity=gravity, planar=planar)
+        b = s.add(FlexibleBody(sid, name="bar"))
+        joint = s.add(Revolute(s.ground.marker(rotation=AXIS_Y), b.node_marker(0, rotation=AXIS_Y), name="pivot"))
+        return s.simulate(0.3, h=1e-3, output_dt=0.01), joint
+
+    flat, joint = run(None)
+    full, _ = run(False)
+    assert flat.stats["planar"] and not full.stats["planar"]
+    assert flat.stats["n_coordinates"] < full.stats["n_coordinates"] and "planar scene" in flat.effects.text()
+    assert np.max(np.abs(flat.joints["pivot"].coordinate - full.joints["pivot"].coordinate)) <= PLANAR_ANGLE_ATOL
+    q_flat, q_full = flat.bodies["bar"].q, full.bodies["bar"].q
+    assert np.max(np.abs(q_flat - q_full)) <= PLANAR_RTOL * np.max(np.abs(q_full))
+    force_flat, force_full = flat.joints["pivot"].force, full.joints["pivot"].force
+    assert np.max(np.abs(force_flat - force_full)) <= PLANAR_RTOL * np.max(np.abs(force_full))
+    assert np.ptp(full.joints["pivot"].coordinate) > 0.5 and np.max(np.abs(q_full)) > 0  # it swings and bends
+    with pytest.raises(InputError, match="not planar"):
+        run(True, gravity=(0, -9.81, -9.81))
