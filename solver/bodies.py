@@ -228,6 +228,24 @@ class BodyModel:
     def nq(self) -> int:
         return self.Me.shape[0]
 
+    def restricted(self, modes: np.ndarray) -> "BodyModel":
+        """The model of the modal subset ``modes`` (indices), the other modal coordinates held
+        at zero (planar scenes)."""
+        ix = np.ix_(modes, modes)
+
+        def sub(x, *axes):
+            if x is None:
+                return None
+            for axis in axes:
+                x = np.take(x, modes, axis=axis)
+            return x
+
+        return replace(self, Me=self.Me[ix], Ke=self.Ke[ix], md1=sub(self.md1, 0), I1=sub(self.I1, 0),
+                       P=sub(self.P, 2, 3), Ct0=sub(self.Ct0, 0), Ct1=sub(self.Ct1, 0, 1), Cr0=sub(self.Cr0, 0),
+                       Cr1=sub(self.Cr1, 0, 1), Gr0=sub(self.Gr0, 0), Ge=sub(self.Ge, 1, 2), Oe0=sub(self.Oe0, 0),
+                       Oe1=sub(self.Oe1, 0, 1), ks0=sub(self.ks0, 0), ks1=sub(self.ks1, 0, 1),
+                       De=sub(self.De, 0, 1))
+
     def inertia_terms(self, q: np.ndarray):
         """md (3,), I (3, 3), Ct (nq, 3), Cr (nq, 3) at q (sid-spec 5.2)."""
         md, inertia, ct, cr = self.md0, self.I0, self.Ct0, self.Cr0

@@ -787,26 +787,35 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
 
 def _genalpha_compiled(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps):
     """_genalpha with the whole loop compiled (systems covered by _Kernel): same method, same
-    parameters; it runs in chunks of CHUNK output samples."""
+    parameters; it runs in chunks of CHUNK output samples.  In a planar scene the kernel holds
+    only the in-plane modes (the others are zero), so it evaluates the smaller model."""
     kernel = system._kernel
+    if system.free.size < system.n:
+        free = set(system.free.tolist())
+        kernel = _Kernel(system, [[k for k in range(b.nq) if sl.start + 6 + k in free]
+                                  for b, sl in zip(system.bodies, system._slices)])
+    sub = kernel.u_index
     am, af, gamma, beta = genalpha_parameters(rho_inf)
     prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
     w, length = length_weights(system)
     kept = np.flatnonzero(system.kept).astype(np.int64)
-    n, m = system.n, kept.size
+    n, m = sub.size, kept.size
     carry = np.zeros(n + m + n * n + 6)
     stats = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0, 0.0, float(max_steps)])
     damping = np.array([b.model.De is not None for b in system.bodies])
     R, A, Q = kernel.arrays(pose)
-    a, t, next_out = ud.copy(), 0.0, 0.0
-    rec.offer(t, pose, u, ud, lam, force=True)
-    next_out = rec.next
+    rec.offer(0.0, pose, u, ud, lam, force=True)
+    t, next_out, u, ud = 0.0, rec.next, u[sub], ud[sub]
+    a = ud.copy()
     while True:
         (R, A, Q, u, ud, a, lam, t, h, next_out, ts, Rs, As, Qs, us, uds, lams, diss) = _ga_loop(
-            R, A, Q, u, ud, a, lam, t, t_end, h, h, prm, kept, system.free, w, length, newton_tol, rtol is not None,
-            rtol or 0.0, atol, rec.dt or 0.0, next_out, carry, stats, damping, CHUNK, kernel.data)
+            R, A, Q, u, ud, a, lam, t, t_end, h, h, prm, kept, np.searchsorted(sub, system.free), w[sub], length,
+            newton_tol, rtol is not None, rtol or 0.0, atol, rec.dt or 0.0, next_out, carry, stats, damping, CHUNK,
+            kernel.data)
         for k in range(ts.size):
-            rec.samples.append((ts[k], kernel.pose(Rs[k], As[k], Qs[k]), us[k], uds[k], lams[k]))
+            u_full, ud_full = np.zeros(system.n), np.zeros(system.n)
+            u_full[sub], ud_full[sub] = us[k], uds[k]
+            rec.samples.append((ts[k], kernel.pose(Rs[k], As[k], Qs[k]), u_full, ud_full, lams[k]))
             rec.flows.append((diss[k], 0.0))
         if stats[6] == 1:
             raise InputError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s; "

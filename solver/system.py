@@ -197,23 +197,35 @@ class _Kernel:
     """Flat arrays of a system of bodies and joints for ``_system_kernel`` (no drivers, force
     elements, load stiffening or second-order inertia: those take the Python path)."""
 
-    def __init__(self, system: "System"):
+    def __init__(self, system: "System", modes: list | None = None):
+        """``modes``: per body the indices of the modal coordinates to keep (default all); the
+        kernel then works on the reduced coordinates u[u_index], q[q_index]."""
+        modes = modes or [np.arange(b.nq) for b in system.bodies]
         markers = list({id(mk): mk for c in system.joints for mk in (c.marker1, c.marker2)}.values())
         index = {id(mk): k for k, mk in enumerate(markers)}
-        self.qoff = np.concatenate([[0], np.cumsum([b.nq for b in system.bodies])]).astype(np.int64)
-        self.uoff = np.array([sl.start for sl in system._slices], dtype=np.int64)
-        self.bodies = _typed_list([tuple(np.array(v) if isinstance(v, np.ndarray) else v for v in b.model._packed)
-                            for b in system.bodies])
+        self.qoff = np.concatenate([[0], np.cumsum([len(k) for k in modes])]).astype(np.int64)
+        self.uoff = (np.arange(len(modes)) * 6 + self.qoff[:-1]).astype(np.int64)
+        self.qoff_full = np.concatenate([[0], np.cumsum([b.nq for b in system.bodies])]).astype(int)
+        self.q_index = np.concatenate([np.asarray(k, int) + self.qoff_full[i] for i, k in enumerate(modes)]
+                                      + [np.zeros(0, int)])
+        self.u_index = np.concatenate([np.concatenate([np.arange(sl.start, sl.start + 6), sl.start + 6 + np.asarray(k, int)])
+                                       for sl, k in zip(system._slices, modes)] + [np.zeros(0, int)])
+        self.bodies = _typed_list([tuple(np.array(v) if isinstance(v, np.ndarray) else v
+                                         for v in b.model.restricted(k)._packed) for b, k in zip(system.bodies, modes)])
         self.mk_body = np.array([system._index.get(id(mk.body), -1) for mk in markers], dtype=np.int64)
         inertial = [mk.kinematics(np.zeros(3), np.eye(3), None) if mk.body.ndof == 0 else None for mk in markers]
         own = _writable_float
         vec, mat = np.zeros(3), np.zeros((3, 3))
+
+        def shape(mk, values):
+            b = system._index.get(id(mk.body), -1)
+            nq = len(modes[b]) if b >= 0 else 0
+            return own(np.zeros((3, nq)) if values is None else values[:, modes[b]])
+
         self.mk_pos = _typed_list([own(mk.position if k is None else k[0]) for mk, k in zip(markers, inertial)], vec)
         self.mk_rot = _typed_list([own(mk.rotation if k is None else k[1]) for mk, k in zip(markers, inertial)], mat)
-        self.mk_phi = _typed_list([own(np.zeros((3, mk.body.nq)) if mk.phi is None else mk.phi) for mk in markers],
-                                  mat)
-        self.mk_psi = _typed_list([own(np.zeros((3, mk.body.nq)) if mk.psi is None else mk.psi) for mk in markers],
-                                  mat)
+        self.mk_phi = _typed_list([shape(mk, mk.phi) for mk in markers], mat)
+        self.mk_psi = _typed_list([shape(mk, mk.psi) for mk in markers], mat)
         self.rows = _typed_list([np.array(j._rows, dtype=np.int64) for j in system.joints],
                                 np.zeros((0, 3), dtype=np.int64))
         self.joint_mk = np.array([[index[id(j.marker1)], index[id(j.marker2)]] for j in system.joints],
@@ -230,16 +242,19 @@ class _Kernel:
                 mk.k0f is not None or mk.k0m is not None for mk in b.markers)) for b in system.bodies)
 
     def __call__(self, pose: "Pose", u: np.ndarray):
-        """(M, f, g, B) at (pose, u), all constraint rows."""
+        """(M, f, g, B) at (pose, u) (full coordinates; a kernel without mode subsets), all
+        constraint rows."""
         return _system_kernel(*self.arrays(pose), u, self.data)
 
     def arrays(self, pose: "Pose"):
-        """(R (nb, 3), A (nb, 3, 3), Q (sum nq,)) of a Pose."""
-        return np.array(pose.r), np.array(pose.A), np.concatenate(pose.q)
+        """(R (nb, 3), A (nb, 3, 3), Q (kept modal coordinates,)) of a Pose."""
+        return np.array(pose.r), np.array(pose.A), np.concatenate(pose.q + [np.zeros(0)])[self.q_index]
 
     def pose(self, R, A, Q) -> "Pose":
         """The Pose of the flat arrays (inverse of ``arrays``)."""
-        return Pose(list(R.copy()), list(A.copy()), [Q[a:b].copy() for a, b in zip(self.qoff[:-1], self.qoff[1:])])
+        q = np.zeros(self.qoff_full[-1])
+        q[self.q_index] = Q
+        return Pose(list(R.copy()), list(A.copy()), [q[a:b] for a, b in zip(self.qoff_full[:-1], self.qoff_full[1:])])
 
 
 class Pose:
