@@ -14,6 +14,8 @@ needs_bar = pytest.mark.skipif(not BAR.exists(), reason="../shared/validation no
 
 #: the same model given in mm-t-s and in SI gives the same frequencies up to round-off
 UNITS_RTOL = 1e-9
+#: AMG-LOBPCG vs shift-invert Lanczos (frequencies; eigenvalue error ~ square of the residual)
+LOBPCG_RTOL = 1e-6
 #: bar volume 1.0 x 0.05 x 0.08 m^3, steel 7850 kg/m^3
 BAR_MASS_KG = 7850.0 * 1.0 * 0.05 * 0.08
 
@@ -73,3 +75,15 @@ def test_bad_input_exits_2_with_one_line(argv, fragment, capsys):
     assert main(["modes", str(BAR), "-q", *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("sidprep: error:") and fragment in err and "\n" not in err
+
+
+def test_lobpcg_backend_gives_the_direct_frequencies(tmp_path, capsys):
+    geo = tmp_path / "block.geo"
+    geo.write_text('SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 0.3, 0.05, 0.06};\n'
+                   'Physical Surface("root") = {1};\n')
+    common = [str(geo), "--size", "0.02", "--material", "titanium", "--count", "4"]
+    for clamp in ([], ["--clamp", "root"]):
+        direct = run_json(common + clamp, capsys)
+        amg = run_json(common + clamp + ["--backend", "lobpcg"], capsys)
+        assert amg["backend"] == "lobpcg" and amg["rigid_modes"] == direct["rigid_modes"] == (0 if clamp else 6)
+        assert np.allclose(amg["frequencies_hz"], direct["frequencies_hz"], rtol=LOBPCG_RTOL, atol=0)
