@@ -8,7 +8,10 @@ hinge, with the reference frame attached to it).  The mesh is shifted so that th
 of the face x = 0) is the frame origin.  sidprep gets the SID computed from (mesh, Ms, Phi);
 Exudyn 1.13.6 gets (mesh nodes, M, K, Phi) through ``FEMinterface`` ->
 ``ObjectFFRFreducedOrderInterface`` (its C++ ObjectFFRFreducedOrder), with a GenericJoint
-(revolute about y) between the ground and the frame's rigid-body node.
+(revolute about y) between the ground and the frame's rigid-body node ("exudyn") or the
+hinge-face mesh nodes ("exu-face").  sidprep runs twice: as a user gets it ("sidprep": the solver
+detects the planar scene and integrates its in-plane coordinates and modes only) and with
+``planar=False`` ("sidp-3d": all coordinates and modes, like Exudyn).
 
 Scene: hinge axis y, gravity -z, released horizontally from rest, 1 s.  Both solvers run
 generalised-alpha with rho_inf = 0.9 at fixed steps h (Exudyn with its modified Newton).  Error of a run = max over the output
@@ -95,12 +98,16 @@ def pendulum_angle(rotation: np.ndarray) -> np.ndarray:
     return np.unwrap(np.arctan2(rotation[:, 0, 2], rotation[:, 0, 0]))
 
 
-def run_sidprep(sid, h: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Pendulum angle (nt,), tip positions (nt, 3) at the output times, integration CPU seconds."""
+def run_sidprep(sid, h: float, planar=None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Pendulum angle (nt,), tip positions (nt, 3) at the output times, integration CPU seconds.
+
+    planar : None (the solver detects the planar scene and integrates the in-plane coordinates
+    and modes only) or False (all 3D coordinates and modes, like Exudyn).
+    """
     from solver.system import FlexibleBody, Revolute, System
 
     axis_y = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]).T   # z -> y
-    system = System(gravity=GRAVITY)
+    system = System(gravity=GRAVITY, planar=planar)
     bar = system.add(FlexibleBody(sid, name="bar"))
     hinge = bar.node_marker(0, name="hinge")
     hinge.rotation = axis_y
@@ -227,6 +234,7 @@ def main(argv=None) -> int:
               f"{np.sqrt(body.omega2[0]) / 2 / np.pi:.1f} .. {np.sqrt(body.omega2[-1]) / 2 / np.pi:.1f} Hz", flush=True)
         ref = run_sidprep(sid, h_ref)[:2]
         rows = sweep("sidprep", lambda h: run_sidprep(sid, h), steps, ref, args.repeat)
+        rows += sweep("sidp-3d", lambda h: run_sidprep(sid, h, planar=False), steps, ref, args.repeat)
         if use_exudyn:
             ref_exu = run_exudyn(body, h_ref)[:2]
             print(f"  references (h = {h_ref:g} s) differ by {np.max(np.abs(ref[0] - ref_exu[0])):.3e} rad in "
@@ -244,15 +252,15 @@ def main(argv=None) -> int:
         print()
         print(f"Matched accuracy (Exudyn {exu_version}): at the angle error of each sidprep run, Exudyn's CPU "
               "interpolated log-log between its runs")
-        print("| modes | DOF | sidprep h [s] | angle error [rad] | sidprep CPU/sim s | Exudyn (frame node) | ratio "
-              "| Exudyn (face nodes) | ratio |")
-        print("|---|---|---|---|---|---|---|---|---|")
+        print("| modes | DOF | sidprep run | h [s] | angle error [rad] | sidprep CPU/sim s | Exudyn (frame node) "
+              "| ratio | Exudyn (face nodes) | ratio |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for nq, ndof, rows in table:
             variants = [[(e, c) for n, _, e, _, c in rows if n == v] for v in ("exudyn", "exu-face")]
             for name, h, err, _, cpu in rows:
-                if name == "sidprep":
+                if name.startswith("sid"):
                     other = [cpu_at_error(*zip(*v), err) for v in variants]
-                    print(f"| {nq} | {ndof} | {h:g} | {err:.2e} | {cpu:.3f} | "
+                    print(f"| {nq} | {ndof} | {name} | {h:g} | {err:.2e} | {cpu:.3f} | "
                           + " | ".join(f"{o:.3f} | {cpu / o:.2f}" for o in other) + " |")
     return 0
 
