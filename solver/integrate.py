@@ -73,7 +73,9 @@ def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
 def length_weights(system) -> tuple[np.ndarray, float]:
     """Per-coordinate factors converting coordinate errors to lengths, and the system length L.
 
-    Translations 1, rotations L, modal coordinate k: max over SID nodes of |Phi_n[:, k]|.
+    Translations 1, rotations L, modal coordinate k: max over SID nodes of |Phi_n[:, k]|, at
+    least the mass-weighted RMS displacement sqrt(Me_kk / m) of the mode (e.g. when the only
+    SID node is a clamped interface where all modes vanish).
     """
     radii = [1e-3]
     for b in system.bodies:
@@ -86,11 +88,8 @@ def length_weights(system) -> tuple[np.ndarray, float]:
         sl = system._slices[i]
         w[sl][3:6] = length
         if b.nq:
-            nodes = b.sid.nodes
-            if nodes:
-                phi = np.array([np.linalg.norm(n.phi.M0, axis=0) for n in nodes]).max(axis=0)
-            else:
-                phi = 1.0 / np.sqrt(np.diag(b.model.Me) + 1e-300)
+            rms = np.sqrt(np.abs(np.diag(b.model.Me)) / b.model.mass)
+            phi = np.array([np.linalg.norm(n.phi.M0, axis=0) for n in b.sid.nodes] + [rms]).max(axis=0)
             w[sl.start + 6:sl.stop] = np.maximum(phi, 1e-300)
     return w, length
 
@@ -328,7 +327,8 @@ def planar_coordinates(system, pose, u, t: float = 0.0):
     Planar: the revolute / cylindrical / planar joint axes share one normal n along an inertial
     axis and along a body axis of every body, gravity and the initial velocities lie in the
     plane, and the out-of-plane coordinates O (translation along n, the two tilts, the modes
-    that in-plane motion does not excite) start at zero.  The decoupling is then verified on the
+    that in-plane motion does not excite) start at zero (modes: within PLANAR_TOL of the largest
+    modal deflection; they are then set to zero in ``pose``).  The decoupling is then verified on the
     full 3D equations at random in-plane states: every constraint row acts either on in-plane
     coordinates or on O only, and the O-rows of the equations of motion (mass couplings, forces,
     reactions of the in-plane rows) are balanced by reactions of the O-only rows, so that O
@@ -356,7 +356,8 @@ def planar_coordinates(system, pose, u, t: float = 0.0):
         free[idx[3 + axk]] = True
         if b.nq:
             free[idx[6:]] = ~_out_of_plane_modes(b, axk, length)
-            if np.any(pose.q[i][~free[idx[6:]]]):
+            deflection = np.abs(pose.q[i]) * weights[idx[6:]]  # node motion of each mode, m
+            if np.any(deflection[~free[idx[6:]]] > PLANAR_TOL * max(np.max(deflection), PLANAR_AXIS_TOL * length)):
                 return None
     out = ~free
     scale = max(np.max(np.abs(u)), 1e-300)
@@ -377,12 +378,16 @@ def planar_coordinates(system, pose, u, t: float = 0.0):
         lam = rng.standard_normal(B.shape[0]) * np.where(inplane, 1.0, 0.0)
         load = mass @ acc - f + B.T @ lam        # out-of-plane rows: must be reactions of out rows
         scale = np.abs(mass @ acc) + np.abs(f) + np.abs(B.T) @ np.abs(lam)
+        if not np.all(np.isfinite(scale)):
+            return None
         b_out = B[~inplane][:, out]
         react = np.linalg.lstsq(b_out.T, -load[out], rcond=None)[0] if b_out.size else np.zeros(0)
         if np.any(np.abs(load[out] + b_out.T @ react) > PLANAR_TOL * np.max(scale)):
             return None
     keep = system.kept.copy()
     keep[keep] = rows
+    for i, sl in enumerate(system._slices):  # out-of-plane modes at coupling round-off (static start)
+        pose.q[i][~free[sl][6:]] = 0.0
     names = "xyz"
     modes = [f"{b.name}: {int(np.sum(free[sl][6:]))} of {b.nq} modes" for b, sl in zip(system.bodies, system._slices)
              if b.nq]
@@ -486,7 +491,7 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
     def residual(udn, lamn, tn):
         """r over the free coordinates and the kept rows; M, B, B_F restricted to them."""
         an, pn, un = state(udn)
-        mass, f, g, B, BF, ctx = system.evaluate(pn, un, tn, lamn, compiled=True)
+        mass, f, g, B, BF, ctx = system.evaluate(pn, un, tn, lamn)
         r = np.empty(nf + m)
         r[:nf] = (mass @ udn - f + BF.T @ lamn)[free]
         r[nf:] = g / (h * h * beta * ca)
@@ -789,11 +794,9 @@ def _genalpha_compiled(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, 
     """_genalpha with the whole loop compiled (systems covered by _Kernel): same method, same
     parameters; it runs in chunks of CHUNK output samples.  In a planar scene the kernel holds
     only the in-plane modes (the others are zero), so it evaluates the smaller model."""
-    kernel = system._kernel
-    if system.free.size < system.n:
-        free = set(system.free.tolist())
-        kernel = _Kernel(system, [[k for k in range(b.nq) if sl.start + 6 + k in free]
-                                  for b, sl in zip(system.bodies, system._slices)])
+    free = set(system.free.tolist())
+    kernel = _Kernel(system, [[k for k in range(b.nq) if sl.start + 6 + k in free]
+                              for b, sl in zip(system.bodies, system._slices)])
     sub = kernel.u_index
     am, af, gamma, beta = genalpha_parameters(rho_inf)
     prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
@@ -905,14 +908,14 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
     cpu0 = time.process_time()
     system._compile()
     choices = configure_effects(system, effects)
-    system._kernel = _Kernel(system) if _Kernel.usable(system) else None
     pose, u, ud, lam = consistent_initial_state(system, static_start)
     system.free, notes = np.arange(system.n), []
-    planar = planar_coordinates(system, pose, u) if system.planar is not False else None
+    planar = planar_coordinates(system, pose, u) if system.planar is not False and method == "genalpha" else None
     if planar is None and system.planar:
         raise InputError("simulate: planar = true but the scene is not planar (joint axes parallel to a coordinate "
-                         "axis, gravity and initial velocities in the plane, no out-of-plane coupling); remove it")
-    if planar is not None and method == "genalpha":
+                         "axis, gravity and initial velocities in the plane, no out-of-plane coupling) or the method "
+                         "is not genalpha; remove it")
+    if planar is not None:
         system.free, rows, note = planar
         ctx = Context(system, pose, u, 0.0, None)
         _, B, _, _ = system.constraint_rows(ctx, force_rows=False)
@@ -922,21 +925,22 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
         notes.append(note)
     rec = _Recorder(output_dt)
     rec.angle_refs = [j._angle_ref for j in system.joints]
+    cpu_setup = time.process_time() - cpu0
     if method == "genalpha":
-        run = _genalpha_compiled if system._kernel is not None else _genalpha
+        run = _genalpha_compiled if _Kernel.usable(system) else _genalpha
         stats = run(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps)
     elif method in ("rk45", "dop853"):
         stats = _explicit(system, pose, u, t_end, method, rtol, atol, baumgarte, rec)
     else:
         raise InputError(f"unknown integration method {method!r}; use 'genalpha', 'rk45' or 'dop853'")
-    cpu_integration = time.process_time() - cpu0
+    cpu_integration = time.process_time() - cpu0 - cpu_setup
     n_constraints = int(system.kept.sum())
     result = postprocess(system, rec, choices, notes)
     dropped = [f"{c.name} row {r - system._row_slices[id(c)].start}" for c in system.constraints
                for r in range(system._row_slices[id(c)].start, system._row_slices[id(c)].stop)
                if not system.kept[r]]
     result.stats.update(stats, method=method, h=h, rho_inf=rho_inf if method == "genalpha" else None,
-                        cpu_time=time.process_time() - cpu0, cpu_integration=cpu_integration,
+                        cpu_time=time.process_time() - cpu0, cpu_setup=cpu_setup, cpu_integration=cpu_integration,
                         dropped_constraint_rows=dropped, n_coordinates=int(system.free.size),
                         planar=system.free.size < system.n,
                         n_constraints=n_constraints)

@@ -241,11 +241,6 @@ class _Kernel:
             b.model.P is None and not (b.load_stiffening and any(
                 mk.k0f is not None or mk.k0m is not None for mk in b.markers)) for b in system.bodies)
 
-    def __call__(self, pose: "Pose", u: np.ndarray):
-        """(M, f, g, B) at (pose, u) (full coordinates; a kernel without mode subsets), all
-        constraint rows."""
-        return _system_kernel(*self.arrays(pose), u, self.data)
-
     def arrays(self, pose: "Pose"):
         """(R (nb, 3), A (nb, 3, 3), Q (kept modal coordinates,)) of a Pose."""
         return np.array(pose.r), np.array(pose.A), np.concatenate(pose.q + [np.zeros(0)])[self.q_index]
@@ -479,19 +474,9 @@ class System:
             b[self._row_slices[id(d)]] = d.rate_term(t)
         return b
 
-    def evaluate(self, pose: Pose, u: np.ndarray, t: float, lam: np.ndarray | None = None, compiled: bool = False):
-        """(M, f, g, B, B_F, ctx) at a state; g, B, B_F restricted to the kept rows.
-
-        compiled=True uses the one-call kernel when the system allows it (``_Kernel.usable``);
-        its ctx then carries no per-joint coefficients or loads (enough for the integrator).
-        """
+    def evaluate(self, pose: Pose, u: np.ndarray, t: float, lam: np.ndarray | None = None):
+        """(M, f, g, B, B_F, ctx) at a state; g, B, B_F restricted to the kept rows."""
         ctx = Context(self, pose, u, t, lam)
-        kernel = getattr(self, "_kernel", None) if compiled else None
-        if kernel is not None:
-            mass, f, g, B = kernel(pose, u)
-            ctx.f = f
-            k = self.kept
-            return mass, f, g[k], B[k], B[k], ctx
         mass = self.mass_and_forces(ctx)
         for fe in self.forces:
             fe.apply(ctx)
