@@ -2,7 +2,7 @@
 
 The format is documented with a complete example in ``docs/scenes.md``.  Tables::
 
-    [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names])
+    [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names]), planar
     [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol
     [output]           rate (samples/s), signals, plot, csv, animate
     [bodies.<name>]    type = "flexible" (sid, make, q0, qd0, effects) | "rigid" (mass, com,
@@ -574,7 +574,12 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
                              + (f"did you mean [{close[0]}]?" if close else f"use: {', '.join(known)}"))
     _check_names(path, root)
     head = _Table(path, "scene", root.get("scene", {}))
-    system = System(gravity=head.vector("gravity", [0.0, 0.0, -9.81]), effects=_effects(head, "effects", "auto"))
+    planar = head.raw("planar", "auto")
+    if planar not in ("auto", True, False):
+        head.fail("planar", f"must be \"auto\", true or false, got {planar!r}",
+                  "use \"auto\" (detect planar scenes), true (require one) or false (always 3D)")
+    system = System(gravity=head.vector("gravity", [0.0, 0.0, -9.81]), effects=_effects(head, "effects", "auto"),
+                    planar=None if planar == "auto" else planar)
     title = head.string("title", path.stem)
     head.finish()
     kwargs = _solver_settings(path, root, t_end)

@@ -144,6 +144,7 @@ BAD_ENTRIES = [
     (lambda s: s.replace('"bar.q.2"', '"bar.q.3"'), ["[output] signals", "bar.q.3"]),
     (lambda s: s.replace("[markers.tip]", "[markers.bar]"), ["[markers.bar]", "also used in [bodies.bar]"]),
     (lambda s: s.replace("[solver]", "[solvr]"), ["unknown top-level", "did you mean [solver]"]),
+    (lambda s: s.replace('title = "tiny"', 'title = "tiny"\nplanar = "yes"'), ["[scene] planar", "true or false"]),
     (lambda s: s + "\n[bodies.box]\ntype = \"rigid\"\nmass = 1.0\n", ["[bodies.box] inertia", "missing"]),
     (lambda s: s + "\n[bodies.box]\ntype = \"rigid\"\nmass = 1.0\ninertia = [1, 1]\n", ["[bodies.box] inertia", "kg m^2"]),
     (lambda s: s + "\n[bodies.box]\ntype = \"rigid\"\nmass = 1\ninertia = [1,1,1]\nrotation = [[1,0,0],[0,1,0],[0,0,2]]\n",
@@ -227,6 +228,7 @@ def test_the_complete_example_of_the_documentation_builds(tmp_path):
     assert [b.name for b in s.bodies] == ["bar", "block"] and [j.kind for j in s.joints] == ["revolute"]
     assert [type(f).__name__ for f in s.forces] == ["SpringDamper", "PointForce", "JointFriction"]
     assert scene.output.signals[0] == "hinge.coordinate" and scene.simulate_kwargs["h"] == 1e-3
+    assert s.planar is None                                    # "auto"
 
 
 def test_the_python_mirror_of_the_documentation_runs(tmp_path, monkeypatch):
