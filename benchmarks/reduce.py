@@ -122,7 +122,9 @@ if sys.argv[1] == "sidprep":
     f = r.fixed_interface_hz
 else:
     (f, _, _), t, cpu, mem = bench.timed(bench.plain_scipy_cb, K, M, b, {CB_MODES})
-print(json.dumps({{"dof": int(K.shape[0]), "time_s": t, "cpu_s": cpu, "peak_mb": mem, "f_hz": [float(x) for x in f]}}))
+from sidprep.linalg import fast_blas
+print(json.dumps({{"dof": int(K.shape[0]), "time_s": t, "cpu_s": cpu, "peak_mb": mem, "f_hz": [float(x) for x in f],
+                  "blas": Path(fast_blas()).name if sys.argv[1] == "sidprep" else "scipy-openblas (SuperLU)"}}))
 """
     out = {}
     for which in ("sidprep",) + (() if skip_scipy else ("scipy",)):
@@ -156,11 +158,11 @@ def main() -> int:
               + " | ".join(f"{s['timings_s'].get(p, 0.0):.2f}" for p in phases)
               + f" | {s['peak_memory_mb']:.0f} | {r['load']} |")
     print()
-    print("| Craig-Bampton, 20 modes | DOF | wall s | CPU s | peak MB | f1 Hz | load |")
-    print("|---|---|---|---|---|---|---|")
+    print("| Craig-Bampton, 20 modes | DOF | wall s | CPU s | peak MB | f1 Hz | BLAS | load |")
+    print("|---|---|---|---|---|---|---|---|")
     for which, r in cb.items():
         print(f"| {which} | {r['dof']} | {r['time_s']:.2f} | {r['cpu_s']:.2f} | {r['peak_mb']:.0f} | "
-              f"{r['f_hz'][0]:.3f} | {r['load']} |")
+              f"{r['f_hz'][0]:.3f} | {r['blas']} | {r['load']} |")
     if "scipy" in cb:
         print(f"\nsidprep vs plain scipy: {cb['scipy']['time_s'] / cb['sidprep']['time_s']:.1f}x wall, "
               f"{cb['scipy']['cpu_s'] / cb['sidprep']['cpu_s']:.1f}x CPU, "
