@@ -65,8 +65,8 @@ MKL_DEFAULT_THREADING = "SEQUENTIAL"
 def fast_blas() -> str:
     """Load an optimised BLAS for CHOLMOD (see the module docstring); returns its path or
     "reference" (the wheel's own netlib BLAS).  Must run before CHOLMOD's first BLAS call."""
-    if os.environ.get("SIDPREP_FAST_BLAS", "1") == "0":
-        return "reference"
+    if os.environ.get("SIDPREP_FAST_BLAS", "1") == "0" or "sksparse_minimal._cholespy_core" in sys.modules:
+        return "reference"  # switched off, or CHOLMOD was loaded (and bound) before this call
     os.environ.setdefault("MKL_THREADING_LAYER", MKL_DEFAULT_THREADING)  # read when MKL loads
     for prefix in dict.fromkeys((sys.prefix, sys.base_prefix)):
         for name in FAST_BLAS_LIBRARIES:
