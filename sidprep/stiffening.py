@@ -4,9 +4,9 @@ For each unit load p (sid-spec 6.3) the static field u_p = K^-1 (-p) (the unifie
 6.2) is solved with ONE statically determinate support set for all cases (6.4): the 6 DOF of the
 frame's interface master for an attached frame, 3-2-1 supports (the 6 boundary DOFs that hold
 the rigid-body motions best, by pivoted QR) for a free body.  The solve is the exact static
-condensation through the Craig-Bampton factor of K_ii (ReducedModel.static_solve).  Its stress sigma = D eps(u_p) at the
-Gauss points gives the geometric stiffness, block (grad N_a . sigma grad N_b) E3 (6.5), projected
-K0_p = Phi^T K_G(u_p) Phi.
+condensation through the Craig-Bampton factor of K_ii (ReducedModel.static_solve).  The stress
+sigma = D eps(u_p) at the Gauss points gives the geometric stiffness, block
+(grad N_a . sigma grad N_b) E3 (6.5), projected K0_p = Phi^T K_G(u_p) Phi.
 
 Cases and SID slots: "K0t" (3: p = M St e_a), "K0r" (3: p = M Sr e_a, the field e_a x x),
 "K0omega" (6: p = M w_i, omega_hat order xx yy zz xy yz xz), and per interface master n
@@ -16,7 +16,6 @@ Cases and SID slots: "K0t" (3: p = M St e_a), "K0r" (3: p = M Sr e_a, the field 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from sidprep.assemble import CHUNK, MASS_QUAD_DEGREE, _geometry, _rule
 from sidprep.interfaces import best_columns, rigid_rows
