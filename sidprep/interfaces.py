@@ -248,28 +248,24 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
                              "patches must not overlap — shrink one of the selections")
         owner[itf.nodes] = i
     dependent = np.zeros(n_dof, bool)
-    deps = []                                          # per interface: dependent FE DOFs
+    deps, averaging = [], []                           # per interface: dependent FE DOFs, RBE3 W
     for itf in interfaces:
         dofs = (3 * itf.nodes[:, None] + np.arange(3)).ravel()
-        if itf.kind == "rbe2":
-            d = dofs
-        else:
-            W = rbe3_averaging(points[itf.nodes], _weights(itf), itf.master_point)
-            d = dofs[best_columns(W, 6)]
+        W = None if itf.kind == "rbe2" else rbe3_averaging(points[itf.nodes], _weights(itf), itf.master_point)
+        d = dofs if W is None else dofs[best_columns(W, 6)]
         dependent[d] = True
-        deps.append(d)
+        deps.append(d), averaging.append(W)
     retained = np.flatnonzero(~dependent)
     col = np.full(n_dof, -1)
     col[retained] = np.arange(len(retained))
     master_dofs = len(retained) + np.arange(6 * len(interfaces)).reshape(-1, 6)
     rows, cols, vals = [retained], [col[retained]], [np.ones(len(retained))]
-    for itf, d, m in zip(interfaces, deps, master_dofs):
-        if itf.kind == "rbe2":
+    for itf, d, W, m in zip(interfaces, deps, averaging, master_dofs):
+        if W is None:
             R = rigid_rows(points[itf.nodes] - itf.master_point).reshape(-1, 6)
             rows.append(np.repeat(d, 6)), cols.append(np.tile(m, len(d))), vals.append(R.ravel())
         else:
             dofs = (3 * itf.nodes[:, None] + np.arange(3)).ravel()
-            W = rbe3_averaging(points[itf.nodes], _weights(itf), itf.master_point)
             is_dep = np.isin(dofs, d)
             Wd_inv = np.linalg.inv(W[:, is_dep])                 # u_d = Wd^-1 (u_m - W_o u_o)
             C = np.hstack([Wd_inv, -Wd_inv @ W[:, ~is_dep]])
