@@ -5,6 +5,8 @@ from __future__ import annotations
 
 #: a part whose clamped nodes span a plane (rank 2 about their centroid) has no rigid-body mode
 PLANAR_RANK = 2
+#: geometry files that carry their length unit: read_mesh returns them in metres already
+UNIT_CARRYING_SUFFIXES = (".step", ".stp", ".iges", ".igs")
 
 
 def register(subparsers) -> None:
@@ -90,7 +92,10 @@ def run(args) -> int:
     ph = Phases(verbose=not args.quiet)
     with ph("mesh", args.mesh):
         mesh = read_mesh(args.mesh, size=args.size, order=args.order)
-        if units.length_to_m != 1.0:
+        if units.length_to_m != 1.0 and args.mesh.lower().endswith(UNIT_CARRYING_SUFFIXES):
+            notes.append(f"{args.mesh}: coordinates taken in the file's own unit (converted to m); "
+                         f"--units {units.name} applies to the material values only")
+        elif units.length_to_m != 1.0:
             mesh = mesh.scaled(units.length_to_m)
     notes.extend(mesh.notes)
     clamped = clamped_nodes(mesh, args.clamp)
