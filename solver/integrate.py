@@ -527,6 +527,8 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
             raise InputError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s; "
                              "raise max_steps or the step size h")
         h = min(h, t_end - t)
+        if adaptive and rec.dt is not None and rec.next - t > 1e-12 * max(1.0, t_end):
+            h = min(h, rec.next - t)  # step-size control lands on the output times
         tn = t + h
         if ud_prev is not None and h == h_prev:  # linear extrapolation predictor
             udn, lamn = 2.0 * ud - ud_prev, 2.0 * lam - lam_prev
@@ -697,6 +699,8 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
             stats[6] = 1.0
             break
         h = min(h, t_end - t)
+        if adaptive and out_dt > 0.0 and next_out - t > end_tol:
+            h = min(h, next_out - t)
         if have_prev and h == h_prev:
             udn, lamn = 2.0 * ud - ud_prev, 2.0 * lam - lam_prev
         else:
