@@ -12,7 +12,7 @@ def register(subparsers) -> None:
         description="Craig-Bampton on the interface masters, then eigenmodes of interest + frequency-response "
                     "modes (FEMBS style). MESH may be a mesh/geometry file or a TOML job file with the same "
                     "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
-                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 6 eigenmodes + FRMs.")
+                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
     p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
     p.add_argument("--size", type=float, help="element size when MESH is a geometry file (its length unit)")
     p.add_argument("--order", type=int, choices=(1, 2), help="tet4 (1) or tet10 (2, default) for geometry files")
@@ -26,7 +26,7 @@ def register(subparsers) -> None:
                    help="node set coupled to a 6-DOF master (repeat); default: all node sets that can carry 6 DOF")
     p.add_argument("--frame", help="reference frame: free (default) or the name of an interface to attach it to")
     n = p.add_mutually_exclusive_group()
-    n.add_argument("--modes", type=int, help="number of elastic eigenmodes of interest (default 6)")
+    n.add_argument("--modes", type=int, help="number of elastic eigenmodes of interest (default 8)")
     n.add_argument("--fmax", type=float, help="keep all eigenmodes up to this frequency (Hz)")
     p.add_argument("--frm", action=argparse.BooleanOptionalAction, default=None,
                    help="frequency-response modes at the interface masters (default on)")

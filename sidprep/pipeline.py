@@ -15,7 +15,7 @@ Defaults (``sidprep reduce MESH`` alone): steel; interfaces = every node set of 
 carry 6 DOF, as RBE2 (for the piston rod: big_end and small_end); frame ``free`` - the body
 frame stays at the FE origin, the modes are free-free elastic modes (mean axes to first order),
 which is what a SIMPACK user gets from FEMBS for a body connected by joints at several points;
-6 eigenmodes + FRMs at every interface master DOF, cut-off 5x; 2 % modal damping; all three files.
+8 eigenmodes + FRMs at every interface master DOF, cut-off 5x; 2 % modal damping; all three files.
 """
 
 from __future__ import annotations
@@ -29,8 +29,9 @@ import numpy as np
 
 from sidprep.errors import InputError
 
-#: default number of elastic eigenmodes of interest
-DEFAULT_MODES = 6
+#: default number of elastic eigenmodes of interest (8: with 6 the piston rod's axial FRMs fall
+#: above the 5x cut-off and its static deflection misses the FEMBS 1 % promise: 5.8 % vs 0.5 %)
+DEFAULT_MODES = 8
 #: default modal damping ratio (typical of bolted steel parts)
 DEFAULT_DAMPING = 0.02
 #: fewest fixed-interface modes of the Craig-Bampton step when --modes is given

@@ -10,6 +10,7 @@ from cli.main import main
 from sidprep.io.sid_fem import read_sid_fem
 from sidprep.checks import failed_checks
 from sidprep.io.sid_hdf5 import read_checks, read_sid_hdf5
+from sidprep.pipeline import DEFAULT_MODES
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 
@@ -99,7 +100,7 @@ def test_mm_t_s_units_and_a_body_without_interfaces(tmp_path, capsys):
         assert main(["reduce", str(path), "--units", units, *material, "-q", "--json", "--no-obj", "--no-sid-fem",
                      "-o", str(tmp_path / f"{units}.sid.h5")]) == 0
         summary = json.loads(capsys.readouterr().out)
-        assert summary["checks"]["passed"] and summary["kinds"] == ["eigen"] * 6
+        assert summary["checks"]["passed"] and summary["kinds"] == ["eigen"] * DEFAULT_MODES
         labels[units] = read_sid_hdf5(tmp_path / f"{units}.sid.h5")
     si, mm = labels["si"], labels["mm-t-s"]
     assert mm.mass == pytest.approx(31.4, rel=1e-12) and mm.mass == pytest.approx(si.mass, rel=1e-12)
