@@ -62,7 +62,7 @@ def shape_functions(order: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return N, dN
 
 
-def _geometry(X: np.ndarray, dN: np.ndarray, weights: np.ndarray, first: int) -> tuple[np.ndarray, np.ndarray]:
+def shape_gradients(X: np.ndarray, dN: np.ndarray, weights: np.ndarray, first: int) -> tuple[np.ndarray, np.ndarray]:
     """Physical shape-function gradients and integration weights.
 
     X : (ne, nn, 3) coordinates of elements first, first + 1, ...; dN : (nq, nn, 3); weights : (nq,).
@@ -79,7 +79,9 @@ def _geometry(X: np.ndarray, dN: np.ndarray, weights: np.ndarray, first: int) ->
     return G, det * weights[None, :]
 
 
-def _rule(order: int, degree: int):
+def quadrature_rule(order: int, degree: int):
+    """Shape functions N (nq, nn), reference gradients dN (nq, nn, 3) and weights w (nq,) of the
+    tetrahedron rule exact to ``degree`` (scikit-fem's tables), for tet4 (order 1) or tet10 (2)."""
     xi, w = get_quadrature(RefTet, degree)
     N, dN = shape_functions(order, xi)
     return N, dN, w
@@ -131,8 +133,8 @@ def _element_stiffness_blocks(X: np.ndarray, order: int, lam: float, mu: float, 
     K_ai,bj = int lam G_ai G_bj + mu G_aj G_bi + mu delta_ij G_a . G_b  (isotropic elasticity,
     a(u, v) = int lam div u div v + 2 mu eps(u) : eps(v)).
     """
-    _, dN, w = _rule(order, STIFFNESS_QUAD_DEGREE)
-    G, wdet = _geometry(X, dN, w, first)
+    _, dN, w = quadrature_rule(order, STIFFNESS_QUAD_DEGREE)
+    G, wdet = shape_gradients(X, dN, w, first)
     ne, nq, nn, _ = G.shape
     g = G.reshape(ne, nq, nn * 3)
     C = np.matmul((g * wdet[:, :, None]).transpose(0, 2, 1), g).reshape(ne, nn, 3, nn, 3)
@@ -146,8 +148,8 @@ def _element_stiffness_blocks(X: np.ndarray, order: int, lam: float, mu: float, 
 
 def _element_scalar_mass(X: np.ndarray, order: int, rho: float, first: int) -> np.ndarray:
     """Element scalar mass matrices (ne, nn, nn): int rho N_a N_b dV."""
-    N, dN, w = _rule(order, MASS_QUAD_DEGREE)
-    _, wdet = _geometry(X, dN, w, first)
+    N, dN, w = quadrature_rule(order, MASS_QUAD_DEGREE)
+    _, wdet = shape_gradients(X, dN, w, first)
     NN = np.einsum("qa,qb->qab", N, N).reshape(len(w), -1)
     nn = N.shape[1]
     return (rho * wdet @ NN).reshape(-1, nn, nn)

@@ -112,7 +112,7 @@ class CholmodFactorization(Factorization):
             raise np.linalg.LinAlgError(f"CHOLMOD: {exc}") from None
 
     def solve(self, b):
-        return self._chol.solve_A(np.asarray(b, dtype=np.float64))
+        return self._chol.solve_A(np.ascontiguousarray(b, dtype=np.float64))  # CHOLMOD needs C order
 
 
 def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:

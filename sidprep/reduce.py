@@ -61,7 +61,7 @@ class ReducedModel:
         interior[b] = False
         P = np.asarray(P, dtype=float).reshape(self.basis.shape[0], -1)
         Psi = self.basis[interior, :nb]
-        v_i = np.asarray(self.interior_factor.solve(np.ascontiguousarray(P[interior]))).reshape(-1, P.shape[1])
+        v_i = np.asarray(self.interior_factor.solve(P[interior])).reshape(-1, P.shape[1])
         free = ~np.isin(b, supports)
         if not np.isin(supports, b).all():
             raise ValueError("static_solve: the supports must be boundary DOFs")
@@ -101,7 +101,7 @@ def constraint_modes(K: sp.spmatrix, factor, b: np.ndarray, i: np.ndarray) -> np
     """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb)."""
     K = K.tocsc()
     rhs = -K[i][:, b].toarray()
-    return np.asarray(factor.solve(np.ascontiguousarray(rhs))).reshape(len(i), len(b))
+    return np.asarray(factor.solve(rhs)).reshape(len(i), len(b))
 
 
 def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
@@ -115,7 +115,7 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
         raise ValueError("give n_modes or fmax")
     if n_modes is not None and n_modes <= 0:
         return np.zeros(0), np.zeros((n, 0))
-    op = spla.LinearOperator((n, n), matvec=lambda x: factor.solve(np.ascontiguousarray(x)), dtype=float)
+    op = spla.LinearOperator((n, n), matvec=factor.solve, dtype=float)
     k = n_modes if n_modes is not None else 12
     while True:
         k = min(k, n - 1)

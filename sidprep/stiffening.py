@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.assemble import CHUNK, MASS_QUAD_DEGREE, _geometry, _rule
+from sidprep.assemble import CHUNK, MASS_QUAD_DEGREE, shape_gradients, quadrature_rule
 from sidprep.interfaces import best_columns, rigid_rows
 
 #: quadrature of K_G: degree 4 integrates grad N sigma grad N of affine tet10 (cubic) exactly
@@ -46,11 +46,11 @@ def projected_geometric_stiffness(mesh, material, U: np.ndarray, Phi: np.ndarray
     n, nc = mesh.n_nodes, U.shape[1]
     U3, P3 = U.reshape(n, 3, nc), np.asarray(Phi, dtype=float).reshape(n, 3, -1)
     lam, mu = material.lame
-    _, dN, w = _rule(mesh.order, KG_QUAD_DEGREE)
+    _, dN, w = quadrature_rule(mesh.order, KG_QUAD_DEGREE)
     K0 = np.zeros((nc, P3.shape[2], P3.shape[2]))
     for start in range(0, len(mesh.cells), CHUNK):
         cells = mesh.cells[start:start + CHUNK]
-        G, wdet = _geometry(mesh.points[cells], dN, w, start)
+        G, wdet = shape_gradients(mesh.points[cells], dN, w, start)
         Pe = P3[cells]                                               # (ne, nn, 3, nq)
         for c in range(nc):
             sigma = gauss_stress(G, U3[cells, :, c], lam, mu)

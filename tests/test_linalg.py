@@ -39,6 +39,8 @@ def test_cholmod_and_superlu_solve_the_same_system(free_box):
     b = np.random.default_rng(1).standard_normal((A.shape[0], 2))
     x_chol = factorize(A, "cholmod").solve(b)
     x_lu = factorize(A, "superlu").solve(b)
+    x_fortran = factorize(A, "cholmod").solve(np.asfortranarray(b))  # column slices arrive F-ordered
+    assert np.array_equal(x_fortran, x_chol)
     assert np.linalg.norm(A @ x_chol - b) / np.linalg.norm(b) < 1e-8
     assert np.linalg.norm(x_chol - x_lu) / np.linalg.norm(x_lu) < 1e-8
     with pytest.raises(np.linalg.LinAlgError):
