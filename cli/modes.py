@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from cli.options import add_model_arguments
+
 
 #: a part whose clamped nodes span a plane (rank 2 about their centroid) has no rigid-body mode
 PLANAR_RANK = 2
@@ -18,20 +20,12 @@ def register(subparsers) -> None:
                     "material is steel (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3), as in 'sidprep reduce', "
                     "and a note says so.")
     p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...) or geometry (.geo .step .brep)")
-    mat = p.add_argument_group("material (default steel, with a note)")
-    mat.add_argument("--E", type=float, help="Young's modulus (Pa, or MPa with --units mm-t-s)")
-    mat.add_argument("--nu", type=float, help="Poisson's ratio")
-    mat.add_argument("--rho", type=float, help="density (kg/m^3, or t/mm^3 with --units mm-t-s)")
-    mat.add_argument("--material", help="built-in material: steel, aluminium, titanium, cast_iron, ductile_iron")
-    p.add_argument("--units", default="si", choices=("si", "mm-t-s"),
-                   help="unit system of mesh coordinates and material values (default si); results are SI")
+    add_model_arguments(p, units_default="si")
     n = p.add_mutually_exclusive_group()
     n.add_argument("--count", type=int, help="number of elastic modes (default 10)")
     n.add_argument("--fmax", type=float, metavar="HZ", help="all modes up to this frequency")
     p.add_argument("--clamp", action="append", default=[], metavar="GROUP",
                    help="fix all DOFs of the nodes of this node set (repeat for several)")
-    p.add_argument("--order", type=int, choices=(1, 2), default=2, help="element order when meshing geometry files")
-    p.add_argument("--size", type=float, metavar="H", help="element size when meshing geometry files")
     p.add_argument("--backend", default="auto", choices=("auto", "cholmod", "superlu", "lobpcg"),
                    help="eigen solver: shift-invert Lanczos with CHOLMOD / SuperLU, or AMG-LOBPCG (large models)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of the table")
@@ -91,7 +85,7 @@ def run(args) -> int:
     count = args.count if args.count is not None or args.fmax is not None else 10
     ph = Phases(verbose=not args.quiet)
     with ph("mesh", args.mesh):
-        mesh = read_mesh(args.mesh, size=args.size, order=args.order)
+        mesh = read_mesh(args.mesh, size=args.size, order=args.order or 2)
         if units.length_to_m != 1.0 and args.mesh.lower().endswith(UNIT_CARRYING_SUFFIXES):
             notes.append(f"{args.mesh}: coordinates taken in the file's own unit (converted to m); "
                          f"--units {units.name} applies to the material values only")

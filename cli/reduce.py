@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields, replace
 
+from cli.options import add_model_arguments
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -14,14 +16,7 @@ def register(subparsers) -> None:
                     "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
                     "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
     p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
-    p.add_argument("--size", type=float, help="element size when MESH is a geometry file (its length unit)")
-    p.add_argument("--order", type=int, choices=(1, 2), help="tet4 (1) or tet10 (2, default) for geometry files")
-    mat = p.add_argument_group("material (default steel)")
-    mat.add_argument("--E", type=float, help="Young's modulus (Pa, or MPa with --units mm-t-s)")
-    mat.add_argument("--nu", type=float, help="Poisson's ratio")
-    mat.add_argument("--rho", type=float, help="density (kg/m^3, or t/mm^3 with --units mm-t-s)")
-    mat.add_argument("--material", help="built-in material name (steel, aluminium, titanium, cast_iron, ...)")
-    p.add_argument("--units", choices=("si", "mm-t-s"), help="unit system of the mesh and material (default si)")
+    add_model_arguments(p, units_default=None)
     p.add_argument("--interface", dest="interfaces", action="append", metavar="NAME[:rbe2|rbe3]",
                    help="node set coupled to a 6-DOF master (repeat); default: all node sets that can carry 6 DOF")
     p.add_argument("--frame", help="reference frame: free (default) or the name of an interface to attach it to")
