@@ -1,6 +1,7 @@
 """The bundled meshes: documented groups, sizes, geometry, frequencies and reproducibility."""
 
-import importlib.util
+import importlib
+import sys.util
 from pathlib import Path
 
 import gmsh
@@ -21,6 +22,9 @@ MAX_FILE_BYTES = 3_000_000
 
 
 def _load(name):
+    """Import a generator script the way it runs: with its own folder on the import path."""
+    if str(MESHES) not in sys.path:
+        sys.path.insert(0, str(MESHES))
     spec = importlib.util.spec_from_file_location(name, MESHES / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import gmsh
 import numpy as np
+from _gmsh_tet10 import gmsh_model, write_tet10
 
 HERE = Path(__file__).resolve().parent
 STEEL = dict(E=210e9, nu=0.3, rho=7850.0)
@@ -32,12 +33,7 @@ def parse_args(argv=None):
 
 def mesh_and_write(args):
     L, b, h = args.box
-    gmsh.initialize(readConfigFiles=False, interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add("bar")
+    with gmsh_model("bar"):
         vol = gmsh.model.occ.addBox(0, 0, 0, L, b, h)
         gmsh.model.occ.synchronize()
         eps = 1e-3 * min(b, h)  # larger than OCC's bounding-box tolerance
@@ -51,16 +47,7 @@ def mesh_and_write(args):
         gmsh.model.addPhysicalGroup(3, [vol], name="bar")
         gmsh.model.addPhysicalGroup(2, face_at(0.0), name="fixed_end")
         gmsh.model.addPhysicalGroup(2, face_at(L), name="free_end")
-        gmsh.option.setNumber("Mesh.MeshSizeMin", args.size)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", args.size)
-        gmsh.option.setNumber("Mesh.ElementOrder", 2)
-        gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
-        gmsh.model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.option.setNumber("Mesh.Binary", 1)
-        gmsh.write(str(args.out))
-    finally:
-        gmsh.finalize()
+        write_tet10(args.out, args.size)
 
 
 def euler_bernoulli_first_hz(L, b, h, E, rho):

@@ -17,6 +17,7 @@ import argparse
 from pathlib import Path
 
 import gmsh
+from _gmsh_tet10 import gmsh_model, write_tet10
 
 HERE = Path(__file__).resolve().parent
 
@@ -75,23 +76,9 @@ def build(args):
 
 
 def mesh_and_write(args):
-    gmsh.initialize(readConfigFiles=False, interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add("piston_rod")
+    with gmsh_model("piston_rod"):
         build(args)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", args.size)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", args.size)
-        gmsh.option.setNumber("Mesh.ElementOrder", 2)
-        gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
-        gmsh.model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.option.setNumber("Mesh.Binary", 1)
-        gmsh.write(str(args.out))
-    finally:
-        gmsh.finalize()
+        write_tet10(args.out, args.size)
 
 
 def main(argv=None):
