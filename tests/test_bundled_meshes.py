@@ -1,7 +1,7 @@
 """The bundled meshes: documented groups, sizes, geometry, frequencies and reproducibility."""
 
-import importlib
-import sys.util
+import importlib.util
+import sys
 from pathlib import Path
 
 import gmsh
