@@ -543,7 +543,7 @@ def _genalpha(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_to
         it = 0
         while True:
             r, mass, B, BF, ctx = residual(udn, lamn, tn)
-            dz = -np.linalg.solve(newton_matrix(mass, B, BF), r)
+            dz = -_dense_solve(newton_matrix(mass, B, BF), r)
             udn[free] += dz[:nf]
             lamn += dz[nf:]
             it += 1
@@ -611,6 +611,37 @@ def _advance_arrays(R, A, Q, dx, data):  # pragma: no cover - compiled
 
 
 @jit
+def _dense_solve(a, b):  # pragma: no cover - compiled
+    """x with a x = b: Gaussian elimination with partial pivoting by loops (for the small Newton
+    matrices a LAPACK call costs more than the arithmetic); a, b are not modified."""
+    k = b.shape[0]
+    lu = a.copy()
+    x = b.copy()
+    for j in range(k):
+        p = j
+        for i in range(j + 1, k):
+            if abs(lu[i, j]) > abs(lu[p, j]):
+                p = i
+        if p != j:
+            for c in range(k):
+                lu[j, c], lu[p, c] = lu[p, c], lu[j, c]
+            x[j], x[p] = x[p], x[j]
+        pivot = lu[j, j]
+        for i in range(j + 1, k):
+            factor = lu[i, j] / pivot
+            if factor != 0.0:
+                for c in range(j + 1, k):
+                    lu[i, c] -= factor * lu[j, c]
+                x[i] -= factor * x[j]
+    for i in range(k - 1, -1, -1):
+        acc = x[i]
+        for c in range(i + 1, k):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc / lu[i, i]
+    return x
+
+
+@jit
 def _ga_state(udn, R, A, Q, u, ud, a, h, prm, data):  # pragma: no cover - compiled
     """(a_{n+1}, R, A, Q, u_{n+1}) of the generalised-alpha update for ud_{n+1} (module doc)."""
     am, af, gamma, beta = prm[0], prm[1], prm[2], prm[3]
@@ -626,18 +657,20 @@ def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # pra
     _, R2, A2, Q2, un = _ga_state(udn, R, A, Q, u, ud, a, h, prm, data)
     mass, f, g, B = _system_kernel(R2, A2, Q2, un, data)
     nf, m = free.shape[0], kept.shape[0]
-    full = mass @ udn - f
-    for k in range(m):
-        full += B[kept[k]] * lamn[k]
     Bk = np.empty((m, nf))
     mf = np.empty((nf, nf))
     r = np.empty(nf + m)
     for i in range(nf):
-        r[i] = full[free[i]]
+        fi = free[i]
+        ri = -f[fi]
+        for j in range(udn.shape[0]):
+            ri += mass[fi, j] * udn[j]
         for j in range(nf):
-            mf[i, j] = mass[free[i], free[j]]
+            mf[i, j] = mass[fi, free[j]]
         for k in range(m):
-            Bk[k, i] = B[kept[k], free[i]]
+            Bk[k, i] = B[kept[k], fi]
+            ri += Bk[k, i] * lamn[k]
+        r[i] = ri
     for k in range(m):
         r[nf + k] = g[kept[k]] / (h * h * prm[4])
     return r, mf, Bk
@@ -721,7 +754,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
             jac[:nf, :nf] = mass + dmat
             jac[:nf, nf:] = Bk.T
             jac[nf:, :nf] = Bk
-            dz = -np.linalg.solve(jac, r)
+            dz = -_dense_solve(jac, r)
             for i in range(nf):
                 udn[free[i]] += dz[i]
             lamn += dz[nf:]
