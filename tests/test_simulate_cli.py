@@ -3,6 +3,7 @@
 import json
 import xml.etree.ElementTree as ET
 
+import meshio
 import numpy as np
 import pytest
 
@@ -38,8 +39,28 @@ def test_json_summary_is_one_object_with_the_contract_keys(scene, tmp_path, caps
     assert summary["outputs"] == {"results": str(out)}
 
 
+BOX = """
+[bodies.box]
+type = "rigid"
+mass = 1.0
+inertia = [0.1, 0.1, 0.1]
+obj = "box.obj"
+position = [0, 0, -2]
+[markers.box_o]
+body = "box"
+[markers.floor]
+body = "ground"
+position = [0, 0, -2]
+[joints.weld]
+type = "fixed"
+markers = ["floor", "box_o"]
+"""
+
+
 def test_plot_csv_animation_and_report(scene, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "box.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene.write_text(TINY_SCENE + BOX)
     assert main(["simulate", str(scene), "--t-end", "0.02", "--plot", "--csv", "--animate"]) == 0
     captured = capsys.readouterr()
     assert "body 'bar':" in captured.out and "included" in captured.out and "left out" in captured.out
@@ -50,6 +71,10 @@ def test_plot_csv_animation_and_report(scene, tmp_path, capsys, monkeypatch):
     assert header == "time [s],tip.position.z [m],hinge.coordinate [rad],energy.total [J],bar.q.2 [1]"
     frames = [d.get("file") for d in ET.parse(tmp_path / "scene.pvd").getroot().iter("DataSet")]
     assert len(frames) == 3 and all((tmp_path / f).is_file() for f in frames)     # 100 samples/s, 0..0.02 s
+    last = meshio.read(tmp_path / frames[-1])
+    box = np.concatenate(last.cell_data["body"]) == 1                             # bodies in scene order
+    assert [c.type for c in last.cells] == ["vertex", "triangle"] and box.sum() == 1
+    assert np.allclose(last.points[-3:], [[0, 0, -2], [1, 0, -2], [0, 1, -2]], atol=1e-9)   # the welded OBJ
 
 
 @pytest.mark.parametrize("argv_tail, words", [
