@@ -25,6 +25,8 @@ def register(subparsers) -> None:
     p.add_argument("--csv", action="store_true", help="write <results>.csv of the [output] signals")
     p.add_argument("--animate", action="store_true", help="write <results>.pvd + <results>_vtu/ for ParaView")
     p.add_argument("--json", action="store_true", help="print one JSON summary object on stdout")
+    p.add_argument("--list-signals", action="store_true",
+                   help="print the signal names of the scene (for [output] signals) and exit without simulating")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
 
@@ -81,6 +83,12 @@ def run(args) -> int:
     phases = Phases(verbose=not args.quiet)
     with phases("scene", args.scene):
         scene = load_scene(args.scene, t_end=args.t_end)
+    if args.list_signals:
+        from solver.results import signal_names
+        from solver.scene import empty_result
+
+        print("\n".join(signal_names(empty_result(scene.system))))
+        return 0
     out = Path(args.output) if args.output else Path(Path(args.scene).stem + ".results.h5")
     base = out.name.removesuffix(".h5").removesuffix(".results")
 

@@ -527,21 +527,28 @@ def _check_names(file: Path, root: dict) -> None:
             seen[name] = f"{group}.{name}"
 
 
-def _check_signals(file: Path, scene_signals, system) -> None:
-    """Every requested signal must exist (checked on an empty Result of this system)."""
-    from solver.results import signal
+def empty_result(system):
+    """A Result with no samples but every body, joint, marker and energy of ``system``: what the
+    signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
     from solver.system import BodyHistory, JointHistory, Result
 
     z = np.zeros((0, 3))
-    empty = Result(
+    return Result(
         t=np.zeros(0),
         bodies={b.name: BodyHistory(b.name, z, np.zeros((0, 3, 3)), z, z, np.zeros((0, b.nq)), np.zeros((0, b.nq)),
                                     np.zeros((0, 6 + b.nq))) for b in system.bodies},
-        joints={c.name: JointHistory(c.name, "", z, z, z, z, np.zeros(0), np.zeros(0), np.zeros(0))
-                for c in list(system.joints) + list(system.drivers)},
+        joints={c.name: JointHistory(c.name, getattr(c, "kind", "driver"), z, z, z, z, np.zeros(0), np.zeros(0),
+                                     np.zeros(0)) for c in list(system.joints) + list(system.drivers)},
         markers={m.name: z for b in [system.ground] + list(system.bodies) for m in b.markers},
         energy={k: np.zeros(0) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "total")},
         constraint_error=np.zeros(0), effects=None)
+
+
+def _check_signals(file: Path, scene_signals, system) -> None:
+    """Every requested signal must exist (checked on an empty Result of this system)."""
+    from solver.results import signal
+
+    empty = empty_result(system)
     for name in scene_signals:
         try:
             signal(empty, name)

@@ -91,6 +91,13 @@ def test_errors_are_one_line_with_exit_code_2(scene, tmp_path, capsys, argv_tail
     assert not (tmp_path / "r.h5").exists()
 
 
+def test_list_signals_names_every_signal_without_simulating(scene, tmp_path, capsys):
+    assert main(["simulate", str(scene), "--list-signals", "-q", "-o", str(tmp_path / "r.h5")]) == 0
+    names = capsys.readouterr().out.split()
+    assert {"bar.q.2", "tip.position.z", "hinge.force.x", "hinge.coordinate", "energy.total"} <= set(names)
+    assert not (tmp_path / "r.h5").exists()
+
+
 def test_missing_scene_file(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "none.toml")]) == 2
     assert "no such scene file" in capsys.readouterr().err
