@@ -282,13 +282,13 @@ def _finish(K, M, lam, phi, sigma, scale, backend) -> EigenResult:
 
 
 def single_threaded_blas():
-    """Context: numpy/scipy's OpenBLAS on one thread.  ARPACK's dense steps are small; with
-    OpenBLAS threads on the shared 2-core machine the Lanczos phase took 9 s instead of 0.56 s
-    (17k DOF).  Uses threadpoolctl when installed, else changes nothing."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
+    """Context: one thread in every BLAS loaded - numpy/scipy's OpenBLAS and the MKL that
+    ``fast_blas`` interposes under CHOLMOD (loaded first so that the limit reaches it).  With two
+    BLAS threads on the shared 2-core machine the Lanczos phase of a 17k-DOF bar took 9 s instead
+    of 0.56 s and the piston rod's factorisation 20x longer (docs/performance.md)."""
+    from threadpoolctl import threadpool_limits
+
+    fast_blas()
     return threadpool_limits(limits=1, user_api="blas")
 
 

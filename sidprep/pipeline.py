@@ -428,10 +428,10 @@ def output_paths(o: ReduceOptions) -> dict[str, Path]:
 def reduce_job(options: ReduceOptions) -> dict:
     """Run a reduction job and write its files; returns a JSON-ready summary (paths, checks, timings).
 
-    Runs with one BLAS thread (sidprep.reduce.single_blas_thread)."""
-    from sidprep.reduce import single_blas_thread
+    Runs with one BLAS thread (sidprep.linalg.single_threaded_blas)."""
+    from sidprep.linalg import single_threaded_blas
 
-    with single_blas_thread():
+    with single_threaded_blas():
         return _reduce_job(options)
 
 

@@ -12,7 +12,6 @@ constraint-mode right-hand side and the shift-invert eigen solve.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from sidprep.errors import InputError
+from sidprep.linalg import single_threaded_blas
 
 #: ceiling of fixed-interface modes requested when growing towards ``fmax``
 MAX_FIXED_INTERFACE_MODES = 400
@@ -71,21 +71,6 @@ class ReducedModel:
         u[b] = u_b
         u[interior] = Psi @ u_b + v_i
         return u
-
-
-def single_blas_thread():
-    """Context: one BLAS thread in every BLAS loaded (OpenBLAS of numpy/scipy, the MKL that
-    sidprep.linalg.fast_blas interposes under CHOLMOD - loaded first so that the limit covers it).
-    Two threads on the busy 2-core machine made the piston rod's eigen solve 40x and its
-    factorisation 20x slower (docs/performance-reduce.md).  A no-op without threadpoolctl."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
-    from sidprep.linalg import fast_blas
-
-    fast_blas()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +130,7 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
     """
     from sidprep.linalg import factorize
 
-    with single_blas_thread():
+    with single_threaded_blas():
         K, M = sp.csr_matrix(K), sp.csr_matrix(M)
         b, i = split_dofs(K.shape[0], boundary_dofs)
         K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
