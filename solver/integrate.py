@@ -420,8 +420,9 @@ def out_of_plane_reactions(system, pose, u, ud, t, lam):
 class _Recorder:
     """Samples (t, pose, u, ud, lambda) at the output times, plus the energy-flow integrals."""
 
-    def __init__(self, output_dt: float | None):
+    def __init__(self, output_dt: float | None, angle_refs=()):
         self.dt = output_dt
+        self.angle_refs = list(angle_refs)  # joint angles at the start (unwrapping references)
         self.next = 0.0
         self.samples = []
         self.dissipated = self.external = 0.0
@@ -960,8 +961,7 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
         system.kept = rows & independent_rows(np.where(rows[:, None], B, 0.0)[:, system.free])
         ud, lam = accelerations(system, pose, u, 0.0, free=system.free)
         notes.append(note)
-    rec = _Recorder(output_dt)
-    rec.angle_refs = [j._angle_ref for j in system.joints]
+    rec = _Recorder(output_dt, [j._angle_ref for j in system.joints])
     cpu_setup = time.process_time() - cpu0
     if method == "genalpha":
         run = _genalpha_compiled if _Kernel.usable(system) else _genalpha
