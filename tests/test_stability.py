@@ -128,6 +128,26 @@ def test_slender_free_body_keeps_six_rigid_modes_apart(tmp_path, backend):
     np.testing.assert_allclose(f[6:8], euler_bernoulli_free_hz(STEEL, L, b, b)[:2], rtol=SLENDER_EB_RTOL)
 
 
+#: first free-free mode of a square Kirchhoff plate, nu = 0.3: f = LAMBDA2 / (2 pi a^2) sqrt(D / (rho t))
+#: (code_aster validation SDLS01 / V2.03.001 after Barton 1951; Leissa 1973 gives 13.49 too)
+FREE_PLATE_LAMBDA2 = 13.49
+#: thin plate 0.5 x 0.5 x 0.005 m, one tet10 layer, h = 4 t: measured -2.9e-3
+THIN_PLATE_RTOL = 1e-2
+
+
+def test_thin_free_plate_keeps_six_rigid_modes_apart(tmp_path):
+    """Aspect ratio 100 (0.5 x 0.5 x 0.005 m), one element layer: 6 rigid modes far below the
+    first elastic one, which follows Kirchhoff plate theory."""
+    a, t = 0.5, 0.005
+    ev = free_frequencies(box_mesh(tmp_path, a, a, t, h=0.02), STEEL, count=1)
+    f = ev.frequencies_hz
+    D = STEEL.E * t**3 / (12 * (1 - STEEL.nu**2))
+    assert ev.n_rigid == 6
+    assert np.max(np.abs(f[:6])) < RIGID_SEPARATION * f[6]
+    assert f[6] == pytest.approx(FREE_PLATE_LAMBDA2 / (2 * np.pi * a**2) * np.sqrt(D / (STEEL.rho * t)),
+                                 rel=THIN_PLATE_RTOL)
+
+
 #: f ~ sqrt(E) for E x 1e6 and E x 1e-6 (measured 7e-13, 1.8e-12)
 MODULUS_SCALING_RTOL = 1e-8
 
