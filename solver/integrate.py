@@ -53,8 +53,9 @@ PLANAR_TOL = 1e-3
 #: planar detection: tolerance of the geometry (parallel joint axes, plane normal along a
 #: coordinate axis, gravity and initial velocities in the plane), relative
 PLANAR_AXIS_TOL = 1e-9
-#: planar detection: random in-plane test states checked against the full 3D equations
-PLANAR_SAMPLES = 2
+#: planar detection: random in-plane test states, at times evenly spread over [0, t_end],
+#: checked against the full 3D equations (time-dependent loads)
+PLANAR_SAMPLES = 8
 #: planar detection: size of the random in-plane test displacements, in system lengths L
 PLANAR_MOTION = 1e-4
 
@@ -321,19 +322,20 @@ def _out_of_plane_modes(body, axis: int, length: float) -> np.ndarray:
     return out
 
 
-def planar_coordinates(system, pose, u, t: float = 0.0):
+def planar_coordinates(system, pose, u, t_end: float = 0.0):
     """(free coordinate indices, kept-row mask, note) when the scene moves in one plane, else None.
 
     Planar: the revolute / cylindrical / planar joint axes share one normal n along an inertial
     axis and along a body axis of every body, gravity and the initial velocities lie in the
     plane, and the out-of-plane coordinates O (translation along n, the two tilts, the modes
-    that in-plane motion does not excite) start at zero (modes: within PLANAR_TOL of the largest
-    modal deflection; they are then set to zero in ``pose``).  The decoupling is then verified on the
-    full 3D equations at random in-plane states: every constraint row acts either on in-plane
-    coordinates or on O only, and the O-rows of the equations of motion (mass couplings, forces,
-    reactions of the in-plane rows) are balanced by reactions of the O-only rows, so that O
-    stays zero.  Only the in-plane coordinates are integrated; the O-only rows are dropped (their
-    reactions are recovered at the output samples, ``out_of_plane_reactions``).
+    that in-plane motion does not excite) start at zero (modes: within PLANAR_TOL of the
+    largest modal deflection; they are then set to zero in ``pose``).  The decoupling is then
+    verified on the full 3D equations at random in-plane states, at PLANAR_SAMPLES times evenly
+    spread over [0, t_end]: every constraint row acts either on in-plane coordinates or on O
+    only, and the O-rows of the equations of motion (mass couplings, forces, reactions of the
+    in-plane rows) are balanced by reactions of the O-only rows, so that O stays zero.  Only the in-plane coordinates are
+    integrated; the O-only rows are dropped (their reactions are recovered at the output
+    samples, ``out_of_plane_reactions``).
     """
     if not system.bodies:
         return None
@@ -365,7 +367,7 @@ def planar_coordinates(system, pose, u, t: float = 0.0):
         return None
     rng = np.random.default_rng(0)
     rows = None
-    for _ in range(PLANAR_SAMPLES):
+    for t in np.linspace(0.0, t_end, PLANAR_SAMPLES):
         trial = system.advance(pose, np.where(free, PLANAR_MOTION * length * rng.standard_normal(system.n)
                                              / weights, 0.0))
         vel = np.where(free, u + rng.standard_normal(system.n) / weights, 0.0)
@@ -948,7 +950,8 @@ def integrate(system, t_end, *, h=1e-3, method="genalpha", rho_inf=0.9, rtol=Non
     choices = configure_effects(system, effects)
     pose, u, ud, lam = consistent_initial_state(system, static_start)
     system.free, notes = np.arange(system.n), []
-    planar = planar_coordinates(system, pose, u) if system.planar is not False and method == "genalpha" else None
+    planar = planar_coordinates(system, pose, u, t_end) if system.planar is not False and method == "genalpha" \
+        else None
     if planar is None and system.planar:
         raise InputError("simulate: planar = true but the scene is not planar (joint axes parallel to a coordinate "
                          "axis, gravity and initial velocities in the plane, no out-of-plane coupling) or the method "

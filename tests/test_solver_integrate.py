@@ -210,3 +210,32 @@ def test_planar_scene_integrates_the_in_plane_coordinates_only():
     assert np.ptp(full.joints["pivot"].coordinate) > 0.5 and np.max(np.abs(q_full)) > 0  # it swings and bends
     with pytest.raises(InputError, match="not planar"):
         run(True, gravity=(0, -9.81, -9.81))
+
+
+def test_out_of_plane_load_decides_the_planar_form():
+    """A tip force along the hinge axis that starts only at t = 0.2 s (the detection samples times
+    up to t_end): on a hinged rigid rod the joint takes it (planar; the recovered reaction is
+    the force), on a hinged flexible bar it bends the out-of-plane modes (3D coordinates)."""
+    from solver.system import PointForce, Table
+
+    late_force = Table([0.0, 0.2, 0.21, 1.0], [0.0, 0.0, 5.0, 5.0])
+
+    def pendulum_with_force(make_body):
+        s = System(gravity=(0, 0, -9.81))
+        b, root, tip = make_body(s)
+        s.add(Revolute(s.ground.marker(rotation=AXIS_Y), root, name="pivot"))
+        s.add(PointForce(tip, late_force, direction=(0, 1, 0)))
+        return s.simulate(0.3, h=1e-3, output_dt=0.05)
+
+    def rigid(s):
+        b = s.add(RigidBody(2.0, (0.5, 0, 0), np.diag([1e-3, 0.02, 0.02]), name="rod"))
+        return b, b.marker(rotation=AXIS_Y), b.marker(position=(1.0, 0, 0))
+
+    def flexible(s):
+        b = s.add(FlexibleBody(bar_sid(), name="bar"))
+        return b, b.node_marker(0, rotation=AXIS_Y), b.node_marker(1)
+
+    hinged = pendulum_with_force(rigid)
+    assert hinged.stats["planar"]
+    assert abs(hinged.joints["pivot"].force[-1][1] + 5.0) < 1e-6   # the joint takes the axial load
+    assert not pendulum_with_force(flexible).stats["planar"]
