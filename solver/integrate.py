@@ -654,11 +654,11 @@ def _ga_state(udn, R, A, Q, u, ud, a, h, prm, data):  # pragma: no cover - compi
 
 
 @jit
-def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # pragma: no cover - compiled
+def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, kept, free, data):  # pragma: no cover - compiled
     """[M ud - f + B^T lambda; g / (h^2 beta')] over the free coordinates and kept rows, with M
-    and B restricted to them, at the updated state."""
+    and B restricted to them, at the updated state and time t; also the driven coordinates."""
     _, R2, A2, Q2, un = _ga_state(udn, R, A, Q, u, ud, a, h, prm, data)
-    mass, f, g, B = _system_kernel(R2, A2, Q2, un, data)
+    mass, f, g, B, coords = _system_kernel(R2, A2, Q2, un, t, refs, data)
     nf, m = free.shape[0], kept.shape[0]
     Bk = np.empty((m, nf))
     mf = np.empty((nf, nf))
@@ -676,15 +676,15 @@ def _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # pra
         r[i] = ri
     for k in range(m):
         r[nf + k] = g[kept[k]] / (h * h * prm[4])
-    return r, mf, Bk
+    return r, mf, Bk, coords
 
 
 @jit
-def _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # pragma: no cover - compiled
+def _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, kept, free, data):  # pragma: no cover - compiled
     """D = d r1 / d ud - M by forward differences (damping and stiffness part of the iteration
     matrix, the same as ``tangent`` in _genalpha)."""
     nf = free.shape[0]
-    r0, mass, _ = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
+    r0, mass, _, _ = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, kept, free, data)
     d = np.empty((nf, nf))
     eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
     for col in range(nf):
@@ -692,20 +692,23 @@ def _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data):  # prag
         e = max(1e-7 * abs(udn[i]), eps_pos)
         x = udn.copy()
         x[i] += e
-        d[:, col] = (_ga_residual(x, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)[0][:nf] - r0[:nf]) / e
+        d[:, col] = (_ga_residual(x, lamn, R, A, Q, u, ud, a, h, t, refs, prm, kept, free, data)[0][:nf]
+                     - r0[:nf]) / e
     return d - mass
 
 
 @jit
 def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w, length, tol, adaptive, rtol, atol,
-             out_dt, next_out, carry, stats, damping, capacity, data):  # pragma: no cover - compiled
+             out_dt, next_out, carry, refs, drv_kept, stats, damping, capacity, data):  # pragma: no cover - compiled
     """The loop of _genalpha for a _Kernel system, compiled; stops at t_end or after ``capacity``
     output samples (the caller resumes it).
 
     carry = [ud_prev (n), lam_prev (m), D (n*n), h_prev, dmat_h, have_prev, have_d, dissipated,
-    last_power] packed in one float array; stats = [steps, rejected, newton it., jacobians, h_min,
-    h_max, status] (status 0 done, 1 max_steps, 2 Newton failure, 3 buffer full).
-    damping (nb,) flags: body has modal damping (De = packed[17]).
+    last dissipated power, external work, last external power] packed in one float array; refs
+    (nd,) the drivers' angle-unwrapping references; drv_kept (nd,) the kept-row index of each
+    driver (-1: dropped); stats = [steps, rejected, newton it., jacobians, h_min, h_max, status,
+    max_steps] (status 0 done, 1 max_steps, 2 Newton failure, 3 buffer full).  damping (nb,):
+    body has modal damping (De = packed[17]).  carry, refs and stats are updated in place.
     """
     qoff, uoff, bodies = data[0], data[1], data[3]
     n, m = u.shape[0], kept.shape[0]
@@ -714,9 +717,9 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
     lam_prev = carry[n:n + m].copy()
     nf = free.shape[0]
     dmat = carry[n + m:n + m + nf * nf].reshape(nf, nf).copy()
-    h_prev, dmat_h = carry[-6], carry[-5]
-    have_prev, have_d = carry[-4] > 0, carry[-3] > 0
-    dissipated, last_power = carry[-2], carry[-1]
+    h_prev, dmat_h = carry[-8], carry[-7]
+    have_prev, have_d = carry[-6] > 0, carry[-5] > 0
+    dissipated, last_power, external, last_in = carry[-4], carry[-3], carry[-2], carry[-1]
     ts = np.empty(capacity)
     Rs = np.empty((capacity,) + R.shape)
     As = np.empty((capacity,) + A.shape)
@@ -725,6 +728,8 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
     uds = np.empty((capacity, n))
     lams = np.empty((capacity, m))
     diss = np.empty(capacity)
+    ext = np.empty(capacity)
+    coords = refs.copy()
     ns = 0
     factor = 1.0
     end_tol = 1e-12 * max(1.0, t_end)
@@ -743,7 +748,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
             udn, lamn = ud.copy(), lam.copy()
         renewed = False
         if not have_d:
-            dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
+            dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, kept, free, data)
             dmat_h, renewed, have_d = h, True, True
             stats[3] += 1
         elif dmat_h != h:
@@ -753,7 +758,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
         it = 0
         converged = False
         while True:
-            r, mass, Bk = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
+            r, mass, Bk, coords = _ga_residual(udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, kept, free, data)
             jac[:nf, :nf] = mass + dmat
             jac[:nf, nf:] = Bk.T
             jac[nf:, :nf] = Bk
@@ -771,7 +776,7 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if renewed:
                     break
-                dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, prm, kept, free, data)
+                dmat = _ga_tangent(udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, kept, free, data)
                 dmat_h, renewed = h, True
                 stats[3] += 1
                 it, last = 0, np.inf
@@ -808,9 +813,20 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
                 power += qd @ (bodies[i][17] @ qd)
         dissipated += 0.5 * h * (power + last_power)
         last_power = power
+        refs[:] = coords
+        power = 0.0
+        for d in range(drv_kept.shape[0]):  # driver power -lambda * coordinate rate
+            if drv_kept[d] >= 0:
+                rate = 0.0
+                for i in range(free.shape[0]):
+                    rate += Bk[drv_kept[d], i] * u[free[i]]
+                power -= lam[drv_kept[d]] * rate
+        external += 0.5 * h * (power + last_in)
+        last_in = power
         final = t >= t_end - end_tol
         if final or out_dt <= 0.0 or t >= next_out - 1e-12 * max(1.0, abs(t)):
-            ts[ns], Rs[ns], As[ns], Qs[ns], us[ns], uds[ns], lams[ns], diss[ns] = t, R, A, Q, u, ud, lam, dissipated
+            ts[ns], Rs[ns], As[ns], Qs[ns], us[ns], uds[ns], lams[ns] = t, R, A, Q, u, ud, lam
+            diss[ns], ext[ns] = dissipated, external
             ns += 1
             while out_dt > 0.0 and next_out <= t + 1e-12 * max(1.0, abs(t)):
                 next_out += out_dt
@@ -822,12 +838,12 @@ def _ga_loop(R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, kept, free, w,
             stats[6] = 3.0
             break
     carry[:n], carry[n:n + m], carry[n + m:n + m + nf * nf] = ud_prev, lam_prev, dmat.ravel()
-    carry[-6], carry[-5] = h_prev, dmat_h
-    carry[-4] = 1.0 if have_prev else 0.0
-    carry[-3] = 1.0 if have_d else 0.0
-    carry[-2], carry[-1] = dissipated, last_power
+    carry[-8], carry[-7] = h_prev, dmat_h
+    carry[-6] = 1.0 if have_prev else 0.0
+    carry[-5] = 1.0 if have_d else 0.0
+    carry[-4], carry[-3], carry[-2], carry[-1] = dissipated, last_power, external, last_in
     return (R, A, Q, u, ud, a, lam, t, h, next_out, ts[:ns], Rs[:ns], As[:ns], Qs[:ns], us[:ns], uds[:ns],
-            lams[:ns], diss[:ns])
+            lams[:ns], diss[:ns], ext[:ns])
 
 
 def _genalpha_compiled(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, newton_tol, rec, max_steps):
@@ -843,23 +859,28 @@ def _genalpha_compiled(system, pose, u, ud, lam, t_end, h, rho_inf, rtol, atol, 
     w, length = length_weights(system)
     kept = np.flatnonzero(system.kept).astype(np.int64)
     n, m = sub.size, kept.size
-    carry = np.zeros(n + m + n * n + 6)
+    carry = np.zeros(n + m + n * n + 8)
+    refs = np.array([d.joint._angle_ref for d in system.drivers], dtype=float)
+    kept_index = np.cumsum(system.kept) - 1
+    drv_kept = np.array([kept_index[system._row_slices[id(d)].start] if system.kept[system._row_slices[id(d)].start]
+                         else -1 for d in system.drivers], dtype=np.int64)
     stats = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0, 0.0, float(max_steps)])
     damping = np.array([b.model.De is not None for b in system.bodies])
     R, A, Q = kernel.arrays(pose)
+    carry[-1], carry[-3] = power(system, system.evaluate(pose, u, 0.0, lam)[5])  # powers at t = 0
     rec.offer(0.0, pose, u, ud, lam, force=True)
     t, next_out, u, ud = 0.0, rec.next, u[sub], ud[sub]
     a = ud.copy()
     while True:
-        (R, A, Q, u, ud, a, lam, t, h, next_out, ts, Rs, As, Qs, us, uds, lams, diss) = _ga_loop(
+        (R, A, Q, u, ud, a, lam, t, h, next_out, ts, Rs, As, Qs, us, uds, lams, diss, ext) = _ga_loop(
             R, A, Q, u, ud, a, lam, t, t_end, h, h, prm, kept, np.searchsorted(sub, system.free), w[sub], length,
-            newton_tol, rtol is not None, rtol or 0.0, atol, rec.dt or 0.0, next_out, carry, stats, damping, CHUNK,
-            kernel.data)
+            newton_tol, rtol is not None, rtol or 0.0, atol, rec.dt or 0.0, next_out, carry, refs, drv_kept, stats,
+            damping, CHUNK, kernel.data)
         for k in range(ts.size):
             u_full, ud_full = np.zeros(system.n), np.zeros(system.n)
             u_full[sub], ud_full[sub] = us[k], uds[k]
             rec.samples.append((ts[k], kernel.pose(Rs[k], As[k], Qs[k]), u_full, ud_full, lams[k]))
-            rec.flows.append((diss[k], 0.0))
+            rec.flows.append((diss[k], ext[k]))
         if stats[6] == 1:
             raise InputError(f"generalised-alpha: max_steps = {max_steps} reached at t = {t:.6g} s; "
                              "raise max_steps or the step size h")

@@ -32,7 +32,7 @@ from solver.forces import (JointForce, JointFriction, PointForce, PointTorque, S
                            bump_stop)
 from solver.joints import (ConstantSpeed, Cylindrical, Driver, Fixed, Joint, JOINT_TYPES, Planar,
                            Prismatic, Revolute, SmoothStart, Spherical, TabulatedMotion, _joint_rows)
-from solver.kinematics import COMPILED, exp_so3, jit, matmul
+from solver.kinematics import COMPILED, cross, exp_so3, jit, matmul
 
 __all__ = [
     "System", "Result", "BodyHistory", "JointHistory", "Ground", "RigidBody", "FlexibleBody", "Marker",
@@ -126,17 +126,36 @@ def _add_rows(B, r0, col, ct, cr, jt, jr):  # pragma: no cover - compiled
 
 
 @jit
-def _system_kernel(R, A, Q, u, data):  # pragma: no cover - compiled
+def _motion_value(motion, t):  # pragma: no cover - compiled
+    """Value of a driver motion [kind, start, speed, ramp_time] at t: kind 0 ConstantSpeed, 1
+    SmoothStart (joints.py)."""
+    start, w, ramp = motion[1], motion[2], motion[3]
+    if motion[0] == 0.0:
+        return start + w * t
+    if t <= 0.0:
+        return start
+    if t < ramp:
+        return start + 0.5 * w * (t - ramp / np.pi * np.sin(np.pi * t / ramp))
+    return start + w * (t - 0.5 * ramp)
+
+
+@jit
+def _system_kernel(R, A, Q, u, t, refs, data):  # pragma: no cover - compiled
     """M (n, n), f (n,), g (m_all,), B (m_all, n) of a system of bodies and joints, in one call.
 
     The same mathematics as System.mass_and_forces + constraint_rows (the Python path): body
     equations with the rotated translational row, marker kinematics, joint rows.  R (nb, 3),
     A (nb, 3, 3), Q (sum nq,) with offsets qoff (nb + 1,); u (n,) with body offsets uoff (nb,);
     bodies: packed BodyModel arrays; markers: body index (-1 = ground), c, AP0 R_m, Phi, Psi;
-    rows[j] the row codes of joint j, joint_mk (nj, 2) its markers, roff (nj + 1,) row offsets;
-    data = (qoff, uoff, gravity, bodies, mk_body, mk_pos, mk_rot, mk_phi, mk_psi, rows, joint_mk, roff).
+    rows[j] the row codes of joint j, joint_mk (nj, 2) its markers, roff (nj + nd + 1,) row
+    offsets of the joints, then the drivers; drivers: drv_mk (nd, 2) markers, drv_kind (nd,) 0
+    angle / 1 slide, drv_motion (nd, 4) (_motion_value); refs (nd,) the angle-unwrapping
+    references at time t.  Also returns the driven joint coordinates (nd,).
+    data = (qoff, uoff, gravity, bodies, mk_body, mk_pos, mk_rot, mk_phi, mk_psi, rows, joint_mk, roff,
+    drv_mk, drv_kind, drv_motion).
     """
-    qoff, uoff, gravity, bodies, mk_body, mk_pos, mk_rot, mk_phi, mk_psi, rows, joint_mk, roff = data
+    (qoff, uoff, gravity, bodies, mk_body, mk_pos, mk_rot, mk_phi, mk_psi, rows, joint_mk, roff, drv_mk, drv_kind,
+     drv_motion) = data
     n = u.shape[0]
     mass = np.zeros((n, n))
     f = np.zeros(n)
@@ -175,7 +194,31 @@ def _system_kernel(R, A, Q, u, data):  # pragma: no cover - compiled
             _add_rows(B, r0, uoff[b1], c[0], c[1], jt1, jr1)
         if b2 >= 0:
             _add_rows(B, r0, uoff[b2], c[2], c[3], jt2, jr2)
-    return mass, f, g, B
+    nj = joint_mk.shape[0]
+    coords = np.zeros(drv_mk.shape[0])
+    for d in range(drv_mk.shape[0]):  # Driver rows: coordinate - motion(t) (joints.Joint.coordinate)
+        r0 = roff[nj + d]
+        k1, k2 = drv_mk[d, 0], drv_mk[d, 1]
+        b1, b2 = mk_body[k1], mk_body[k2]
+        p1, a1, jt1, jr1 = _kernel_marker(R, A, Q, qoff, b1, mk_pos[k1], mk_rot[k1], mk_phi[k1], mk_psi[k1])
+        p2, a2, jt2, jr2 = _kernel_marker(R, A, Q, qoff, b2, mk_pos[k2], mk_rot[k2], mk_phi[k2], mk_psi[k2])
+        z = a1[:, 2].copy()
+        c = np.zeros((4, 1, 3))
+        if drv_kind[d] == 0:
+            raw = np.arctan2(a1[:, 1] @ a2[:, 0], a1[:, 0] @ a2[:, 0])
+            value = refs[d] + (raw - refs[d] + np.pi) % (2 * np.pi) - np.pi
+            c[1, 0], c[3, 0] = -z, z
+        else:
+            dist = p2 - p1
+            value = z @ dist
+            c[0, 0], c[1, 0], c[2, 0] = -z, cross(z, dist), z
+        coords[d] = value
+        g[r0] = value - _motion_value(drv_motion[d], t)
+        if b1 >= 0:
+            _add_rows(B, r0, uoff[b1], c[0], c[1], jt1, jr1)
+        if b2 >= 0:
+            _add_rows(B, r0, uoff[b2], c[2], c[3], jt2, jr2)
+    return mass, f, g, B, coords
 
 
 def _typed_list(items: list, dummy=None):
@@ -188,20 +231,29 @@ def _typed_list(items: list, dummy=None):
     return out
 
 
+def _motion_row(motion) -> list:
+    """[kind, start, speed, ramp_time] of a ConstantSpeed (kind 0) or SmoothStart (1) motion."""
+    if isinstance(motion, ConstantSpeed):
+        return [0.0, motion.start, motion.speed, 0.0]
+    return [1.0, motion.start, motion.speed, motion.ramp_time]
+
+
 def _writable_float(x) -> np.ndarray:
     """A C-contiguous writable float64 copy (numba typed lists need one array type)."""
     return np.array(x, dtype=float, order="C")
 
 
 class _Kernel:
-    """Flat arrays of a system of bodies and joints for ``_system_kernel`` (no drivers, force
-    elements, load stiffening or second-order inertia: those take the Python path)."""
+    """Flat arrays of a system of bodies, joints and drivers (ConstantSpeed / SmoothStart) for
+    ``_system_kernel`` (force elements, other motions, load stiffening and second-order inertia
+    take the Python path)."""
 
     def __init__(self, system: "System", modes: list | None = None):
         """``modes``: per body the indices of the modal coordinates to keep (default all); the
         kernel then works on the reduced coordinates u[u_index], q[q_index]."""
         modes = modes or [np.arange(b.nq) for b in system.bodies]
-        markers = list({id(mk): mk for c in system.joints for mk in (c.marker1, c.marker2)}.values())
+        markers = list({id(mk): mk for c in system.joints + system.drivers
+                        for mk in (c.marker1, c.marker2)}.values())
         index = {id(mk): k for k, mk in enumerate(markers)}
         self.qoff = np.concatenate([[0], np.cumsum([len(k) for k in modes])]).astype(np.int64)
         self.uoff = (np.arange(len(modes)) * 6 + self.qoff[:-1]).astype(np.int64)
@@ -230,14 +282,20 @@ class _Kernel:
                                 np.zeros((0, 3), dtype=np.int64))
         self.joint_mk = np.array([[index[id(j.marker1)], index[id(j.marker2)]] for j in system.joints],
                                  dtype=np.int64).reshape(-1, 2)
-        self.roff = np.concatenate([[0], np.cumsum([j.nrows for j in system.joints])]).astype(np.int64)
+        self.roff = np.concatenate([[0], np.cumsum([c.nrows for c in system.joints + system.drivers])]).astype(np.int64)
+        drivers = system.drivers
+        drv_mk = np.array([[index[id(d.marker1)], index[id(d.marker2)]] for d in drivers], dtype=np.int64).reshape(-1, 2)
+        drv_kind = np.array([d.joint.coordinate_kind == "slide" for d in drivers], dtype=np.int64)
+        drv_motion = np.array([_motion_row(d.motion) for d in drivers], dtype=float).reshape(-1, 4)
         self.data = (self.qoff, self.uoff, np.asarray(system.gravity, float), self.bodies, self.mk_body,
-                     self.mk_pos, self.mk_rot, self.mk_phi, self.mk_psi, self.rows, self.joint_mk, self.roff)
+                     self.mk_pos, self.mk_rot, self.mk_phi, self.mk_psi, self.rows, self.joint_mk, self.roff,
+                     drv_mk, drv_kind, drv_motion)
 
     @staticmethod
     def usable(system: "System") -> bool:
         """True when every element of the system is covered by the compiled kernel."""
-        return COMPILED and bool(system.bodies) and not system.drivers and not system.forces and all(
+        return COMPILED and bool(system.bodies) and not system.forces and all(
+            isinstance(d.motion, (ConstantSpeed, SmoothStart)) for d in system.drivers) and all(
             b.model.P is None and not (b.load_stiffening and any(
                 mk.k0f is not None or mk.k0m is not None for mk in b.markers)) for b in system.bodies)
 

@@ -147,16 +147,21 @@ def test_explicit_methods_on_constrained_systems():
     assert np.allclose(r.joints["main"].coordinate, 0.5 + 2.0 * r.t, atol=1e-8)
 
 
-#: compiled integration loop vs the Python loop (same algorithm, fixed steps; round-off only)
-COMPILED_LOOP_TOL = 1e-9
+#: compiled integration loop vs the Python loop (same algorithm, fixed steps; round-off only);
+#: energy flows relative to the largest kinetic energy (the compiled loop samples the powers at
+#: the converged state, the Python loop at the last Newton iterate)
+COMPILED_LOOP_TOL, COMPILED_LOOP_ENERGY_TOL = 1e-9, 1e-6
 
 
-def test_compiled_loop_equals_python_loop(monkeypatch):
-    """A damped flexible pendulum (modal damping, a node marker, one revolute joint) integrated by
-    the compiled loop and by the Python loop: same steps, same states.  (With step-size control
+@pytest.mark.parametrize("driven", [False, True])
+def test_compiled_loop_equals_python_loop(monkeypatch, driven):
+    """A damped flexible pendulum (modal damping, a node marker, one revolute joint; driven: with
+    a SmoothStart driver on the hinge) integrated by the compiled loop and by the Python loop:
+    same steps, same states, reactions, driver effort and energy flows.  (With step-size control
     the round-off moves accept / reject decisions; the compiled controller is checked by
     test_rigid_pendulum_with_step_size_control.)"""
     import solver.integrate as integrate
+    from solver.system import Driver, SmoothStart
 
     sid = bar_sid(damping=0.02)
 
@@ -166,6 +171,8 @@ def test_compiled_loop_equals_python_loop(monkeypatch):
             return b, b.node_marker(0, rotation=AXIS_Y)
 
         s, _, joint = pendulum(flexible)
+        if driven:
+            s.add(Driver(joint, SmoothStart(speed=40.0, ramp_time=0.1), name="motor"))
         return s.simulate(0.3, h=1e-3, output_dt=0.01), joint
 
     fast, joint = run()
@@ -173,11 +180,19 @@ def test_compiled_loop_equals_python_loop(monkeypatch):
     slow, _ = run()
     assert fast.stats.get("compiled_loop") and not slow.stats.get("compiled_loop")
     assert fast.stats["steps"] == slow.stats["steps"] and np.allclose(fast.t, slow.t, rtol=0, atol=1e-12)
+
+    def close(a, b, floor=1e-6, tol=COMPILED_LOOP_TOL):
+        return np.max(np.abs(a - b)) <= tol * max(np.max(np.abs(b)), floor)
+
     for key in ("q", "omega", "velocity"):
-        a, b = getattr(fast.bodies["bar"], key), getattr(slow.bodies["bar"], key)
-        assert np.max(np.abs(a - b)) <= COMPILED_LOOP_TOL * max(np.max(np.abs(b)), 1e-6)
-    assert np.max(np.abs(fast.joints[joint.name].force - slow.joints[joint.name].force)) <= \
-        COMPILED_LOOP_TOL * np.max(np.abs(slow.joints[joint.name].force))
+        assert close(getattr(fast.bodies["bar"], key), getattr(slow.bodies["bar"], key))
+    assert close(fast.joints[joint.name].force, slow.joints[joint.name].force)
+    scale = np.max(slow.energy["kinetic"])
+    for key in ("total", "external", "dissipated"):
+        assert close(fast.energy[key], slow.energy[key], scale, COMPILED_LOOP_ENERGY_TOL)
+    if driven:
+        assert close(fast.joints["motor"].effort, slow.joints["motor"].effort)
+        assert fast.joints[joint.name].coordinate[-1] > 2 * np.pi   # turned more than once (unwrapping)
 
 
 #: planar vs 3D coordinates of the same planar scene: hinge angle (rad), modal coordinates and
