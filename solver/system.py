@@ -205,7 +205,9 @@ def _system_kernel(R, A, Q, u, t, refs, data):  # pragma: no cover - compiled
         z = a1[:, 2].copy()
         c = np.zeros((4, 1, 3))
         if drv_kind[d] == 0:
-            raw = np.arctan2(a1[:, 1] @ a2[:, 0], a1[:, 0] @ a2[:, 0])
+            sin_part = a1[0, 1] * a2[0, 0] + a1[1, 1] * a2[1, 0] + a1[2, 1] * a2[2, 0]
+            cos_part = a1[0, 0] * a2[0, 0] + a1[1, 0] * a2[1, 0] + a1[2, 0] * a2[2, 0]
+            raw = np.arctan2(sin_part, cos_part)
             value = refs[d] + (raw - refs[d] + np.pi) % (2 * np.pi) - np.pi
             c[1, 0], c[3, 0] = -z, z
         else:
