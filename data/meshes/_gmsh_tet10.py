@@ -29,3 +29,12 @@ def write_tet10(path, size: float) -> None:
     gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
     gmsh.option.setNumber("Mesh.Binary", 1)
     gmsh.write(str(path))
+
+
+def read_back(path):
+    """The written mesh as sidprep reads it, with a one-line summary printed."""
+    from sidprep.mesh import read_mesh
+
+    mesh = read_mesh(path)
+    print(f"{path.name}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10, {mesh.n_dof} DOF")
+    return mesh

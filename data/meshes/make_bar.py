@@ -14,7 +14,7 @@ from pathlib import Path
 
 import gmsh
 import numpy as np
-from _gmsh_tet10 import gmsh_model, write_tet10
+from _gmsh_tet10 import gmsh_model, read_back, write_tet10
 
 HERE = Path(__file__).resolve().parent
 STEEL = dict(E=210e9, nu=0.3, rho=7850.0)
@@ -58,10 +58,7 @@ def euler_bernoulli_first_hz(L, b, h, E, rho):
 def main(argv=None):
     args = parse_args(argv)
     mesh_and_write(args)
-    from sidprep.mesh import read_mesh
-
-    mesh = read_mesh(args.out)
-    print(f"{args.out.name}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10, {mesh.n_dof} DOF")
+    mesh = read_back(args.out)
     if args.check:
         from _modal_check import clamped_frequencies_hz
 

@@ -17,7 +17,7 @@ import argparse
 from pathlib import Path
 
 import gmsh
-from _gmsh_tet10 import gmsh_model, write_tet10
+from _gmsh_tet10 import gmsh_model, read_back, write_tet10
 
 HERE = Path(__file__).resolve().parent
 
@@ -84,10 +84,7 @@ def mesh_and_write(args):
 def main(argv=None):
     args = parse_args(argv)
     mesh_and_write(args)
-    from sidprep.mesh import read_mesh
-
-    mesh = read_mesh(args.out)
-    print(f"{args.out.name}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10, {mesh.n_dof} DOF")
+    mesh = read_back(args.out)
     if args.check:
         from _modal_check import clamped_frequencies_hz
 
