@@ -7,8 +7,6 @@ from cli.options import add_model_arguments
 
 #: a part whose clamped nodes span a plane (rank 2 about their centroid) has no rigid-body mode
 PLANAR_RANK = 2
-#: geometry files that carry their length unit: read_mesh returns them in metres already
-UNIT_CARRYING_SUFFIXES = (".step", ".stp", ".iges", ".igs")
 
 
 def register(subparsers) -> None:
@@ -86,11 +84,7 @@ def run(args) -> int:
     ph = Phases(verbose=not args.quiet)
     with ph("mesh", args.mesh):
         mesh = read_mesh(args.mesh, size=args.size, order=args.order or 2)
-        if units.length_to_m != 1.0 and args.mesh.lower().endswith(UNIT_CARRYING_SUFFIXES):
-            notes.append(f"{args.mesh}: coordinates taken in the file's own unit (converted to m); "
-                         f"--units {units.name} applies to the material values only")
-        elif units.length_to_m != 1.0:
-            mesh = mesh.scaled(units.length_to_m)
+        mesh = mesh.in_metres(units.length_to_m, units.name)
     notes.extend(mesh.notes)
     clamped = clamped_nodes(mesh, args.clamp)
     with ph("assemble", f"{mesh.n_dof} DOF, tet{4 if mesh.order == 1 else 10}"):

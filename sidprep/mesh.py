@@ -74,6 +74,18 @@ class FEMesh:
         """The same mesh with coordinates multiplied by ``factor`` (e.g. 1e-3 for mm -> m)."""
         return replace(self, points=self.points * factor, length_unit=length_unit)
 
+    def in_metres(self, length_to_m: float, unit_system: str) -> "FEMesh":
+        """Coordinates in metres, from a file whose lengths are in ``unit_system`` units
+        (``length_to_m`` m each).  STEP/IGES files carry their own unit and were read in metres
+        already: they are left as they are, with a note."""
+        if length_to_m == 1.0:
+            return self
+        if self.source.lower().endswith(UNIT_CARRYING_SUFFIXES):
+            note = (f"{self.source}: coordinates taken in the file's own unit (converted to m); "
+                    f"--units {unit_system} applies to the material values only")
+            return replace(self, notes=self.notes + (note,))
+        return self.scaled(length_to_m)
+
 
 # ---------------------------------------------------------------------------------------------
 # Reading
@@ -88,6 +100,8 @@ ENCLOSED_VOLUME_RTOL = 1e-6
 
 #: files meshed through the gmsh API (geometry); ``.msh`` is read through the gmsh API too
 GEOMETRY_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".brp", ".iges", ".igs")
+#: geometry formats that carry their length unit: read_mesh returns them in metres
+UNIT_CARRYING_SUFFIXES = (".step", ".stp", ".iges", ".igs")
 #: gmsh element type numbers of the linear and quadratic tetrahedron
 _GMSH_TET = (4, 11)
 #: gmsh tet10 node k -> canonical node: gmsh numbers the last two edges (2,3), (1,3)
@@ -229,7 +243,7 @@ def _read_gmsh(path, *, size, order) -> _RawMesh:
     """Open a .msh file or mesh a geometry file with the gmsh API."""
     suffix = path.suffix.lower()
     options = {"Mesh.ElementOrder": float(order)}
-    if suffix in (".step", ".stp", ".iges", ".igs"):
+    if suffix in UNIT_CARRYING_SUFFIXES:
         options["Geometry.OCCTargetUnit"] = "M"  # these files carry their unit
     if size is not None:  # replaces the sizes the file gives its points
         options.update({"Mesh.MeshSizeFromPoints": 0.0, "Mesh.MeshSizeMax": float(size)})

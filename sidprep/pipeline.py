@@ -453,9 +453,14 @@ def _reduce_job(options: ReduceOptions) -> dict:
     material_name = o.material if (o.material or o.E is not None or o.nu is not None or o.rho is not None) else "steel"
     material = material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=material_name, units=o.units)
     with ph("mesh", o.mesh):
-        mesh = read_mesh(o.mesh, size=o.size, order=o.order)
-        if units.length_to_m != 1.0:
-            mesh = mesh.scaled(units.length_to_m)
+        mesh = read_mesh(o.mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
+    notes = list(mesh.notes)
+    if material_name == "steel" and not o.material:
+        notes.append("material: none given, steel used (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3); "
+                     "set --material or --E --nu --rho")
+    if o.verbose:
+        for note in notes:
+            print(f"note: {note}", file=sys.stderr)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     with ph("assemble", f"{mesh.n_dof} DOF"):
         K_fe = stiffness_matrix(mesh, material)
@@ -468,7 +473,7 @@ def _reduce_job(options: ReduceOptions) -> dict:
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
             stiff = stiffening_parts(mesh, material, M_fe, red.im, red.static_solve, red.Phi_fe)
-    metadata = {"source": str(o.mesh), "mesh_sha256": mesh.sha256, "material": material.as_dict(),
+    metadata = {"source": str(o.mesh), "mesh_sha256": mesh.sha256, "material": material.as_dict(), "notes": notes,
                 "options": {k: v for k, v in asdict(o).items() if k != "verbose"},
                 "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
                                 "master_point_m": i.master_point.tolist()} for i in interfaces],
@@ -487,7 +492,7 @@ def _reduce_job(options: ReduceOptions) -> dict:
         if "obj" in paths:
             write_obj(paths["obj"], sid.surface.points, sid.surface.triangles)
     summary = {"files": {k: str(v) for k, v in paths.items()}, "dof": mesh.n_dof, "nq": sid.nq, "labels": list(sid.labels),
-               "kinds": list(sid.mode_kinds), "checks": checks, "timings_s": ph.timings_s,
+               "kinds": list(sid.mode_kinds), "notes": notes, "checks": checks, "timings_s": ph.timings_s,
                "peak_memory_mb": peak_memory_mb()}
     if o.verbose:
         print(format_checks(checks), file=sys.stderr)

@@ -320,6 +320,10 @@ def test_step_and_brep_are_meshed_in_metres(tmp_path):
     assert np.allclose(step.points.max(axis=0), [0.01, 0.02, 0.03])
     assert np.isclose(cell_volumes(step.points, step.cells).sum(), 6e-6, rtol=GEOMETRY_RTOL)
     assert brep.order == 2 and np.allclose(brep.points.max(axis=0), [10, 20, 30])
+    # --units mm-t-s scales a BREP (no unit in the file) but must not scale the STEP a second time
+    assert np.allclose(brep.in_metres(1e-3, "mm-t-s").points.max(axis=0), [0.01, 0.02, 0.03])
+    step_mm = step.in_metres(1e-3, "mm-t-s")
+    assert np.array_equal(step_mm.points, step.points) and "file's own unit" in step_mm.notes[-1]
 
 
 def test_caller_gmsh_session_is_left_as_it_was(tmp_path):

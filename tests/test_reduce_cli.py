@@ -113,3 +113,23 @@ def test_bad_interface_table(tmp_path, capsys):
     assert main(["reduce", str(job)]) == 2
     err = capsys.readouterr().err
     assert "unknown key(s) bogus" in err and "valid:" in err and not list(tmp_path.glob("*.h5"))
+
+
+def test_mesh_repairs_and_the_default_material_are_reported(tmp_path, capsys):
+    """What read_mesh repaired (here: an unused node dropped) reaches the user and the file."""
+    import meshio
+
+    from sidprep.mesh import read_mesh
+
+    bar = read_mesh(MESHES / "bar.msh")
+    path = tmp_path / "bar_extra_node.vtu"
+    points = np.vstack([bar.points, [[5.0, 5.0, 5.0]]])
+    meshio.write(path, meshio.Mesh(points, [("tetra10", bar.cells)]))
+    out = tmp_path / "b.sid.h5"
+    assert main(["reduce", str(path), "--json", "--no-obj", "--no-sid-fem", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    notes = json.loads(captured.out)["notes"]
+    assert any("1 nodes not used by any tetrahedron were dropped" in n for n in notes)
+    assert any("steel used" in n for n in notes)
+    assert "note: 1 nodes not used" in captured.err
+    assert read_sid_hdf5(out).metadata["notes"] == notes
