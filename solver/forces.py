@@ -115,9 +115,16 @@ class SpringDamper:
         self.law = law
         self.name = name or f"spring:{marker1.name}-{marker2.name}"
 
+    def _distance(self, ctx) -> np.ndarray:
+        return ctx.kin(self.marker2)[0] - ctx.kin(self.marker1)[0]
+
+    def at_start(self, ctx) -> None:
+        """Resolve the default unstretched length: the marker distance once the joints are assembled."""
+        if self.length is None:
+            self.length = float(np.linalg.norm(self._distance(ctx)))
+
     def _state(self, ctx):
-        p1, p2 = ctx.kin(self.marker1)[0], ctx.kin(self.marker2)[0]
-        d = p2 - p1
+        d = self._distance(ctx)
         length = float(np.linalg.norm(d))
         e = d / length
         rate = float(e @ (ctx.marker_velocity(self.marker2)[0] - ctx.marker_velocity(self.marker1)[0]))

@@ -269,6 +269,9 @@ def consistent_initial_state(system, static_start: bool):
     pose, u = system.initial_pose()
     pose = project_positions(system, pose, 0.0, rigid_only=True)
     ctx = Context(system, pose, u, 0.0, None)
+    for element in system.forces:  # defaults that depend on the assembled start (spring lengths)
+        if hasattr(element, "at_start"):
+            element.at_start(ctx)
     _, B, _, _ = system.constraint_rows(ctx, force_rows=False)
     system.kept = independent_rows(B)
     system.accept(pose)

@@ -454,19 +454,6 @@ def _load_value(t: _Table, joints: dict):
     return value, argument
 
 
-def _initial_point(marker) -> np.ndarray:
-    """Inertial position (m) of a marker at its body's initial pose (as placed in the scene)."""
-    b = marker.body
-    if b.ndof == 0:
-        return marker.kinematics(np.zeros(3), np.eye(3), None)[0]
-    return marker.kinematics(b.position0, b.rotation0, b.initial_q()[0])[0]
-
-
-def _initial_distance(m1, m2) -> float:
-    """Unstretched spring length default: the initial distance of its markers, m."""
-    return float(np.linalg.norm(_initial_point(m2) - _initial_point(m1)))
-
-
 def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None:
     from solver import system as api
 
@@ -491,7 +478,7 @@ def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None
             length = t.number("length", None, nonnegative=True)
             element = api.SpringDamper(m1, m2, t.number("stiffness", 0.0, nonnegative=True),
                                        t.number("damping", 0.0, nonnegative=True),
-                                       _initial_distance(m1, m2) if length is None else length, law=law, name=name)
+                                       length, law=law, name=name)
         elif kind == "joint_force":
             joint = _lookup(t, "joint", joints, "joint")
             if joint.coordinate_kind is None:

@@ -211,7 +211,9 @@ ramp_time = 0.5
     s = scene.system
     assert [type(f).__name__ for f in s.forces] == ["SpringDamper", "PointForce", "JointForce"]
     assert len(s.drivers) == 1 and scene.sources["box"] == {"kind": "rigid", "source": str(scene_dir / "box.obj")}
-    assert s.forces[0].length == pytest.approx(0.5)           # default: the initial marker distance
+    assert s.forces[0].length is None                         # default: the marker distance at the start
+    s.simulate(2e-3, h=1e-3)
+    assert s.forces[0].length == pytest.approx(0.5)
     law = s.forces[2].law
     assert law(0.2, 0.0, 0.0) == pytest.approx(-1.0)          # constant - k (x - x0) - c xd
     assert np.allclose(s.forces[1].signal(0.5), [0, 0, 5])    # table interpolated over time

@@ -125,6 +125,13 @@ def test_spring_mass_frequency_and_bump_stop():
     omega = np.sqrt(k / m)
     assert np.allclose(x, 0.1 / omega * np.sin(omega * r.t), atol=2e-3 * 0.1 / omega)
     assert np.ptp(r.energy["total"]) < 1e-6 * r.energy["kinetic"][0]
+    # without a length the spring is unstretched at the start distance (1 m here): the same motion
+    s1 = System(gravity=(0, 0, 0))
+    mass1 = s1.add(RigidBody(m, name="mass", position=(1.0, 0, 0), velocity=(0.1, 0, 0)))
+    s1.add(Prismatic(s1.ground.marker(rotation=ALONG_X), mass1.marker(rotation=ALONG_X)))
+    spring = s1.add(SpringDamper(s1.ground.marker(), mass1.marker(), stiffness=k))
+    r1 = s1.simulate(1.0, h=1e-3, rho_inf=1.0)
+    assert spring.length == 1.0 and np.array_equal(r1.bodies["mass"].position, r.bodies["mass"].position)
     # a stiff stop 2 mm short of the amplitude limits the compression
     s2 = System(gravity=(0, 0, 0))
     mass2 = s2.add(RigidBody(m, name="mass", position=(1.0, 0, 0), velocity=(-0.1, 0, 0)))
