@@ -14,7 +14,7 @@ a. ``fe``: the validation bar (1.0 x 0.05 x 0.08 m steel, E = 210 GPa, nu = 0.3,
 b. ``reduce``: the bundled piston rod (``data/meshes/piston_rod.msh``, default RBE2 interfaces,
    free frame): number of eigenmodes, FRMs on/off, cut-off factor.  Errors against the full
    FE model (same interface model): static deflection at the masters under unit loads
-   (sidprep.pipeline.master_compliance_full) and the first elastic frequencies.  Time =
+   (sidprep.fe_checks.master_compliance_full) and the first elastic frequencies.  Time =
    ``reduce_body`` (Craig-Bampton + modal basis), body size nq.
 c. ``solve``: the 10-mode flexible pendulum of ``benchmarks/solver_speed.py`` (bundled bar,
    hinge and tip SID nodes, 1 s): fixed step sizes, step-size control tolerances, rho_inf and
@@ -181,7 +181,8 @@ def reduce_study(repeat: int, quick: bool) -> list[dict]:
     from sidprep.linalg import eigen_modes
     from sidprep.material import builtin_material
     from sidprep.mesh import read_mesh
-    from sidprep.pipeline import default_interfaces, interface_from_spec, master_compliance_full, reduce_body
+    from sidprep.fe_checks import master_compliance_full
+    from sidprep.pipeline import default_interfaces, interface_from_spec, reduce_body
 
     mesh = read_mesh(PISTON_ROD)
     material = builtin_material("steel")

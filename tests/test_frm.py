@@ -11,7 +11,8 @@ from sidprep.interfaces import make_interface
 from sidprep.material import builtin_material
 from sidprep.mesh import read_mesh
 from sidprep.modes import frequency_response_modes, modal_basis, modal_damping, mode_labels
-from sidprep.pipeline import master_compliance_full, reduce_body
+from sidprep.fe_checks import master_compliance_full
+from sidprep.pipeline import reduce_body
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 ORTHO_TOL = 1e-9
