@@ -1,0 +1,1 @@
+"""Time integrators shared by the solver's formulations (compiled, formulation-agnostic)."""
