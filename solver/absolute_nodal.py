@@ -739,7 +739,11 @@ def load_absolute_nodal_scene(root: dict, source, t_end: float | None = None) ->
     head.finish()
     sol = _Table(source, "solver", root.get("solver", {}))
     sol.string("method", "rk4", ("rk4",))
-    settings_t_end = sol.number("t_end", positive=True) if t_end is None else t_end
+    settings_t_end = sol.number("t_end", positive=True)
+    if t_end is not None:
+        if not t_end > 0:
+            sol.fail("t_end", f"--t-end must be > 0, got {t_end}", "give a positive end time in s")
+        settings_t_end = t_end
     step = sol.number("step", 2.5e-4, positive=True)
     sol.finish()
     output = _output_settings(source, root)
