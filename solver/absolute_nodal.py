@@ -43,6 +43,10 @@ from solver.integrators.runge_kutta import rk4_fixed
 BAUMGARTE_RATE = 20.0
 #: two points given different positions by the initial angles (closed loop) beyond this (m)
 CLOSURE_TOL = 1e-9
+#: largest h * omega_max accepted for RK4 (its stability limit on the imaginary axis is 2 sqrt 2)
+RK4_STABILITY = 2.6
+#: relative coordinate perturbation of the finite-difference stiffness behind the step check
+STIFFNESS_FD = 1e-7
 #: smallest number of elements per beam (the end slopes need three nodes, eq. 3-4)
 MIN_ELEMENTS = 2
 
@@ -576,19 +580,56 @@ def unpack(asm: Assembly, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return X, V
 
 
+def highest_frequency(asm: Assembly) -> float:
+    """omega_max (rad/s) of the system linearised about its initial shape: the largest
+    generalized eigenvalue of (K, M) on the free coordinates, K by central differences of the
+    elastic forces (beam_elastic)."""
+    import scipy.linalg
+
+    free = [2 * i + c for i in asm.free for c in (0, 1)]
+    scale = STIFFNESS_FD * max(float(np.max(asm.beam_e)), 1e-300)
+
+    def force(X):
+        Q = np.zeros_like(X)
+        for j in range(len(asm.beam_n)):
+            beam_elastic(X, asm.beam_nodes[j], asm.beam_n[j], asm.beam_e[j], asm.beam_K[j], Q)
+        return Q.ravel()[free]
+
+    K = np.zeros((len(free), len(free)))
+    for col, k in enumerate(free):
+        X = asm.X0.copy().ravel()
+        X[k] += scale
+        fp = force(X.reshape(-1, 2))
+        X[k] -= 2 * scale
+        K[:, col] = -(fp - force(X.reshape(-1, 2))) / (2 * scale)
+    M = np.kron(asm.Ms[np.ix_(asm.free, asm.free)], np.eye(2))
+    lam = scipy.linalg.eigh(0.5 * (K + K.T), M, eigvals_only=True)
+    return float(np.sqrt(max(lam[-1], 0.0)))
+
+
 def integrate(asm: Assembly, settings: AbsoluteNodalSettings) -> tuple[np.ndarray, np.ndarray, float]:
     """RK4 of eq. 10: sample times (s), states (nt, 4 nf) and CPU time (s)."""
     n_steps = int(round(settings.t_end / settings.step))
     if n_steps < 1 or abs(n_steps * settings.step - settings.t_end) > 1e-9 * settings.t_end:
         raise InputError(f"t_end = {settings.t_end} s is not a whole number of steps of {settings.step} s; "
                          "choose t_end as a multiple of the step")
+    omega = highest_frequency(asm)
+    if settings.step * omega > RK4_STABILITY:
+        raise InputError(f"step {settings.step:g} s is beyond RK4's stability limit for the highest frequency of the "
+                         f"beams ({omega:.4g} rad/s); use step <= {RK4_STABILITY / omega:.3g} s or fewer elements / "
+                         "a smaller EA")
     every = 1 if settings.rate is None else max(1, int(round(1.0 / (settings.rate * settings.step))))
     params = kernel_params(asm)
     y0 = initial_vector(asm)
     rk4_fixed(rhs, 0.0, y0, settings.step, 1, 1, params)      # compile / load outside the timing
     cpu = time.process_time()
     t, Y = rk4_fixed(rhs, 0.0, y0, settings.step, n_steps, every, params)
-    return t, Y, time.process_time() - cpu
+    cpu = time.process_time() - cpu
+    if not np.all(np.isfinite(Y)):
+        bad = t[np.argmax(~np.all(np.isfinite(Y), axis=1))]
+        raise InputError(f"the motion became non-finite at t = {bad:g} s (deformations too large for the small-strain "
+                         "beams, or an unstable driver); use a smaller step or check the model")
+    return t, Y, cpu
 
 
 def _samples(asm: Assembly, t: np.ndarray, Y: np.ndarray):

@@ -136,3 +136,13 @@ def test_bad_scene_gives_one_line_error(tmp_path, edit, message):
     with pytest.raises(InputError) as exc:
         load_absolute_nodal_scene(root, path)
     assert str(path) in str(exc.value) and message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_step_beyond_rk4_stability_is_refused_before_the_run():
+    # 8 elements per link: the axial modes need h <= 2.6 / omega_max ~ 1.3e-4 s (the paper's
+    # 2.5e-4 s suits 4 elements); bar estimate omega_max ~ 2 sqrt(3) sqrt(EA L / m) / e
+    scene = _two_link(t_end=0.01)
+    model = AbsoluteNodalModel(tuple(Beam(b.name, b.length, b.mass, b.EI, b.EA, 8, b.points, b.angle)
+                                     for b in scene.model.beams), scene.model.supports)
+    with pytest.raises(InputError, match="stability limit"):
+        simulate_absolute_nodal(model, AbsoluteNodalSettings(t_end=0.01, step=2.5e-4))
