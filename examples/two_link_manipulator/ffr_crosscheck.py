@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))                                   # the repository's solver package
 HERE = Path(__file__).resolve().parent
 E, NU, RHO = 210e9, 0.3, 7850.0
 EI, MASS, LENGTH = 1.0e3, 5.0, 1.0

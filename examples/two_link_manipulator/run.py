@@ -8,13 +8,16 @@ DIR/two_link_figures.png; prints the energy error and the CPU time.
 """
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from solver.absolute_nodal import load_absolute_nodal_scene, simulate_absolute_nodal
-from solver.results import write_csv, write_results
-from solver.scene import read_toml
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))   # the repository's solver package
+
+from solver.absolute_nodal import load_absolute_nodal_scene, simulate_absolute_nodal  # noqa: E402
+from solver.results import write_csv, write_results  # noqa: E402
+from solver.scene import read_toml  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -79,8 +82,10 @@ def main(argv=None):
                             "phi2 - phi1": (result.joints["elbow"].coordinate, "rad"),
                             "tip x": (result.markers["tip"][:, 0], "m"),
                             "tip y": (result.markers["tip"][:, 1], "m")}.items():
-        i = np.searchsorted(result.t, [0.5, 1.0, result.t[-1]])
-        print(f"  {name:12s} at t = 0.5, 1.0, {result.t[-1]:g} s: " + ", ".join(f"{x[k]:+.6f}" for k in i) + f" {unit}")
+        times = [s for s in (0.5, 1.0) if s < result.t[-1]] + [result.t[-1]]
+        i = np.minimum(np.searchsorted(result.t, np.array(times) - 1e-9), len(result.t) - 1)
+        print(f"  {name:12s} at t = " + ", ".join(f"{s:g}" for s in times) + " s: "
+              + ", ".join(f"{x[k]:+.6f}" for k in i) + f" {unit}")
 
 
 if __name__ == "__main__":
