@@ -11,8 +11,8 @@ from scipy.integrate import solve_ivp
 
 from sidprep.errors import InputError
 from solver.absolute_nodal import (AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Driver, Support, assemble,
-                                   initial_vector, kernel_params, load_absolute_nodal_scene, rhs,
-                                   simulate_absolute_nodal)
+                                   initial_vector, integrate, kernel_params, load_absolute_nodal_scene, rhs,
+                                   simulate_absolute_nodal, unpack)
 from solver.integrators.runge_kutta import rk4_fixed
 from solver.scene import read_toml
 
@@ -97,8 +97,6 @@ def test_free_spinning_link_keeps_length_energy_and_angular_momentum():
     assert np.max(np.abs(total - total[0])) / total[0] < 1e-9
     assert r.energy["kinetic"][0] == pytest.approx(0.5 * 5.0 / 3.0 * 10.0**2, rel=1e-12)  # about its end: m L^2 / 3
     # angular momentum sum_ij M_ij x_i x v_j about the origin (exact for the C0 interpolation) is conserved
-    from solver.absolute_nodal import unpack
-    from solver.absolute_nodal import integrate
     t, Y, _ = integrate(asm, AbsoluteNodalSettings(t_end=1.0, step=2.5e-5, rate=200))
     X, V = unpack(asm, Y)
     H = np.einsum("ij,si,sj->s", asm.Ms, X[:, :, 0], V[:, :, 1]) - np.einsum("ij,si,sj->s", asm.Ms, X[:, :, 1], V[:, :, 0])
