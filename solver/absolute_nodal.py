@@ -648,11 +648,26 @@ def _samples(asm: Assembly, t: np.ndarray, Y: np.ndarray):
 
 def simulate_absolute_nodal(model: AbsoluteNodalModel, settings: AbsoluteNodalSettings = AbsoluteNodalSettings()):
     """Simulate ``model`` -> ``solver.system.Result`` (write it with solver.results.write_results)."""
+    asm = assemble(model)
+    t, Y, cpu = integrate(asm, settings)
+    stats = {"method": "rk4", "cpu_time": cpu, "steps": int(round(settings.t_end / settings.step)), "rejected": 0,
+             "h_min": settings.step, "h_max": settings.step, "formulation": "absolute nodal (Kisu Lee)",
+             "nodes": int(len(asm.X0)), "dof": int(2 * len(asm.free))}
+    return _result(model, asm, t, Y, stats)
+
+
+def initial_result(model: AbsoluteNodalModel):
+    """The ``Result`` of the initial state alone (one sample, no integration): its signal names
+    are those of every run of ``model`` (``sidprep simulate --list-signals``)."""
+    asm = assemble(model)
+    return _result(model, asm, np.zeros(1), initial_vector(asm)[None, :], {"method": "rk4", "steps": 0})
+
+
+def _result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.ndarray, stats: dict):
+    """Signals, energies and reactions of the sampled states Y (nt, 4 nf) at times t."""
     from solver.effects import EffectsReport
     from solver.system import BodyHistory, JointHistory, Result
 
-    asm = assemble(model)
-    t, Y, cpu = integrate(asm, settings)
     X, V, A, lam, strain = _samples(asm, t, Y)
     nt = len(t)
     kinetic = 0.5 * np.einsum("sic,ij,sjc->s", V, asm.Ms, V)
@@ -718,9 +733,6 @@ def simulate_absolute_nodal(model: AbsoluteNodalModel, settings: AbsoluteNodalSe
         for s in range(nt):
             val = _driver_value(X[s], V[s], A[s], nodes, n, e, k == -1)[0]
             derr[s] = max(derr[s], abs(_wrap(val - driver_angle(t[s], *asm.drv[r, 2:])[0])))
-    stats = {"method": "rk4", "cpu_time": cpu, "steps": int(round(settings.t_end / settings.step)), "rejected": 0,
-             "h_min": settings.step, "h_max": settings.step, "formulation": "absolute nodal (Kisu Lee)",
-             "nodes": int(len(asm.X0)), "dof": int(2 * len(asm.free))}
     notes = ("absolute nodal beams: every effect of the formulation is included (no effect selection); "
              "force of beam-beam revolutes not computed (NaN)",)
     return Result(t=t, bodies=bodies, joints=joints, markers=markers, energy=energy, constraint_error=derr,
@@ -815,8 +827,13 @@ def load_absolute_nodal_scene(root: dict, source, t_end: float | None = None) ->
         forces.append(NodalForce(name, t.string("point"), tuple(t.array("force", shape=(2,)))))
         t.finish()
     model = AbsoluteNodalModel(tuple(beams), tuple(supports), tuple(drivers), tuple(forces), gravity, zero, title)
-    try:
-        assemble(model)                                  # validate before the long work
+    from solver.results import signal
+
+    try:                                                 # validate before the long work
+        first = initial_result(model)
+        for name in output.signals:
+            signal(first, name)
     except InputError as exc:
-        raise InputError(f"{source}: {exc}") from None
+        where = "[output] signals: " if "signal" in str(exc) else ""
+        raise InputError(f"{source}: {where}{exc}") from None
     return AbsoluteNodalScene(model, AbsoluteNodalSettings(settings_t_end, step, output.rate), output)

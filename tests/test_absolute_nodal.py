@@ -124,6 +124,8 @@ def test_driven_stiff_link_follows_the_motion_with_the_rigid_motor_torque():
     (("elements = 4", "elements = 1", 1), "elements"),
     (('points = ["elbow", "tip"]', 'points = ["elbow"]', 1), "points"),
     (("EI = 1.0e3", "EI = -1.0", 1), "EI"),
+    (('"tip.position.x"', '"tip.position.q"', 1), "signals"),
+    (('point = "pin"', 'point = "hub"', 1), "unknown point"),
 ])
 def test_bad_scene_gives_one_line_error(tmp_path, edit, message):
     old, new, count = edit
