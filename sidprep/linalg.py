@@ -38,8 +38,21 @@ from sidprep.errors import InputError
 
 #: sigma = -SHIFT_REL * median(diag K / diag M)
 SHIFT_REL = 1e-6
-#: a mode is rigid when lambda < RIGID_REL * median(diag K / diag M) (~ 1e-10 of the spectrum top)
-RIGID_REL = 1e-10
+#: rigid-body modes are the leading modes before the largest gap of the spectrum; that gap must be at
+#: least RIGID_GAP (ratio of eigenvalues; a free steel part: ~1e8 and more, two neighbouring elastic
+#: modes: < 1e2) ...
+RIGID_GAP = 1e4
+#: ... and the rigid eigenvalues below RIGID_LOOSE_REL * median(diag K / diag M), a loose bound (the
+#: round-off of a zero eigenvalue is ~ eps x that scale).  An absolute bound alone (1e-10 x scale) took
+#: the 0.605 Hz mode of a soft 10 m beam (lambda = 14.45, scale 3.3e11) for rigid (issue 14 item 5).
+RIGID_LOOSE_REL = 1e-6
+#: below this many DOFs (backend "auto"), or when half the modes or more are wanted (any backend), the
+#: eigenproblem is solved densely (LAPACK): ARPACK cannot give k >= n - 1 modes, and ARPACK with
+#: CHOLMOD aborted the process (malloc / segfault) on a one-tet mesh (issue 14 item 1)
+DENSE_MAX_DOF = 600
+EIGEN_BACKENDS = ("auto", "cholmod", "superlu", "lobpcg", "dense")
+#: nearly all modes of a larger problem are refused above this size (dense K, M, vectors: ~0.6 GB)
+DENSE_ALL_MAX_DOF = 5000
 #: ARPACK convergence tolerance (relative accuracy of the Ritz values); 0 = machine precision
 ARPACK_TOL = 0.0
 #: seed of the deterministic Lanczos start vector (bit-identical repeat runs)
@@ -186,7 +199,7 @@ class EigenResult:
         s = median(diag K / diag M))
     n_rigid : number of leading rigid-body (zero-frequency) modes
     sigma : the shift used, (rad/s)^2
-    backend : "cholmod", "superlu" or "lobpcg"
+    backend : "cholmod", "superlu", "lobpcg" or "dense" (small problems, LAPACK)
     """
 
     eigenvalues: np.ndarray
@@ -269,14 +282,36 @@ def _residuals(K, M, lam, phi, scale, rigid):
     return r / denom
 
 
-def _finish(K, M, lam, phi, sigma, scale, backend) -> EigenResult:
+def rigid_mode_count(lam: np.ndarray, scale: float, n_rigid_max: int | None = None) -> int:
+    """Number of rigid-body (zero-frequency) modes at the start of the ascending spectrum ``lam``.
+
+    They are identified by what they are, not by one absolute bound: at most ``n_rigid_max`` (6 per
+    free part), all at round-off level against the element scale ``scale`` (RIGID_LOOSE_REL, loose),
+    and followed by the largest gap of the leading spectrum, a ratio of at least RIGID_GAP.  A
+    clamped soft body (first elastic lambda far below any absolute bound) has no such gap.
+    """
+    lam = np.asarray(lam, dtype=float)
+    cap = len(lam) - 1 if n_rigid_max is None else min(int(n_rigid_max), len(lam) - 1)  # a gap needs a mode after
+    floor = np.finfo(float).eps * scale                  # round-off level of a zero eigenvalue
+    best, best_gap = 0, RIGID_GAP
+    for r in range(1, cap + 1):
+        low = float(np.abs(lam[:r]).max())
+        if low > RIGID_LOOSE_REL * scale:
+            break
+        gap = lam[r] / max(low, floor)
+        if gap >= best_gap:
+            best, best_gap = r, gap
+    return best
+
+
+def _finish(K, M, lam, phi, sigma, scale, backend, n_rigid_max=None) -> EigenResult:
     order = np.argsort(lam)
     lam, phi = lam[order], phi[:, order]
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))[None]
     # deterministic sign: largest-magnitude entry positive
     idx = np.argmax(np.abs(phi), axis=0)
     phi = phi * np.sign(phi[idx, np.arange(phi.shape[1])])[None]
-    rigid = lam < RIGID_REL * scale
+    rigid = np.arange(len(lam)) < rigid_mode_count(lam, scale, n_rigid_max)
     return EigenResult(eigenvalues=lam, vectors=phi, residuals=_residuals(K, M, lam, phi, scale, rigid),
                        n_rigid=int(rigid.sum()), sigma=sigma, backend=backend)
 
@@ -299,10 +334,21 @@ def _start_vector(n: int) -> np.ndarray:
 def _lanczos(K, M, k, sigma, solver) -> tuple[np.ndarray, np.ndarray]:
     n = K.shape[0]
     OPinv = spla.LinearOperator((n, n), matvec=solver.solve, dtype=np.float64)
-    k = min(k, n - 1)
+    if k >= n - 1:
+        raise InputError(f"eigen solve: {k} modes of a {n}-DOF problem; Lanczos gives at most {n - 2}")
     lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=OPinv, tol=ARPACK_TOL,
                           v0=_start_vector(n))
     return lam, phi
+
+
+def _dense_modes(K, M) -> tuple[np.ndarray, np.ndarray]:
+    """All eigenpairs of a small problem by LAPACK (generalized symmetric-definite eigh)."""
+    import scipy.linalg as sla
+
+    try:
+        return sla.eigh(K.toarray(), M.toarray())
+    except np.linalg.LinAlgError as exc:
+        raise InputError(f"the mass matrix is not positive definite ({exc}); check the density and the mesh") from None
 
 
 def _lobpcg_solver(K, M, sigma, near_null):
@@ -336,10 +382,11 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     count : number of ELASTIC modes wanted; rigid-body modes (lambda ~ 0) are returned in
         addition, first.  Exactly one of ``count`` / ``fmax`` must be given.
     fmax : Hz; all modes with f <= fmax (the block grows until a mode above fmax is found).
-    backend : "auto" | "cholmod" | "superlu" (shift-invert Lanczos) | "lobpcg" (AMG-LOBPCG).
+    backend : "auto" | "cholmod" | "superlu" (shift-invert Lanczos) | "lobpcg" (AMG-LOBPCG) |
+        "dense" (LAPACK, all modes; "auto" picks it below DENSE_MAX_DOF).
     sigma : shift (rad/s)^2, negative; default -SHIFT_REL * spectral_scale(K, M).
-    n_rigid_max : upper bound of the rigid-mode count used to size the block; default
-        6 x connected parts of K (too small only costs a second pass).
+    n_rigid_max : upper bound of the rigid-mode count (6 per free part, 0 for a clamped part): sizes
+        the block and caps ``rigid_mode_count``; default 6 x connected parts of K.
     near_null : (n, m) rigid-body fields for the AMG near-null space (lobpcg backend only).
     phases : sidprep.progress.Phases, optional; times "factorize" and "eigen" (progress on stderr).
     """
@@ -349,6 +396,8 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
         raise InputError(f"--count {count}: must be >= 1")
     if fmax is not None and not fmax > 0:
         raise InputError(f"--fmax {fmax}: must be > 0 Hz")
+    if backend not in EIGEN_BACKENDS:
+        raise InputError(f"--backend {backend}: unknown eigen solver backend; use {', '.join(EIGEN_BACKENDS)}")
     K, M = sp.csr_matrix(K), sp.csr_matrix(M)
     n = K.shape[0]
     scale = spectral_scale(K, M)
@@ -358,7 +407,27 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
         raise InputError(f"--sigma {sigma}: the shift must be negative (K - sigma M must be positive definite)")
     extra = 6 * n_components(K) if n_rigid_max is None else n_rigid_max
     phase = phases if phases is not None else (lambda name, detail="": contextlib.nullcontext())
+    k = (count if count is not None else FMAX_FIRST_COUNT) + extra
 
+    if backend == "dense" or (backend == "auto" and n <= DENSE_MAX_DOF) or 2 * k >= n:
+        if n > DENSE_ALL_MAX_DOF:
+            raise InputError(f"modes: {k} modes asked of a {n}-DOF model (nearly all of them); ask for fewer "
+                             "(--count / --modes / --fmax)")
+        with phase("eigen", f"all {n} modes, dense LAPACK"):
+            lam, phi = _dense_modes(K, M)
+        res = _finish(K, M, lam, phi, sigma, scale, "dense", extra)
+    else:
+        res = _iterative_modes(K, M, count, fmax, backend, sigma, scale, extra, near_null, phase)
+    keep = res.n_rigid + (count if count is not None else int((res.frequencies_hz[res.n_rigid:] <= fmax).sum()))
+    keep = min(keep, len(res.eigenvalues))
+    return EigenResult(eigenvalues=res.eigenvalues[:keep], vectors=res.vectors[:, :keep],
+                       residuals=res.residuals[:keep], n_rigid=res.n_rigid, sigma=sigma, backend=res.backend)
+
+
+def _iterative_modes(K, M, count, fmax, backend, sigma, scale, extra, near_null, phase) -> EigenResult:
+    """Shift-invert Lanczos or AMG-LOBPCG with a block that grows until ``count`` elastic modes
+    (or one above ``fmax``) are in."""
+    n = K.shape[0]
     if backend == "lobpcg":
         with phase("preconditioner", "smoothed-aggregation AMG"):
             solve = _lobpcg_solver(K, M, sigma, near_null)
@@ -377,18 +446,15 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
 
     k = (count if count is not None else FMAX_FIRST_COUNT) + extra
     while True:
-        with phase("eigen", f"{min(k, n - 1)} modes, {used}"), single_threaded_blas():
-            lam, phi = solve(min(k, n - 1))
-        res = _finish(K, M, lam, phi, sigma, scale, used)
+        k = min(k, n - 2)
+        with phase("eigen", f"{k} modes, {used}"), single_threaded_blas():
+            lam, phi = solve(k)
+        res = _finish(K, M, lam, phi, sigma, scale, used, extra)
         n_elastic = len(lam) - res.n_rigid
-        if k >= n - 1:
-            break
+        if k >= n - 2:
+            return res
         if count is not None and n_elastic >= count:
-            break
+            return res
         if fmax is not None and res.frequencies_hz[-1] > fmax:
-            break
+            return res
         k = k + (count - n_elastic if count is not None else k * (FMAX_GROWTH - 1))
-    keep = res.n_rigid + (count if count is not None else int((res.frequencies_hz[res.n_rigid:] <= fmax).sum()))
-    keep = min(keep, len(res.eigenvalues))
-    return EigenResult(eigenvalues=res.eigenvalues[:keep], vectors=res.vectors[:, :keep],
-                       residuals=res.residuals[:keep], n_rigid=res.n_rigid, sigma=sigma, backend=used)
