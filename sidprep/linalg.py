@@ -187,6 +187,111 @@ def factorize_shifted(K: sp.spmatrix, M: sp.spmatrix, sigma: float, backend: str
     return SuperLUFactorization(K - sigma * M)
 
 
+#: memory model of a direct (shift-invert Lanczos) run, calibrated on tet10 boxes of three shapes
+#: (bar 1 x 0.05 x 0.08, cube, plate 0.5 x 0.5 x 0.04 m; 21k-110k DOF; benchmarks/scale.py):
+#: Python + numpy/scipy/gmsh + mesh, bytes
+MEMORY_BASE = 110e6
+#: K and M (CSR, both triangles) with the assembly's transient arrays, bytes per stored entry of K
+MEMORY_PER_NNZ = 32.0
+#: CHOLMOD factor (supernodal padding, indices, its copy of the input) over 8 bytes x the geometric
+#: nested-dissection fill estimate (nested_dissection_fill) of the same mesh: measured 3.5-4.7
+FACTOR_OVER_FILL = 4.3
+#: smoothed-aggregation AMG hierarchy, bytes per stored entry of K (operators, prolongators, smoothers)
+AMG_PER_NNZ = 40.0
+#: entries of K per DOF of a tet10 mesh when the caller does not know nnz (measured 71-75)
+TET10_NNZ_PER_DOF = 75.0
+#: fraction of the available memory a run may plan to use (page cache, other processes, error)
+MEMORY_HEADROOM = 0.8
+#: a leaf of the nested dissection holds at most this many nodes (eliminated densely)
+ND_LEAF_NODES = 64
+
+
+def nested_dissection_fill(layers) -> float:
+    """Entries (3 x 3 node blocks) of the Cholesky factor of a box-shaped mesh with ``layers``
+    (3,) node layers along its axes, under geometric nested dissection (George 1973): the middle
+    plane across the longest axis is a separator (dense triangle, plus its coupling to the
+    enclosing separators), the two halves recurse."""
+    d = sorted((max(float(x), 1.0) for x in layers), reverse=True)
+    n = d[0] * d[1] * d[2]
+    if n <= ND_LEAF_NODES or d[0] < 3:
+        return n * n / 2
+    s = d[1] * d[2]
+    return s * s / 2 + 2 * s * (d[1] + d[2]) + 2 * nested_dissection_fill(((d[0] - 1) / 2, d[1], d[2]))
+
+
+@dataclass(frozen=True)
+class MemoryEstimate:
+    """Predicted memory of a modes / reduce run, bytes (``estimate_peak_memory``)."""
+
+    n_dof: int
+    nnz: int
+    factor_bytes: float
+    direct_peak_bytes: float
+    iterative_peak_bytes: float
+
+    def describe(self) -> str:
+        gb = 1024.0 ** 3
+        return (f"memory estimate: {self.n_dof} DOF, factor {self.factor_bytes / gb:.2f} GB, peak "
+                f"{self.direct_peak_bytes / gb:.2f} GB direct / {self.iterative_peak_bytes / gb:.2f} GB AMG-LOBPCG")
+
+
+def estimate_peak_memory(n_dof: int, nnz: int | None = None, extent=None, n_modes: int = 30) -> MemoryEstimate:
+    """Peak memory of an eigen solve / reduction before it runs, from the size and the sparsity.
+
+    Parameters
+    ----------
+    n_dof : free DOFs (3 per node)
+    nnz : stored entries of K (both triangles); default TET10_NNZ_PER_DOF x n_dof
+    extent : (3,) bounding-box edge lengths of the body, m; default a cube (the densest fill)
+    n_modes : modes wanted (Lanczos / LOBPCG blocks)
+    """
+    n_dof = int(n_dof)
+    nnz = int(TET10_NNZ_PER_DOF * n_dof if nnz is None else nnz)
+    n_nodes = max(n_dof / 3.0, 1.0)
+    ext = np.ones(3) if extent is None else np.maximum(np.asarray(extent, dtype=float), 1e-12)
+    ext = np.maximum(ext, ext.max() * 1e-3)                      # a flat box is at least one layer thick
+    layers = ext * (n_nodes / ext.prod()) ** (1.0 / 3.0)
+    factor = FACTOR_OVER_FILL * 8.0 * 9.0 * nested_dissection_fill(layers)
+    matrices = MEMORY_PER_NNZ * nnz
+    lanczos = 8.0 * n_dof * 2 * max(2 * n_modes + 1, 20)        # Lanczos basis + Ritz vectors
+    lobpcg = 8.0 * n_dof * 3 * n_modes * 6                      # X, R, P blocks and their images
+    return MemoryEstimate(n_dof, nnz, factor, MEMORY_BASE + matrices + factor + lanczos,
+                          MEMORY_BASE + matrices + AMG_PER_NNZ * nnz + lobpcg)
+
+
+def available_memory_bytes() -> float:
+    """Memory this process may use: SIDPREP_MEMORY_LIMIT (bytes, or with a K/M/G suffix) if set,
+    else the kernel's MemAvailable (/proc/meminfo), the smaller of it and a cgroup limit."""
+    limit = os.environ.get("SIDPREP_MEMORY_LIMIT")
+    if limit:
+        try:
+            return float(limit[:-1]) * 1024.0 ** "KMG".index(limit[-1].upper()) * 1024 if limit[-1].isalpha() \
+                else float(limit)
+        except ValueError:
+            raise InputError(f"SIDPREP_MEMORY_LIMIT={limit}: give bytes or a number with K, M or G") from None
+    avail = np.inf
+    with contextlib.suppress(OSError, ValueError, StopIteration):
+        with open("/proc/meminfo") as fh:
+            avail = 1024.0 * float(next(line for line in fh if line.startswith("MemAvailable")).split()[1])
+    with contextlib.suppress(OSError, ValueError):
+        avail = min(avail, float(Path("/sys/fs/cgroup/memory.max").read_text().strip()))
+    return avail
+
+
+def choose_backend(estimate: MemoryEstimate, available: float | None = None) -> str:
+    """"cholmod" (direct) when its peak fits in MEMORY_HEADROOM x the available memory, else
+    "lobpcg" (AMG-preconditioned, no factor); InputError when neither fits."""
+    avail = available_memory_bytes() if available is None else float(available)
+    if estimate.direct_peak_bytes <= MEMORY_HEADROOM * avail:
+        return "cholmod" if cholmod_available() else "superlu"
+    if estimate.iterative_peak_bytes <= MEMORY_HEADROOM * avail:
+        return "lobpcg"
+    gb = 1024.0 ** 3
+    raise InputError(f"model too large for this machine: {estimate.n_dof} DOF need ~{estimate.iterative_peak_bytes / gb:.1f} GB "
+                     f"even with the iterative solver (direct {estimate.direct_peak_bytes / gb:.1f} GB), "
+                     f"{avail / gb:.1f} GB available; use a coarser mesh, or force it with --backend lobpcg")
+
+
 @dataclass(frozen=True)
 class EigenResult:
     """Solution of K phi = lambda M phi, rigid-body modes first.
@@ -374,7 +479,8 @@ def _lobpcg_solver(K, M, sigma, near_null):
 
 def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fmax: float | None = None,
                 backend: str = "auto", sigma: float | None = None, n_rigid_max: int | None = None,
-                near_null: np.ndarray | None = None, phases=None) -> EigenResult:
+                near_null: np.ndarray | None = None, phases=None, extent=None,
+                memory_limit: float | None = None) -> EigenResult:
     """Lowest modes of K phi = lambda M phi (symmetric K >= 0, M > 0, both (n, n) sparse).
 
     Parameters
@@ -388,7 +494,10 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     n_rigid_max : upper bound of the rigid-mode count (6 per free part, 0 for a clamped part): sizes
         the block and caps ``rigid_mode_count``; default 6 x connected parts of K.
     near_null : (n, m) rigid-body fields for the AMG near-null space (lobpcg backend only).
-    phases : sidprep.progress.Phases, optional; times "factorize" and "eigen" (progress on stderr).
+    phases : sidprep.progress.Phases, optional; times "factorize" and "eigen" (progress on stderr),
+        and notes the memory estimate and the backend "auto" chose.
+    extent : (3,) bounding box of the body, m, for the memory estimate (default: a cube)
+    memory_limit : bytes the run may use for "auto" (default ``available_memory_bytes()``)
     """
     if (count is None) == (fmax is None):
         raise InputError("modes: give exactly one of --count N or --fmax HZ")
@@ -417,11 +526,22 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
             lam, phi = _dense_modes(K, M)
         res = _finish(K, M, lam, phi, sigma, scale, "dense", extra)
     else:
+        if backend == "auto":
+            backend = _auto_backend(K, k, extent, memory_limit, phases)
         res = _iterative_modes(K, M, count, fmax, backend, sigma, scale, extra, near_null, phase)
     keep = res.n_rigid + (count if count is not None else int((res.frequencies_hz[res.n_rigid:] <= fmax).sum()))
     keep = min(keep, len(res.eigenvalues))
     return EigenResult(eigenvalues=res.eigenvalues[:keep], vectors=res.vectors[:, :keep],
                        residuals=res.residuals[:keep], n_rigid=res.n_rigid, sigma=sigma, backend=res.backend)
+
+
+def _auto_backend(K, k, extent, memory_limit, phases) -> str:
+    """Direct or AMG-LOBPCG by the memory estimate (InputError when neither fits); noted on stderr."""
+    est = estimate_peak_memory(K.shape[0], K.nnz, extent, n_modes=k)
+    backend = choose_backend(est, memory_limit)
+    if phases is not None:
+        phases.note(f"{est.describe()}; backend {backend}")
+    return backend
 
 
 def _iterative_modes(K, M, count, fmax, backend, sigma, scale, extra, near_null, phase) -> EigenResult:
