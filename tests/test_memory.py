@@ -101,3 +101,15 @@ def test_memory_limit_from_the_environment(monkeypatch):
         available_memory_bytes()
     monkeypatch.delenv("SIDPREP_MEMORY_LIMIT")
     assert 0 < available_memory_bytes()
+
+
+def test_reduction_refused_before_the_work_when_it_cannot_fit():
+    from sidprep.reduce import craig_bampton
+
+    mesh = femesh(__import__("test_assemble").skfem_box(n=2), 2)[0]
+    K, M = stiffness_and_mass(mesh, MAT)
+    boundary = node_dofs(np.flatnonzero(mesh.points[:, 0] < 1e-9))
+    with pytest.raises(InputError, match="SIDPREP_MEMORY_LIMIT") as err:
+        craig_bampton(K, M, boundary, n_modes=4, memory_limit=50e6)
+    assert "\n" not in str(err.value)
+    assert craig_bampton(K, M, boundary, n_modes=4, memory_limit=1e12).basis.shape[1] == len(boundary) + 4
