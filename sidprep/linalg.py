@@ -38,8 +38,21 @@ from sidprep.errors import InputError
 
 #: sigma = -SHIFT_REL * median(diag K / diag M)
 SHIFT_REL = 1e-6
-#: a mode is rigid when lambda < RIGID_REL * median(diag K / diag M) (~ 1e-10 of the spectrum top)
-RIGID_REL = 1e-10
+#: rigid-body modes are the leading modes before the largest gap of the spectrum; that gap must be at
+#: least RIGID_GAP (ratio of eigenvalues; a free steel part: ~1e8 and more, two neighbouring elastic
+#: modes: < 1e2) ...
+RIGID_GAP = 1e4
+#: ... and the rigid eigenvalues below RIGID_LOOSE_REL * median(diag K / diag M), a loose bound (the
+#: round-off of a zero eigenvalue is ~ eps x that scale).  An absolute bound alone (1e-10 x scale) took
+#: the 0.605 Hz mode of a soft 10 m beam (lambda = 14.45, scale 3.3e11) for rigid (issue 14 item 5).
+RIGID_LOOSE_REL = 1e-6
+#: below this many DOFs (backend "auto"), or when half the modes or more are wanted (any backend), the
+#: eigenproblem is solved densely (LAPACK): ARPACK cannot give k >= n - 1 modes, and ARPACK with
+#: CHOLMOD aborted the process (malloc / segfault) on a one-tet mesh (issue 14 item 1)
+DENSE_MAX_DOF = 600
+EIGEN_BACKENDS = ("auto", "cholmod", "superlu", "lobpcg", "dense")
+#: nearly all modes of a larger problem are refused above this size (dense K, M, vectors: ~0.6 GB)
+DENSE_ALL_MAX_DOF = 5000
 #: ARPACK convergence tolerance (relative accuracy of the Ritz values); 0 = machine precision
 ARPACK_TOL = 0.0
 #: seed of the deterministic Lanczos start vector (bit-identical repeat runs)
@@ -174,6 +187,111 @@ def factorize_shifted(K: sp.spmatrix, M: sp.spmatrix, sigma: float, backend: str
     return SuperLUFactorization(K - sigma * M)
 
 
+#: memory model of a direct (shift-invert Lanczos) run, calibrated on tet10 boxes of three shapes
+#: (bar 1 x 0.05 x 0.08, cube, plate 0.5 x 0.5 x 0.04 m; 21k-110k DOF; benchmarks/scale.py):
+#: Python + numpy/scipy/gmsh + mesh, bytes
+MEMORY_BASE = 110e6
+#: K and M (CSR, both triangles) with the assembly's transient arrays, bytes per stored entry of K
+MEMORY_PER_NNZ = 32.0
+#: CHOLMOD factor (supernodal padding, indices, its copy of the input) over 8 bytes x the geometric
+#: nested-dissection fill estimate (nested_dissection_fill) of the same mesh: measured 3.5-4.7
+FACTOR_OVER_FILL = 4.3
+#: smoothed-aggregation AMG hierarchy, bytes per stored entry of K (operators, prolongators, smoothers)
+AMG_PER_NNZ = 40.0
+#: entries of K per DOF of a tet10 mesh when the caller does not know nnz (measured 71-75)
+TET10_NNZ_PER_DOF = 75.0
+#: fraction of the available memory a run may plan to use (page cache, other processes, error)
+MEMORY_HEADROOM = 0.8
+#: a leaf of the nested dissection holds at most this many nodes (eliminated densely)
+ND_LEAF_NODES = 64
+
+
+def nested_dissection_fill(layers) -> float:
+    """Entries (3 x 3 node blocks) of the Cholesky factor of a box-shaped mesh with ``layers``
+    (3,) node layers along its axes, under geometric nested dissection (George 1973): the middle
+    plane across the longest axis is a separator (dense triangle, plus its coupling to the
+    enclosing separators), the two halves recurse."""
+    d = sorted((max(float(x), 1.0) for x in layers), reverse=True)
+    n = d[0] * d[1] * d[2]
+    if n <= ND_LEAF_NODES or d[0] < 3:
+        return n * n / 2
+    s = d[1] * d[2]
+    return s * s / 2 + 2 * s * (d[1] + d[2]) + 2 * nested_dissection_fill(((d[0] - 1) / 2, d[1], d[2]))
+
+
+@dataclass(frozen=True)
+class MemoryEstimate:
+    """Predicted memory of a modes / reduce run, bytes (``estimate_peak_memory``)."""
+
+    n_dof: int
+    nnz: int
+    factor_bytes: float
+    direct_peak_bytes: float
+    iterative_peak_bytes: float
+
+    def describe(self) -> str:
+        gb = 1024.0 ** 3
+        return (f"memory estimate: {self.n_dof} DOF, factor {self.factor_bytes / gb:.2f} GB, peak "
+                f"{self.direct_peak_bytes / gb:.2f} GB direct / {self.iterative_peak_bytes / gb:.2f} GB AMG-LOBPCG")
+
+
+def estimate_peak_memory(n_dof: int, nnz: int | None = None, extent=None, n_modes: int = 30) -> MemoryEstimate:
+    """Peak memory of an eigen solve / reduction before it runs, from the size and the sparsity.
+
+    Parameters
+    ----------
+    n_dof : free DOFs (3 per node)
+    nnz : stored entries of K (both triangles); default TET10_NNZ_PER_DOF x n_dof
+    extent : (3,) bounding-box edge lengths of the body, m; default a cube (the densest fill)
+    n_modes : modes wanted (Lanczos / LOBPCG blocks)
+    """
+    n_dof = int(n_dof)
+    nnz = int(TET10_NNZ_PER_DOF * n_dof if nnz is None else nnz)
+    n_nodes = max(n_dof / 3.0, 1.0)
+    ext = np.ones(3) if extent is None else np.maximum(np.asarray(extent, dtype=float), 1e-12)
+    ext = np.maximum(ext, ext.max() * 1e-3)                      # a flat box is at least one layer thick
+    layers = ext * (n_nodes / ext.prod()) ** (1.0 / 3.0)
+    factor = FACTOR_OVER_FILL * 8.0 * 9.0 * nested_dissection_fill(layers)
+    matrices = MEMORY_PER_NNZ * nnz
+    lanczos = 8.0 * n_dof * 2 * max(2 * n_modes + 1, 20)        # Lanczos basis + Ritz vectors
+    lobpcg = 8.0 * n_dof * 3 * n_modes * 6                      # X, R, P blocks and their images
+    return MemoryEstimate(n_dof, nnz, factor, MEMORY_BASE + matrices + factor + lanczos,
+                          MEMORY_BASE + matrices + AMG_PER_NNZ * nnz + lobpcg)
+
+
+def available_memory_bytes() -> float:
+    """Memory this process may use: SIDPREP_MEMORY_LIMIT (bytes, or with a K/M/G suffix) if set,
+    else the kernel's MemAvailable (/proc/meminfo), the smaller of it and a cgroup limit."""
+    limit = os.environ.get("SIDPREP_MEMORY_LIMIT")
+    if limit:
+        try:
+            return float(limit[:-1]) * 1024.0 ** "KMG".index(limit[-1].upper()) * 1024 if limit[-1].isalpha() \
+                else float(limit)
+        except ValueError:
+            raise InputError(f"SIDPREP_MEMORY_LIMIT={limit}: give bytes or a number with K, M or G") from None
+    avail = np.inf
+    with contextlib.suppress(OSError, ValueError, StopIteration):
+        with open("/proc/meminfo") as fh:
+            avail = 1024.0 * float(next(line for line in fh if line.startswith("MemAvailable")).split()[1])
+    with contextlib.suppress(OSError, ValueError):
+        avail = min(avail, float(Path("/sys/fs/cgroup/memory.max").read_text().strip()))
+    return avail
+
+
+def choose_backend(estimate: MemoryEstimate, available: float | None = None) -> str:
+    """"cholmod" (direct) when its peak fits in MEMORY_HEADROOM x the available memory, else
+    "lobpcg" (AMG-preconditioned, no factor); InputError when neither fits."""
+    avail = available_memory_bytes() if available is None else float(available)
+    if estimate.direct_peak_bytes <= MEMORY_HEADROOM * avail:
+        return "cholmod" if cholmod_available() else "superlu"
+    if estimate.iterative_peak_bytes <= MEMORY_HEADROOM * avail:
+        return "lobpcg"
+    gb = 1024.0 ** 3
+    raise InputError(f"model too large for this machine: {estimate.n_dof} DOF need ~{estimate.iterative_peak_bytes / gb:.1f} GB "
+                     f"even with the iterative solver (direct {estimate.direct_peak_bytes / gb:.1f} GB), "
+                     f"{avail / gb:.1f} GB available; use a coarser mesh, or force it with --backend lobpcg")
+
+
 @dataclass(frozen=True)
 class EigenResult:
     """Solution of K phi = lambda M phi, rigid-body modes first.
@@ -186,7 +304,7 @@ class EigenResult:
         s = median(diag K / diag M))
     n_rigid : number of leading rigid-body (zero-frequency) modes
     sigma : the shift used, (rad/s)^2
-    backend : "cholmod", "superlu" or "lobpcg"
+    backend : "cholmod", "superlu", "lobpcg" or "dense" (small problems, LAPACK)
     """
 
     eigenvalues: np.ndarray
@@ -269,14 +387,36 @@ def _residuals(K, M, lam, phi, scale, rigid):
     return r / denom
 
 
-def _finish(K, M, lam, phi, sigma, scale, backend) -> EigenResult:
+def rigid_mode_count(lam: np.ndarray, scale: float, n_rigid_max: int | None = None) -> int:
+    """Number of rigid-body (zero-frequency) modes at the start of the ascending spectrum ``lam``.
+
+    They are identified by what they are, not by one absolute bound: at most ``n_rigid_max`` (6 per
+    free part), all at round-off level against the element scale ``scale`` (RIGID_LOOSE_REL, loose),
+    and followed by the largest gap of the leading spectrum, a ratio of at least RIGID_GAP.  A
+    clamped soft body (first elastic lambda far below any absolute bound) has no such gap.
+    """
+    lam = np.asarray(lam, dtype=float)
+    cap = len(lam) - 1 if n_rigid_max is None else min(int(n_rigid_max), len(lam) - 1)  # a gap needs a mode after
+    floor = np.finfo(float).eps * scale                  # round-off level of a zero eigenvalue
+    best, best_gap = 0, RIGID_GAP
+    for r in range(1, cap + 1):
+        low = float(np.abs(lam[:r]).max())
+        if low > RIGID_LOOSE_REL * scale:
+            break
+        gap = lam[r] / max(low, floor)
+        if gap >= best_gap:
+            best, best_gap = r, gap
+    return best
+
+
+def _finish(K, M, lam, phi, sigma, scale, backend, n_rigid_max=None) -> EigenResult:
     order = np.argsort(lam)
     lam, phi = lam[order], phi[:, order]
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))[None]
     # deterministic sign: largest-magnitude entry positive
     idx = np.argmax(np.abs(phi), axis=0)
     phi = phi * np.sign(phi[idx, np.arange(phi.shape[1])])[None]
-    rigid = lam < RIGID_REL * scale
+    rigid = np.arange(len(lam)) < rigid_mode_count(lam, scale, n_rigid_max)
     return EigenResult(eigenvalues=lam, vectors=phi, residuals=_residuals(K, M, lam, phi, scale, rigid),
                        n_rigid=int(rigid.sum()), sigma=sigma, backend=backend)
 
@@ -299,10 +439,21 @@ def _start_vector(n: int) -> np.ndarray:
 def _lanczos(K, M, k, sigma, solver) -> tuple[np.ndarray, np.ndarray]:
     n = K.shape[0]
     OPinv = spla.LinearOperator((n, n), matvec=solver.solve, dtype=np.float64)
-    k = min(k, n - 1)
+    if k >= n - 1:
+        raise InputError(f"eigen solve: {k} modes of a {n}-DOF problem; Lanczos gives at most {n - 2}")
     lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=OPinv, tol=ARPACK_TOL,
                           v0=_start_vector(n))
     return lam, phi
+
+
+def _dense_modes(K, M) -> tuple[np.ndarray, np.ndarray]:
+    """All eigenpairs of a small problem by LAPACK (generalized symmetric-definite eigh)."""
+    import scipy.linalg as sla
+
+    try:
+        return sla.eigh(K.toarray(), M.toarray())
+    except np.linalg.LinAlgError as exc:
+        raise InputError(f"the mass matrix is not positive definite ({exc}); check the density and the mesh") from None
 
 
 def _lobpcg_solver(K, M, sigma, near_null):
@@ -328,7 +479,8 @@ def _lobpcg_solver(K, M, sigma, near_null):
 
 def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fmax: float | None = None,
                 backend: str = "auto", sigma: float | None = None, n_rigid_max: int | None = None,
-                near_null: np.ndarray | None = None, phases=None) -> EigenResult:
+                near_null: np.ndarray | None = None, phases=None, extent=None,
+                memory_limit: float | None = None) -> EigenResult:
     """Lowest modes of K phi = lambda M phi (symmetric K >= 0, M > 0, both (n, n) sparse).
 
     Parameters
@@ -336,12 +488,16 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
     count : number of ELASTIC modes wanted; rigid-body modes (lambda ~ 0) are returned in
         addition, first.  Exactly one of ``count`` / ``fmax`` must be given.
     fmax : Hz; all modes with f <= fmax (the block grows until a mode above fmax is found).
-    backend : "auto" | "cholmod" | "superlu" (shift-invert Lanczos) | "lobpcg" (AMG-LOBPCG).
+    backend : "auto" | "cholmod" | "superlu" (shift-invert Lanczos) | "lobpcg" (AMG-LOBPCG) |
+        "dense" (LAPACK, all modes; "auto" picks it below DENSE_MAX_DOF).
     sigma : shift (rad/s)^2, negative; default -SHIFT_REL * spectral_scale(K, M).
-    n_rigid_max : upper bound of the rigid-mode count used to size the block; default
-        6 x connected parts of K (too small only costs a second pass).
+    n_rigid_max : upper bound of the rigid-mode count (6 per free part, 0 for a clamped part): sizes
+        the block and caps ``rigid_mode_count``; default 6 x connected parts of K.
     near_null : (n, m) rigid-body fields for the AMG near-null space (lobpcg backend only).
-    phases : sidprep.progress.Phases, optional; times "factorize" and "eigen" (progress on stderr).
+    phases : sidprep.progress.Phases, optional; times "factorize" and "eigen" (progress on stderr),
+        and notes the memory estimate and the backend "auto" chose.
+    extent : (3,) bounding box of the body, m, for the memory estimate (default: a cube)
+    memory_limit : bytes the run may use for "auto" (default ``available_memory_bytes()``)
     """
     if (count is None) == (fmax is None):
         raise InputError("modes: give exactly one of --count N or --fmax HZ")
@@ -349,6 +505,8 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
         raise InputError(f"--count {count}: must be >= 1")
     if fmax is not None and not fmax > 0:
         raise InputError(f"--fmax {fmax}: must be > 0 Hz")
+    if backend not in EIGEN_BACKENDS:
+        raise InputError(f"--backend {backend}: unknown eigen solver backend; use {', '.join(EIGEN_BACKENDS)}")
     K, M = sp.csr_matrix(K), sp.csr_matrix(M)
     n = K.shape[0]
     scale = spectral_scale(K, M)
@@ -358,7 +516,38 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
         raise InputError(f"--sigma {sigma}: the shift must be negative (K - sigma M must be positive definite)")
     extra = 6 * n_components(K) if n_rigid_max is None else n_rigid_max
     phase = phases if phases is not None else (lambda name, detail="": contextlib.nullcontext())
+    k = (count if count is not None else FMAX_FIRST_COUNT) + extra
 
+    if backend == "dense" or (backend == "auto" and n <= DENSE_MAX_DOF) or 2 * k >= n:
+        if n > DENSE_ALL_MAX_DOF:
+            raise InputError(f"modes: {k} modes asked of a {n}-DOF model (nearly all of them); ask for fewer "
+                             "(--count / --modes / --fmax)")
+        with phase("eigen", f"all {n} modes, dense LAPACK"):
+            lam, phi = _dense_modes(K, M)
+        res = _finish(K, M, lam, phi, sigma, scale, "dense", extra)
+    else:
+        if backend == "auto":
+            backend = _auto_backend(K, k, extent, memory_limit, phases)
+        res = _iterative_modes(K, M, count, fmax, backend, sigma, scale, extra, near_null, phase)
+    keep = res.n_rigid + (count if count is not None else int((res.frequencies_hz[res.n_rigid:] <= fmax).sum()))
+    keep = min(keep, len(res.eigenvalues))
+    return EigenResult(eigenvalues=res.eigenvalues[:keep], vectors=res.vectors[:, :keep],
+                       residuals=res.residuals[:keep], n_rigid=res.n_rigid, sigma=sigma, backend=res.backend)
+
+
+def _auto_backend(K, k, extent, memory_limit, phases) -> str:
+    """Direct or AMG-LOBPCG by the memory estimate (InputError when neither fits); noted on stderr."""
+    est = estimate_peak_memory(K.shape[0], K.nnz, extent, n_modes=k)
+    backend = choose_backend(est, memory_limit)
+    if phases is not None:
+        phases.note(f"{est.describe()}; backend {backend}")
+    return backend
+
+
+def _iterative_modes(K, M, count, fmax, backend, sigma, scale, extra, near_null, phase) -> EigenResult:
+    """Shift-invert Lanczos or AMG-LOBPCG with a block that grows until ``count`` elastic modes
+    (or one above ``fmax``) are in."""
+    n = K.shape[0]
     if backend == "lobpcg":
         with phase("preconditioner", "smoothed-aggregation AMG"):
             solve = _lobpcg_solver(K, M, sigma, near_null)
@@ -377,18 +566,15 @@ def eigen_modes(K: sp.spmatrix, M: sp.spmatrix, *, count: int | None = None, fma
 
     k = (count if count is not None else FMAX_FIRST_COUNT) + extra
     while True:
-        with phase("eigen", f"{min(k, n - 1)} modes, {used}"), single_threaded_blas():
-            lam, phi = solve(min(k, n - 1))
-        res = _finish(K, M, lam, phi, sigma, scale, used)
+        k = min(k, n - 2)
+        with phase("eigen", f"{k} modes, {used}"), single_threaded_blas():
+            lam, phi = solve(k)
+        res = _finish(K, M, lam, phi, sigma, scale, used, extra)
         n_elastic = len(lam) - res.n_rigid
-        if k >= n - 1:
-            break
+        if k >= n - 2:
+            return res
         if count is not None and n_elastic >= count:
-            break
+            return res
         if fmax is not None and res.frequencies_hz[-1] > fmax:
-            break
+            return res
         k = k + (count - n_elastic if count is not None else k * (FMAX_GROWTH - 1))
-    keep = res.n_rigid + (count if count is not None else int((res.frequencies_hz[res.n_rigid:] <= fmax).sum()))
-    keep = min(keep, len(res.eigenvalues))
-    return EigenResult(eigenvalues=res.eigenvalues[:keep], vectors=res.vectors[:, :keep],
-                       residuals=res.residuals[:keep], n_rigid=res.n_rigid, sigma=sigma, backend=used)

@@ -23,6 +23,11 @@ class Phases:
         self.stream = stream if stream is not None else sys.stderr
         self.timings_s: dict[str, float] = {}
 
+    def note(self, text: str) -> None:
+        """A one-line remark (an estimate, a choice) on the progress stream."""
+        if self.verbose:
+            print(f"  {text}", file=self.stream, flush=True)
+
     @contextlib.contextmanager
     def __call__(self, name: str, detail: str = ""):
         if self.verbose:

@@ -119,7 +119,26 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
     return f, vec
 
 
-def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
+#: peak of a whole `sidprep reduce` run over the estimated peak of a direct eigen solve of the same
+#: model (K_model, M_model, the K_ii factor, dense constraint modes and basis, the frequency check's
+#: own factor): measured 2.1 / 2.2 on 92k / 211k-DOF tet10 bars with two RBE2 interfaces (docs/performance.md)
+REDUCE_OVER_MODES_PEAK = 2.2
+
+
+def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None) -> None:
+    """Refuse (InputError, one line) a reduction whose estimated peak exceeds the memory this run may
+    use, before the factorisation starts, instead of meeting the out-of-memory killer."""
+    from sidprep.linalg import MEMORY_HEADROOM, available_memory_bytes, estimate_peak_memory
+
+    need = REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz).direct_peak_bytes
+    avail = available_memory_bytes() if memory_limit is None else float(memory_limit)
+    if need > MEMORY_HEADROOM * avail:
+        raise InputError(f"model too large for this machine: the reduction of {n_dof} DOF needs ~{need / 1024 ** 3:.1f} GB, "
+                         f"{avail / 1024 ** 3:.1f} GB available; use a coarser mesh, or force it by raising "
+                         "SIDPREP_MEMORY_LIMIT (bytes, or with K/M/G)")
+
+
+def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=None) -> ReducedModel:
     """Craig-Bampton reduction (module docstring); n_modes fixed-interface modes or all below fmax Hz.
 
     Parameters
@@ -127,8 +146,11 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None) -> ReducedModel:
     K, M : (n, n) sparse symmetric, N/m and kg
     boundary_dofs : (nb,) int; K_ii must be positive definite (the boundary holds the body).
     n_modes : int, optional; fmax : float, optional (Hz)
+    memory_limit : bytes this run may use (default ``sidprep.linalg.available_memory_bytes()``)
     """
     from sidprep.linalg import factorize
+
+    check_reduction_memory(K.shape[0], K.nnz, memory_limit)
 
     with single_threaded_blas():
         K, M = sp.csr_matrix(K), sp.csr_matrix(M)

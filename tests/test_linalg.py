@@ -126,3 +126,99 @@ def test_interposed_blas_gives_the_reference_blas_result():
         out[flag] = (blas, np.array(json.loads(values)))
     assert out["0"][0] == "reference"
     assert np.allclose(out["1"][1], out["0"][1], rtol=DIRECT_RTOL)
+
+
+#: Kane, Ryan & Banerjee (1987) spin-up beam: L = 10 m, EI = 1.4e4 N m^2, rho A = 1.2 kg/m (issue 14 item 5)
+KANE_L, KANE_EI, KANE_RHOA = 10.0, 1.4e4, 1.2
+#: Euler-Bernoulli beta_1 L: clamped-free 1.87510, free-free 4.73004 (closed form)
+BETA_L_CLAMPED, BETA_L_FREE = 1.87510407, 4.73004074
+#: 3D tet10 (80 x 1 x 1 boxes, 2 cm square section) vs Euler-Bernoulli: shear and mesh stiffness
+KANE_FREQ_RTOL = 0.01
+
+
+def kane_beam_3d():
+    """The soft Kane beam as a 3D tet10 bar, 2 cm square section (E, rho give EI, rho A)."""
+    from skfem import MeshTet
+
+    from sidprep.material import Material
+
+    a = 0.02
+    mat = Material(E=KANE_EI / (a ** 4 / 12), nu=0.3, rho=KANE_RHOA / a ** 2, name="kane")
+    m = MeshTet.init_tensor(np.linspace(0, KANE_L, 81), np.linspace(0, a, 2), np.linspace(0, a, 2))
+    mesh = femesh(m, 2)[0]
+    return mesh, *stiffness_and_mass(mesh, mat)
+
+
+def beam_hz(beta_l):
+    return beta_l ** 2 / (2 * np.pi * KANE_L ** 2) * np.sqrt(KANE_EI / KANE_RHOA)
+
+
+def test_soft_clamped_beam_has_no_rigid_mode_and_right_first_frequency():
+    """lambda_1 = 14.5 (rad/s)^2 lies far below 1e-10 x median(diag K / diag M) = 2.4e3: an absolute
+    bound called it rigid; the gap rule does not."""
+    mesh, K, M = kane_beam_3d()
+    r = clamp_dofs(mesh.n_dof, node_dofs(np.flatnonzero(mesh.points[:, 0] < 1e-9)))
+    Kf, Mf = r.restrict(K), r.restrict(M)
+    assert 1e-10 * spectral_scale(Kf, Mf) > 14.5          # the case the old bound got wrong
+    res = eigen_modes(Kf, Mf, count=2)
+    assert res.n_rigid == 0
+    assert np.allclose(res.frequencies_hz, beam_hz(BETA_L_CLAMPED), rtol=KANE_FREQ_RTOL)
+
+
+def test_soft_free_beam_has_six_rigid_modes():
+    _, K, M = kane_beam_3d()
+    res = eigen_modes(K, M, count=2)
+    assert res.n_rigid == 6
+    assert np.allclose(res.frequencies_hz[6:], beam_hz(BETA_L_FREE), rtol=KANE_FREQ_RTOL)
+
+
+@pytest.mark.parametrize("lam, cap, expected", [
+    ([1e-7, -2e-7, 3e-8, 1e-7, 2e-7, -1e-7, 14.5, 14.6], 6, 6),   # free body: gap 1e8
+    ([14.5, 14.6, 570.0, 571.0, 4000.0], 6, 0),                    # clamped soft body: no gap
+    ([1e-7, 2e-7, 3e-7, 1e-7, 2e-7, 1e-7, 14.5], 0, 0),            # clamped part: no rigid mode allowed
+    ([1e-7] * 12 + [14.5], 12, 12),                                 # two free parts
+])
+def test_rigid_mode_count_by_gap_and_count(lam, cap, expected):
+    from sidprep.linalg import rigid_mode_count
+
+    assert rigid_mode_count(np.array(lam), 1e12, cap) == expected
+
+
+ONE_TET = """$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+4
+1 0 0 0
+2 1 0 0
+3 0 1 0
+4 0 0 1
+$EndNodes
+$Elements
+1
+1 4 2 0 1 1 2 3 4
+$EndElements
+"""
+
+
+@pytest.mark.parametrize("command", [["reduce", "--modes", "1"], ["reduce", "--modes", "3"], ["reduce", "--modes", "5"],
+                                     ["modes", "--count", "3"], ["modes", "--count", "20"]])
+def test_one_tet_mesh_never_crashes_the_process(tmp_path, command):
+    """Issue 14 item 1: ARPACK/CHOLMOD on a 12-DOF problem aborted with malloc()/SIGSEGV."""
+    mesh = tmp_path / "one_tet.msh"
+    mesh.write_text(ONE_TET)
+    args = [sys.executable, "-m", "cli.main", command[0], str(mesh), *command[1:]]
+    if command[0] == "reduce":
+        args += ["-o", str(tmp_path / "out.h5")]
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.run(args, capture_output=True, text=True, cwd=root,
+                          env=dict(os.environ, PYTHONPATH=str(root)), timeout=120)
+    assert proc.returncode in (0, 2), proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr
+
+
+def test_dense_path_returns_every_mode_of_a_tiny_problem(free_box):
+    _, K, M, lam_ref = free_box
+    res = eigen_modes(K, M, count=len(lam_ref) - 6, backend="cholmod")  # ARPACK cannot: k >= n - 1
+    assert res.backend == "dense" and res.n_rigid == 6
+    assert np.allclose(res.eigenvalues[6:], lam_ref[6:], rtol=DIRECT_RTOL)

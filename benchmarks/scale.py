@@ -1,0 +1,143 @@
+#!/usr/bin/env python3
+"""Scaling table: ``sidprep modes`` and ``sidprep reduce`` on gmsh-generated tet10 bars of growing
+size, with the memory estimate (sidprep.linalg.estimate_peak_memory) beside the measured peak,
+the backend the automatic choice took, and CalculiX 2.20 (``ccx``, if installed) on the same mesh.
+
+Each run is its own process under GNU ``/usr/bin/time -v`` (wall, peak RSS of the whole process),
+single-threaded BLAS.  Bar 1.0 x 0.05 x 0.08 m (as benchmarks/modes_vs_calculix.py), mesh size h
+chosen for the DOF target (h = 0.01 m ~ 107k DOF).  ``modes``: clamped at x = 0, 10 modes.
+``reduce``: Craig-Bampton with RBE2 masters on both end faces, 30 modes plus FRMs, all checks.
+The machine is shared: quote the ratios measured side by side, not the absolute times.
+
+    python benchmarks/scale.py --dof 100000 250000            # the table rows
+    python benchmarks/scale.py --dof 100000 --ccx             # with CalculiX beside it
+    python benchmarks/scale.py --piston-rod 5                 # end-to-end median of the small case
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
+BOX = (1.0, 0.05, 0.08)
+#: DOF of the bar at h = 0.01 m (measured: 107 622 free DOF clamped)
+DOF_AT_H001 = 107_622
+BAR_GEO = """SetFactory("OpenCASCADE");
+Box(1) = {{0, 0, 0, {a}, {b}, {c}}};
+Mesh.MeshSizeMin = {h};
+Mesh.MeshSizeMax = {h};
+Physical Volume("bar") = {{1}};
+Physical Surface("fixed_end") = {{1}};
+Physical Surface("free_end") = {{2}};
+"""
+SINGLE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def bar_h(dof: int) -> float:
+    """Mesh size for about ``dof`` DOF (DOF ~ h^-3)."""
+    return 0.01 * (DOF_AT_H001 / dof) ** (1.0 / 3.0)
+
+
+def timed(cmd: list[str], cwd: Path) -> tuple[str, str, float, float]:
+    """(stdout, stderr, wall s, peak RSS MiB) of ``cmd`` under /usr/bin/time -v."""
+    from modes_vs_calculix import gnu_time
+
+    env = dict(os.environ, **SINGLE_THREAD, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    log = cwd / "stderr.log"
+    out, wall, rss = gnu_time(["bash", "-c", " ".join(cmd) + f" 2> {log}"], env, cwd)
+    return out, log.read_text(), wall, rss
+
+
+def estimate_mb(mesh_path: Path, n_modes: int, clamp: bool) -> tuple[int, float]:
+    import numpy as np
+
+    from sidprep.linalg import estimate_peak_memory
+    from sidprep.mesh import read_mesh
+
+    mesh = read_mesh(mesh_path)
+    n = mesh.n_dof - (3 * int((mesh.points[:, 0] < 1e-9).sum()) if clamp else 0)
+    est = estimate_peak_memory(n, extent=np.ptp(mesh.points, axis=0), n_modes=n_modes)
+    return n, est.direct_peak_bytes / 2 ** 20
+
+
+def run_modes(mesh: Path, work: Path) -> dict:
+    cmd = [sys.executable, "-m", "cli.main", "modes", str(mesh), "--clamp", "fixed_end", "--count", "10"]
+    _, err, wall, rss = timed(cmd, work)
+    note = next((line.strip() for line in err.splitlines() if "memory estimate" in line), "")
+    return {"wall_s": wall, "rss_mb": rss, "choice": note.rpartition("backend ")[2] or "?"}
+
+
+def run_reduce(mesh: Path, work: Path) -> dict:
+    cmd = [sys.executable, "-m", "cli.main", "reduce", str(mesh), "--interface", "fixed_end", "--interface",
+           "free_end", "--modes", "30", "-q", "--json", "-o", str(work / "out.h5")]
+    out, _, wall, rss = timed(cmd, work)
+    summary = json.loads(out)
+    return {"wall_s": wall, "rss_mb": rss, "passed": summary["checks"]["passed"], "dof": summary["dof"]}
+
+
+def run_calculix(h: float, work: Path) -> dict | None:
+    if shutil.which("ccx") is None:
+        return None
+    import modes_vs_calculix as mvc
+
+    if not mvc.VALIDATION.exists():
+        mvc.VALIDATION = Path("/work/shared/validation")
+    return mvc.run_ccx("cantilever", mvc.make_mesh(round(h, 5), work), work)
+
+
+def piston_rod(repeat: int) -> float:
+    walls = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "cli.main", "reduce", str(REPO / "data/meshes/piston_rod.msh"),
+                            "-q", "-o", str(Path(tmp) / "p.h5")], check=True, cwd=REPO,
+                           env=dict(os.environ, PYTHONPATH=str(REPO)))
+            walls.append(time.perf_counter() - t0)
+    return statistics.median(walls)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--dof", type=int, nargs="*", default=[100_000, 250_000], help="DOF targets")
+    ap.add_argument("--ccx", action="store_true", help="CalculiX beside sidprep modes (same mesh)")
+    ap.add_argument("--no-reduce", action="store_true", help="modes only")
+    ap.add_argument("--piston-rod", type=int, default=0, metavar="N", help="end-to-end median of N runs")
+    args = ap.parse_args(argv)
+    print(f"load {os.getloadavg()[0]:.1f}")
+    print("| DOF | command | wall s | peak MB | estimate MB | est/peak | backend | ccx wall s | ccx MB | time ratio | memory ratio |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        for dof in args.dof:
+            h = bar_h(dof)
+            geo = work / f"bar_{dof}.geo"
+            geo.write_text(BAR_GEO.format(a=BOX[0], b=BOX[1], c=BOX[2], h=h))
+            n, est = estimate_mb(geo, 10, clamp=True)
+            m = run_modes(geo, work)
+            ccx = run_calculix(h, work) if args.ccx else None
+            cc = (f"{ccx['wall_s']:.1f} | {ccx['rss_mb']:.0f} | {m['wall_s'] / ccx['wall_s']:.2f} | "
+                  f"{m['rss_mb'] / ccx['rss_mb']:.2f}") if ccx else "- | - | - | -"
+            print(f"| {n} | modes | {m['wall_s']:.1f} | {m['rss_mb']:.0f} | {est:.0f} | {est / m['rss_mb']:.2f} | "
+                  f"{m['choice']} | {cc} |", flush=True)
+            if not args.no_reduce:
+                r = run_reduce(geo, work)
+                print(f"| {r['dof']} | reduce (CB, 2 RBE2, 30 modes + FRMs, checks {'passed' if r['passed'] else 'FAILED'}) | "
+                      f"{r['wall_s']:.1f} | {r['rss_mb']:.0f} | - | - | cholmod | - | - | - | - |", flush=True)
+    if args.piston_rod:
+        print(f"piston rod `sidprep reduce` end to end: median {piston_rod(args.piston_rod):.2f} s of {args.piston_rod}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
