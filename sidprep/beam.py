@@ -460,7 +460,7 @@ def beam_options_from_table(table: dict, source: str) -> BeamOptions:
         check_beam_options(o)
         return o
     except (InputError, ValueError, TypeError, KeyError) as exc:
-        raise InputError(f"{source}: beam: {exc}") from None
+        raise InputError(f"{source}: {exc}") from None
 
 
 def options_dict(o: BeamOptions) -> dict:
