@@ -427,11 +427,17 @@ def _floats(v) -> tuple[float, ...]:
     return tuple(float(s) for s in v)
 
 
+#: the keys of a scene's beam table that describe the beam (a scene passes the rest, e.g.
+#: position, rotation, q0, to its body)
+BEAM_TABLE_KEYS = tuple(BeamOptions.__dataclass_fields__)
+
+
 def beam_options_from_table(table: dict, source: str) -> BeamOptions:
     """BeamOptions from a scene/TOML table {length, section, material | E nu rho, bc, modes,
-    damping, frames}; section/modes as strings (see parse_section/parse_modes) or
-    section = {profile = "...", dims = [...]}.  Errors name ``source``."""
-    allowed = {f for f in BeamOptions.__dataclass_fields__} | {"type", "name"}
+    damping, frames} (BEAM_TABLE_KEYS, plus ``type``/``name``, which are ignored); section/modes
+    as strings (see parse_section/parse_modes) or section = {profile = "...", dims = [...]}.
+    Errors are one line starting with ``source``."""
+    allowed = set(BEAM_TABLE_KEYS) | {"type", "name"}
     extra = set(table) - allowed
     try:
         if extra:
