@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import fields, replace
 
 from cli.options import add_model_arguments
@@ -46,28 +47,50 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def options_from_args(args):
-    """ReduceOptions from the command line; a .toml MESH is a job file that the options override."""
-    from sidprep.pipeline import ReduceOptions, options_from_job
+def job_from_args(args):
+    """The Job of the command line; a .toml MESH is a job file that the options override."""
+    from sidprep.jobfile import Job, read_job
+    from sidprep.options import OutputOptions, ReduceOptions
 
-    base = options_from_job(args.mesh) if args.mesh.lower().endswith(".toml") else ReduceOptions(mesh=args.mesh)
-    given = {f.name: getattr(args, f.name) for f in fields(ReduceOptions)
-             if f.name not in ("mesh", "verbose") and getattr(args, f.name, None) is not None}
+    base = read_job(args.mesh) if args.mesh.lower().endswith(".toml") else Job(args.mesh)
+    def given(cls):
+        out = {f.name: getattr(args, f.name) for f in fields(cls) if getattr(args, f.name, None) is not None}
+        return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
+    red = given(ReduceOptions)
     if getattr(args, "rayleigh", None):
-        given["damping"] = {"rayleigh": tuple(args.rayleigh)}
-    for key in ("interfaces", "frm_nodes"):
-        if key in given:
-            given[key] = tuple(given[key])
-    return replace(base, verbose=not args.quiet, **given)
+        red["damping"] = {"rayleigh": tuple(args.rayleigh)}
+    return replace(base, options=replace(base.options, **red), output=replace(base.output, **given(OutputOptions)))
 
 
 def run(args) -> int:
-    from sidprep.pipeline import reduce_job, summary_json
+    import json
 
-    summary = reduce_job(options_from_args(args))
+    from cli.options import cli_flags, quiet_native_output
+    from sidprep.fe_checks import format_checks
+    from sidprep.job import reduce
+    from sidprep.output import output_paths, write_reduction
+    from sidprep.progress import Phases
+
+    ph = Phases(verbose=not args.quiet)
+    with cli_flags():
+        job = job_from_args(args)
+        paths = output_paths(job.mesh, job.output)
+        with quiet_native_output():
+            result = reduce(job.mesh, job.options, phases=ph)
+    if not args.quiet:
+        for note in result.notes:
+            print(f"note: {note}", file=sys.stderr)
+    with ph("write", ", ".join(str(p) for p in paths.values())):
+        files = write_reduction(result.sid, paths, source=job.mesh)
+    if not args.quiet:
+        print(format_checks(result.checks), file=sys.stderr)
     if args.json:
-        print(summary_json(summary))
+        summary = {"files": files, "dof": result.n_dof, "nq": result.sid.nq, "labels": list(result.sid.labels),
+                   "kinds": list(result.sid.mode_kinds), "notes": list(result.notes), "checks": result.checks,
+                   "timings_s": {**result.timings_s, "write": ph.timings_s.get("write", 0.0)},
+                   "peak_memory_mb": result.peak_memory_mb}
+        print(json.dumps(summary, indent=2, default=float))
     else:
-        for path in summary["files"].values():
+        for path in files.values():
             print(path)
     return 0
