@@ -9,14 +9,8 @@ from dataclasses import fields, replace
 from cli.options import add_model_arguments
 
 
-def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "reduce", help="reduce a tetrahedral FE model to a flexible body (SID .sid.h5, .SID_FEM, .obj)",
-        description="Craig-Bampton on the interface masters, then eigenmodes of interest + frequency-response "
-                    "modes (FEMBS style). MESH may be a mesh/geometry file or a TOML job file with the same "
-                    "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
-                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
-    p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
+def add_reduce_arguments(p) -> None:
+    """The reduction options (material, interfaces, frame, modes, FRMs, damping, checks); shared with batch."""
     add_model_arguments(p, units_default=None)
     p.add_argument("--interface", dest="interfaces", action="append", metavar="NAME[:rbe2|rbe3]",
                    help="node set coupled to a 6-DOF master (repeat); default: all node sets that can carry 6 DOF")
@@ -37,6 +31,17 @@ def register(subparsers) -> None:
                    help="compute the geometric-stiffening unit load cases (sid-spec 6)")
     p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
                    help="compare with a full-model eigen solve (default on; the costliest check)")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "reduce", help="reduce a tetrahedral FE model to a flexible body (SID .sid.h5, .SID_FEM, .obj)",
+        description="Craig-Bampton on the interface masters, then eigenmodes of interest + frequency-response "
+                    "modes (FEMBS style). MESH may be a mesh/geometry file or a TOML job file with the same "
+                    "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
+                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
+    p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
+    add_reduce_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT.sid.h5", help="output HDF5 file (default ./<mesh>.sid.h5)")
     p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None,
                    help="also write <out>.SID_FEM (default on)")
@@ -53,13 +58,16 @@ def job_from_args(args):
     from sidprep.options import OutputOptions, ReduceOptions
 
     base = read_job(args.mesh) if args.mesh.lower().endswith(".toml") else Job(args.mesh)
-    def given(cls):
-        out = {f.name: getattr(args, f.name) for f in fields(cls) if getattr(args, f.name, None) is not None}
-        return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
-    red = given(ReduceOptions)
-    if getattr(args, "rayleigh", None):
-        red["damping"] = {"rayleigh": tuple(args.rayleigh)}
-    return replace(base, options=replace(base.options, **red), output=replace(base.output, **given(OutputOptions)))
+    return replace(base, options=replace(base.options, **options_given(args, ReduceOptions)),
+                   output=replace(base.output, **options_given(args, OutputOptions)))
+
+
+def options_given(args, cls) -> dict:
+    """The fields of settings class ``cls`` given on the command line (lists as tuples)."""
+    out = {f.name: getattr(args, f.name) for f in fields(cls) if getattr(args, f.name, None) is not None}
+    if getattr(args, "rayleigh", None) and "damping" in {f.name for f in fields(cls)}:
+        out["damping"] = {"rayleigh": tuple(args.rayleigh)}
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
 
 
 def run(args) -> int:

@@ -5,11 +5,14 @@ the functions below import the FE modules (mesh, assemble, linalg, reduce, ...) 
 `sidprep.sid` and `sidprep.io` depend on numpy and h5py only, so the solver can read SID files
 without pulling in the FE side.
 
+(``reduce_model``, not ``reduce``: the name ``sidprep.reduce`` is the Craig-Bampton module, and
+importing a submodule rebinds the package attribute of its name.)
+
 Python API (all lengths m, masses kg, times s, frequencies Hz)::
 
     read_mesh(path, size=None, order=2, units="si") -> FEMesh
     modal_analysis(mesh_or_path, ModalOptions(...)) -> ModalResult
-    reduce(mesh_or_path, ReduceOptions(...)) -> ReductionResult (.sid, .checks, .notes)
+    reduce_model(mesh_or_path, ReduceOptions(...)) -> ReductionResult (.sid, .checks, .notes)
     read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
     run_batch(jobs, BatchOptions(...)) -> BatchReport
 """
@@ -18,7 +21,7 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce", "read_sid", "write_sid", "run_batch",
+__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "read_sid", "write_sid", "run_batch",
            "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "Job"]
 # places the lead fills at merge (not imported here: ``import sidprep`` never loads the solver):
 #   beam(...)        -> sidprep.beam (issue 9)
@@ -95,7 +98,7 @@ def modal_analysis(mesh, options=None, *, phases=None):
     return _modal(mesh, options or ModalOptions(), phases=phases)
 
 
-def reduce(mesh, options=None, *, phases=None):
+def reduce_model(mesh, options=None, *, phases=None):
     """Reduce a tetrahedral FE model to a flexible body: an in-memory SID with its checks.
 
     No printing, no files (write them with ``write_sid``).

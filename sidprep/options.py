@@ -117,7 +117,7 @@ def check_reduce_options(o: ReduceOptions) -> None:
 def check_output(path) -> Path:
     """The HDF5 output path, checked before the work: a .sid.h5 / .h5 / .hdf5 file name, not a folder,
     in a folder that exists or can be created and is writable."""
-    import os
+    import tempfile
 
     path = Path(path)
     if path.is_dir():
@@ -127,6 +127,9 @@ def check_output(path) -> Path:
     parent = path.resolve().parent
     while not parent.exists():
         parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"output {path}: folder {parent} is not writable; choose a writable folder")
+    try:                                                  # a real write: os.access says yes to root
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError:
+        raise InputError(f"output {path}: folder {parent} is not writable; choose a writable folder") from None
     return path
