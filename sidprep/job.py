@@ -236,6 +236,23 @@ def check_mode_count(o: ReduceOptions, n_dof: int, n_interfaces: int) -> None:
                          "use fewer modes or a finer mesh")
 
 
+def check_parts_held(mesh, interfaces, source) -> None:
+    """A mesh of several disconnected parts reduces only if every part carries an interface (otherwise
+    its interior stiffness is singular in any frame); the advice names the parts' sizes."""
+    from sidprep.mesh import connected_parts
+
+    n_parts, labels = connected_parts(mesh)
+    if n_parts < 2:
+        return
+    held = set(labels[np.concatenate([i.nodes for i in interfaces])].tolist()) if interfaces else set()
+    loose = [p for p in range(n_parts) if p not in held]
+    if loose:
+        sizes = np.bincount(labels, minlength=n_parts)
+        raise InputError(f"{source}: the mesh has {n_parts} disconnected parts and {len(loose)} of them "
+                         f"(with {', '.join(str(int(sizes[p])) for p in loose[:5])} nodes) carry no interface; "
+                         "join the parts in the mesh (shared nodes) or add an interface on each part")
+
+
 def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> ReductionResult:
     """Reduce an FE model to a flexible body: ``mesh`` (an FEMesh or a path) -> SID and checks.
 
@@ -287,6 +304,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     notes = list(mesh.notes) + material_notes
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     check_mode_count(o, mesh.n_dof, len(interfaces))
+    check_parts_held(mesh, interfaces, source)
     with ph("assemble", f"{mesh.n_dof} DOF"):
         K_fe = stiffness_matrix(mesh, material)
         M_fe = mass_matrix(mesh, material)

@@ -95,3 +95,13 @@ def checked_table(table: dict, cls, source, *, context: str = "") -> dict:
 def read_table(table: dict, cls, source, *, context: str = ""):
     """``cls(**checked_table(...))``: a typed frozen settings object from a TOML table."""
     return cls(**checked_table(table, cls, source, context=context))
+
+
+def require_toml(path, what: str = "scene file", hint: str = "") -> Path:
+    """Reject, before reading, a file that is not a TOML ``what`` (e.g. a mesh passed to ``simulate``)."""
+    path = Path(path)
+    if path.suffix.lower() != ".toml":
+        raise InputError(f"{path}: not a {what} (a .toml file){'; ' + hint if hint else ''}")
+    if not path.is_file():
+        raise InputError(f"{path}: {what} not found; check the path")
+    return path

@@ -82,3 +82,29 @@ def test_native_stdout_is_sent_to_stderr(capfd):
         os.write(1, b"CHOLMOD warning: from a native library\n")
     cap = capfd.readouterr()
     assert cap.out == "" and "CHOLMOD warning" in cap.err
+
+
+def test_a_disconnected_mesh_gets_advice_that_fits_the_free_frame(tmp_path, capsys):
+    import meshio
+    import numpy as np
+
+    m = meshio.read(BAR)
+    tets = next(c for c in m.cells if c.type.startswith("tetra"))
+    shift = np.array([0.0, 1.0, 0.0])                                   # a second bar beside the first
+    pts = np.vstack([m.points, m.points + shift])
+    two = meshio.Mesh(pts, [(tets.type, np.vstack([tets.data, tets.data + len(m.points)]))])
+    path = tmp_path / "two_bars.msh"
+    meshio.write(path, two, file_format="gmsh22", binary=False)
+    capsys.readouterr()
+    assert main(["reduce", str(path), "-q", "-o", str(tmp_path / "t.sid.h5")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "2 disconnected parts" in err and "add an interface on each part" in err
+    assert "free frame" not in err                                       # the free frame was in use
+
+
+def test_a_mesh_given_as_a_scene_is_rejected_in_one_line():
+    from sidprep.errors import InputError
+    from sidprep.tables import require_toml
+
+    with pytest.raises(InputError, match=r"bar.msh: not a scene file \(a .toml file\); reduce the mesh first"):
+        require_toml(BAR, "scene file", "reduce the mesh first: sidprep reduce " + str(BAR))
