@@ -90,13 +90,39 @@ def estimate_job_memory_mb(n_dof: int) -> float:
     return JOB_BASE_MB + JOB_MB_PER_DOF * n_dof
 
 
+def gmsh_node_count(path) -> int | None:
+    """Node count from the $Nodes header of a gmsh .msh file (ASCII v2 / v4) without reading the
+    mesh; None when the header is not found (binary, other format)."""
+    import numpy as np
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+            while b"$Nodes" not in head and len(head) < (64 << 20):
+                chunk = f.read(1 << 20)
+                if not chunk:
+                    return None
+                head += chunk
+            rest = head[head.index(b"$Nodes") + 7:] + f.read(256)
+        version, binary, size = head.split(b"\n", 2)[1].split()[:3]
+        if binary == b"1":                                  # v4 binary: 4 size_t after the tag line
+            return int(np.frombuffer(rest[:4 * int(size)], dtype=f"<u{int(size)}")[1]) if version.startswith(b"4") \
+                else int(rest.split(b"\n", 1)[0])
+        numbers = rest.split(b"\n", 1)[0].split()
+        return int(numbers[1] if len(numbers) == 4 else numbers[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def job_dof(job: BatchJob) -> int:
-    """FE DOF of a job's mesh before it runs (geometry files: GEOMETRY_DOF_GUESS); InputError if unreadable."""
+    """FE DOF of a job's mesh before it runs: 3 x the nodes of a gmsh header, else the mesh read
+    (geometry files: GEOMETRY_DOF_GUESS); InputError if the file cannot be read."""
     from sidprep.mesh import read_mesh
 
     if job.mesh.lower().endswith(GEOMETRY_SUFFIXES):
         return GEOMETRY_DOF_GUESS
-    return int(read_mesh(job.mesh).n_dof)
+    n = gmsh_node_count(job.mesh) if job.mesh.lower().endswith(".msh") else None
+    return 3 * n if n else int(read_mesh(job.mesh).n_dof)
 
 
 def job_key(job: BatchJob, opts: BatchOptions) -> str:
