@@ -14,6 +14,7 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     modal_analysis(mesh_or_path, ModalOptions(...)) -> ModalResult
     reduce_model(mesh_or_path, ReduceOptions(...)) -> ReductionResult (.sid, .checks, .notes)
     read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
+    sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks: ``sidprep info``)
     run_batch(jobs, BatchOptions(...)) -> BatchReport
 """
 
@@ -21,7 +22,8 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "read_sid", "write_sid", "run_batch",
+__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "read_sid", "write_sid", "sid_info",
+           "run_batch",
            "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "Job"]
 # places the lead fills at merge (not imported here: ``import sidprep`` never loads the solver):
 #   beam(...)        -> sidprep.beam (issue 9)
@@ -35,6 +37,7 @@ _LAZY = {
     "OutputOptions": ("sidprep.options", "OutputOptions"),
     "BatchOptions": ("sidprep.batch", "BatchOptions"),
     "Job": ("sidprep.jobfile", "Job"),
+    "sid_info": ("sidprep.sid_summary", "sid_info"),
     # the lead wires these at merge (the solver is never imported by ``import sidprep``):
     # "beam": ("sidprep.beam", ...), "load_scene": ("solver.scene", "load_scene"),
     # "simulate": ("solver....", "simulate"),

@@ -68,3 +68,12 @@ def test_the_readme_python_section_runs_as_written(tmp_path, monkeypatch):
     monkeypatch.chdir(ROOT)
     exec(compile(block.replace("bar.sid.h5", str(tmp_path / "bar.sid.h5")), "README.md", "exec"), {})
     assert (tmp_path / "bar.sid.h5").is_file()
+
+
+def test_sid_info_gives_the_bar_mass_and_centre(tmp_path):
+    """Closed form: 1.0 x 0.05 x 0.08 m steel (7850 kg/m^3) box: 31.4 kg, centre (0.5, 0.025, 0.04) m."""
+    result = sidprep.reduce_model(BAR, sidprep.ReduceOptions(modes=2, check_frequencies=False))
+    sidprep.write_sid(result.sid, tmp_path / "bar.sid.h5")
+    info = sidprep.sid_info(tmp_path / "bar.sid.h5")
+    assert info["mass_kg"] == pytest.approx(7850 * 1.0 * 0.05 * 0.08, rel=1e-12)
+    np.testing.assert_allclose(info["center_of_mass"], [0.5, 0.025, 0.04], rtol=1e-9)
