@@ -246,6 +246,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
 
     t0 = time.perf_counter()
     record = failed_record(job, "")
+    record["started_unix_s"] = time.time()
     try:
         paths = output_paths(job.mesh, OutputOptions(str(Path(outdir) / f"{job.name}.sid.h5"), sid_fem, obj))
         result = reduce(job.mesh, job.options)
@@ -260,6 +261,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
     except Exception as exc:  # a job's internal error must not stop the batch
         record["error"] = f"internal error: {type(exc).__name__}: {exc}"
     record["wall_s"] = time.perf_counter() - t0
+    record["finished_unix_s"] = time.time()
     record["peak_memory_mb"] = peak_memory_mb()
     return record
 

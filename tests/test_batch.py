@@ -148,3 +148,18 @@ def test_a_study_with_a_wrong_type_names_file_key_and_type(tmp_path, capsys):
     assert main(["batch", str(study)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "s.toml" in err and "modes = 'six': expected an integer" in err
+
+
+def test_jobs_start_only_while_their_memory_estimate_fits(tmp_path):
+    from sidprep.batch import estimate_job_memory_mb
+
+    meshes = []
+    for i in range(3):
+        shutil.copy(BAR, tmp_path / f"b{i}.msh")
+        meshes.append(tmp_path / f"b{i}.msh")
+    jobs = jobs_from_meshes(meshes, ReduceOptions(modes=2, check_frequencies=False))
+    one_fits = 1.5 * estimate_job_memory_mb(3372)                # room for one bar job, not two
+    report = run_batch(jobs, BatchOptions(outdir=str(tmp_path / "o"), workers=2, memory_limit_mb=one_fits, obj=False))
+    spans = sorted((r["started_unix_s"], r["finished_unix_s"]) for r in report.records)
+    assert report.exit_code == 0
+    assert all(a_end <= b_start for (_, a_end), (b_start, _) in zip(spans, spans[1:]))   # never two at once
