@@ -35,6 +35,8 @@ GEOMETRY_DOF_GUESS = 100_000
 #: the first elastic frequencies kept in a job's record
 RECORD_FREQUENCIES = 6
 CACHE_DIR = ".cache"
+#: seconds to wait for a Dask scheduler before giving up
+DASK_CONNECT_S = 10
 
 
 @dataclass(frozen=True)
@@ -302,9 +304,15 @@ class _DaskPool:
     """The same interface on a dask.distributed cluster (``address`` of its scheduler)."""
 
     def __init__(self, address, workers: int | None):
-        from distributed import Client
-
-        self.client = address if hasattr(address, "submit") else Client(address)
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("scheduler: dask.distributed is not installed; pip install distributed") from None
+        try:
+            self.client = address if hasattr(address, "submit") else Client(address, timeout=DASK_CONNECT_S)
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"scheduler {address}: cannot connect ({exc}); check the address and that the "
+                             "scheduler runs") from None
         self.own = not hasattr(address, "submit")
         info = self.client.scheduler_info()["workers"].values()
         self.workers = workers or max(sum(w.get("nthreads", 1) for w in info), 1)
