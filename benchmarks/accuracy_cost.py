@@ -182,7 +182,7 @@ def reduce_study(repeat: int, quick: bool) -> list[dict]:
     from sidprep.material import builtin_material
     from sidprep.mesh import read_mesh
     from sidprep.fe_checks import master_compliance_full
-    from sidprep.pipeline import default_interfaces, interface_from_spec, reduce_body
+    from sidprep.job import default_interfaces, interface_from_spec, reduce_body
 
     mesh = read_mesh(PISTON_ROD)
     material = builtin_material("steel")

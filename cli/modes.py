@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from cli.options import add_model_arguments
+import sys
 
-
-#: a part whose clamped nodes span a plane (rank 2 about their centroid) has no rigid-body mode
-PLANAR_RANK = 2
+from cli.options import add_model_arguments, cli_flags, quiet_native_output
 
 
 def register(subparsers) -> None:
@@ -31,94 +29,47 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def clamped_nodes(mesh, groups: list[str]):
-    """Sorted node indices of the node sets ``groups``; InputError naming the available sets."""
-    import numpy as np
+def modal_options(args):
+    """ModalOptions from the command line."""
+    from sidprep.options import ModalOptions
 
-    from sidprep.errors import InputError
-
-    for g in groups:
-        if g not in mesh.node_sets:
-            available = ", ".join(sorted(mesh.node_sets)) or "none"
-            raise InputError(f"--clamp {g}: {mesh.source or 'mesh'} has no node set '{g}'; available: {available}")
-    if not groups:
-        return np.zeros(0, dtype=np.int64)
-    return np.unique(np.concatenate([mesh.node_sets[g] for g in groups]))
-
-
-def rigid_mode_bound(mesh, clamped) -> int:
-    """Upper bound of the rigid-body mode count: 6 per free part, 0 for a part clamped at nodes that
-    span a plane, 3 otherwise (a point or a line of clamped nodes leaves rotations free)."""
-    import numpy as np
-
-    from sidprep.mesh import connected_parts
-
-    n_parts, labels = connected_parts(mesh)
-    bound = 0
-    for part in range(n_parts):
-        x = mesh.points[clamped[labels[clamped] == part]]
-        if len(x) == 0:
-            bound += 6
-        elif np.linalg.matrix_rank(x - x.mean(axis=0), tol=1e-9 * np.ptp(mesh.points)) < PLANAR_RANK:
-            bound += 3
-    return bound
+    return ModalOptions(size=args.size, order=args.order or 2, E=args.E, nu=args.nu, rho=args.rho,
+                        material=args.material, units=args.units, count=args.count, fmax=args.fmax,
+                        clamp=tuple(args.clamp), backend=args.backend)
 
 
 def run(args) -> int:
     import json
 
-    from sidprep.assemble import stiffness_and_mass
-    from sidprep.linalg import clamp_dofs, eigen_modes, fast_blas, node_dofs, rigid_body_modes
-    from sidprep.material import material_from_options, unit_system
-    from sidprep.mesh import read_mesh
+    from sidprep.analysis import modal_analysis
+    from sidprep.linalg import fast_blas
     from sidprep.progress import Phases, peak_memory_mb
 
-    notes = []
-    units = unit_system(args.units)
-    if args.material is None and all(v is None for v in (args.E, args.nu, args.rho)):
-        material = material_from_options(name="steel")
-        notes.append("no material given: steel (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3)")
-    else:
-        material = material_from_options(E=args.E, nu=args.nu, rho=args.rho, name=args.material, units=args.units)
-    count = args.count if args.count is not None or args.fmax is not None else 10
     ph = Phases(verbose=not args.quiet)
-    with ph("mesh", args.mesh):
-        mesh = read_mesh(args.mesh, size=args.size, order=args.order or 2)
-        mesh = mesh.in_metres(units.length_to_m, units.name)
-    notes.extend(mesh.notes)
-    clamped = clamped_nodes(mesh, args.clamp)
-    with ph("assemble", f"{mesh.n_dof} DOF, tet{4 if mesh.order == 1 else 10}"):
-        K, M = stiffness_and_mass(mesh, material)
-    mass_kg = float(M.sum() / 3.0)
-    restriction = clamp_dofs(mesh.n_dof, node_dofs(clamped))
-    if len(clamped):
-        K, M = restriction.restrict(K), restriction.restrict(M)
-    near_null = rigid_body_modes(mesh.points)[restriction.free] if args.backend == "lobpcg" else None
-    res = eigen_modes(K, M, count=count, fmax=args.fmax, backend=args.backend,
-                      n_rigid_max=rigid_mode_bound(mesh, clamped), near_null=near_null, phases=ph)
-    f = res.frequencies_hz
-    nr = res.n_rigid
+    with cli_flags(), quiet_native_output():
+        res = modal_analysis(args.mesh, modal_options(args), phases=ph)
+    f, nr, mesh = res.frequencies_hz, res.n_rigid, res.mesh
+    for note in res.notes:
+        print(f"note: {note}", file=sys.stderr)
     summary = {
         "mesh": {"file": str(args.mesh), "sha256": mesh.sha256, "nodes": mesh.n_nodes,
                  "elements": int(mesh.cells.shape[0]), "element": "tet4" if mesh.order == 1 else "tet10"},
-        "n_dof": mesh.n_dof, "n_free_dof": int(K.shape[0]), "clamped": list(args.clamp),
-        "units": {"input": units.name, "output": "SI (m, kg, s, Hz)"}, "material": material.as_dict(),
-        "mass_kg": mass_kg, "rigid_modes": nr,
+        "n_dof": res.n_dof, "n_free_dof": res.n_free_dof, "clamped": list(args.clamp),
+        "units": {"input": args.units, "output": "SI (m, kg, s, Hz)"}, "material": res.material.as_dict(),
+        "mass_kg": res.mass_kg, "rigid_modes": nr,
         "rigid_frequencies_hz": f[:nr].tolist(), "rigid_residuals": res.residuals[:nr].tolist(),
         "frequencies_hz": f[nr:].tolist(), "residuals": res.residuals[nr:].tolist(),
         "backend": res.backend, "blas": fast_blas() if res.backend == "cholmod" else None,
-        "sigma_rad2_s2": res.sigma,
-        "timings_s": {k: round(v, 3) for k, v in ph.timings_s.items()},
-        "peak_memory_mb": round(peak_memory_mb(), 1), "notes": notes,
+        "sigma_rad2_s2": res.sigma_rad2_s2,
+        "timings_s": {k: round(v, 3) for k, v in res.timings_s.items()},
+        "peak_memory_mb": round(peak_memory_mb(), 1), "notes": list(res.notes),
     }
     if args.json:
         print(json.dumps(summary))
         return 0
-    print(f"{args.mesh}: {mesh.n_dof} DOF ({K.shape[0]} free), mass {mass_kg:.6g} kg, material {material.name}, "
-          f"{nr} rigid-body mode(s)")
+    print(f"{args.mesh}: {res.n_dof} DOF ({res.n_free_dof} free), mass {res.mass_kg:.6g} kg, "
+          f"material {res.material.name}, {nr} rigid-body mode(s)")
     print(f"{'mode':>5} {'f [Hz]':>14} {'kind':>8} {'residual':>10}")
     for i, (fi, ri) in enumerate(zip(f, res.residuals), start=1):
         print(f"{i:5d} {fi:14.6f} {'rigid' if i <= nr else 'elastic':>8} {ri:10.1e}")
-    for note in notes:
-        print(f"note: {note}")
     return 0

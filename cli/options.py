@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import re
+import sys
+
 
 def add_model_arguments(parser, *, units_default: str | None) -> None:
     """Material (--E --nu --rho | --material), --units, and --size/--order for geometry files.
@@ -18,3 +23,37 @@ def add_model_arguments(parser, *, units_default: str | None) -> None:
     geo = parser.add_argument_group("geometry files (.geo .step .brep): meshed with gmsh")
     geo.add_argument("--size", type=float, metavar="H", help="element size (in the geometry's length unit)")
     geo.add_argument("--order", type=int, choices=(1, 2), help="tet4 (1) or tet10 (2, default)")
+
+
+@contextlib.contextmanager
+def quiet_native_output():
+    """Send what native libraries write to stdout (file descriptor 1, e.g. CHOLMOD warnings) to
+    stderr while the block runs, so that stdout holds only results (``--json`` stays parseable)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+#: "key = value: ..." at the start of a library message (after an optional "file: ")
+_SETTING = re.compile(r"^((?:\S+: )?)([a-z_]+) = (\S+?):")
+
+
+@contextlib.contextmanager
+def cli_flags(flags=("modes", "fmax", "count", "damping", "cutoff_factor", "frame", "output", "clamp")):
+    """Name command-line flags in the library's setting errors: "modes = 0: ..." -> "--modes 0: ..."."""
+    from sidprep.errors import InputError
+
+    try:
+        yield
+    except InputError as exc:
+        match = _SETTING.match(str(exc))
+        if not match or match.group(2) not in flags or match.group(1):
+            raise
+        flag = "--" + match.group(2).replace("_", "-")
+        raise InputError(f"{flag} {match.group(3).strip(chr(39))}:{str(exc)[match.end():]}") from None

@@ -3,19 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import fields, replace
 
 from cli.options import add_model_arguments
 
 
-def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "reduce", help="reduce a tetrahedral FE model to a flexible body (SID .sid.h5, .SID_FEM, .obj)",
-        description="Craig-Bampton on the interface masters, then eigenmodes of interest + frequency-response "
-                    "modes (FEMBS style). MESH may be a mesh/geometry file or a TOML job file with the same "
-                    "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
-                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
-    p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
+def add_reduce_arguments(p) -> None:
+    """The reduction options (material, interfaces, frame, modes, FRMs, damping, checks); shared with batch."""
     add_model_arguments(p, units_default=None)
     p.add_argument("--interface", dest="interfaces", action="append", metavar="NAME[:rbe2|rbe3]",
                    help="node set coupled to a 6-DOF master (repeat); default: all node sets that can carry 6 DOF")
@@ -36,6 +31,17 @@ def register(subparsers) -> None:
                    help="compute the geometric-stiffening unit load cases (sid-spec 6)")
     p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
                    help="compare with a full-model eigen solve (default on; the costliest check)")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "reduce", help="reduce a tetrahedral FE model to a flexible body (SID .sid.h5, .SID_FEM, .obj)",
+        description="Craig-Bampton on the interface masters, then eigenmodes of interest + frequency-response "
+                    "modes (FEMBS style). MESH may be a mesh/geometry file or a TOML job file with the same "
+                    "option names (mesh = \"...\", interfaces = [\"big_end:rbe2\"], ...). Defaults: steel, every "
+                    "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
+    p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
+    add_reduce_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT.sid.h5", help="output HDF5 file (default ./<mesh>.sid.h5)")
     p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None,
                    help="also write <out>.SID_FEM (default on)")
@@ -46,28 +52,53 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def options_from_args(args):
-    """ReduceOptions from the command line; a .toml MESH is a job file that the options override."""
-    from sidprep.pipeline import ReduceOptions, options_from_job
+def job_from_args(args):
+    """The Job of the command line; a .toml MESH is a job file that the options override."""
+    from sidprep.jobfile import Job, read_job
+    from sidprep.options import OutputOptions, ReduceOptions
 
-    base = options_from_job(args.mesh) if args.mesh.lower().endswith(".toml") else ReduceOptions(mesh=args.mesh)
-    given = {f.name: getattr(args, f.name) for f in fields(ReduceOptions)
-             if f.name not in ("mesh", "verbose") and getattr(args, f.name, None) is not None}
-    if getattr(args, "rayleigh", None):
-        given["damping"] = {"rayleigh": tuple(args.rayleigh)}
-    for key in ("interfaces", "frm_nodes"):
-        if key in given:
-            given[key] = tuple(given[key])
-    return replace(base, verbose=not args.quiet, **given)
+    base = read_job(args.mesh) if args.mesh.lower().endswith(".toml") else Job(args.mesh)
+    return replace(base, options=replace(base.options, **options_given(args, ReduceOptions)),
+                   output=replace(base.output, **options_given(args, OutputOptions)))
+
+
+def options_given(args, cls) -> dict:
+    """The fields of settings class ``cls`` given on the command line (lists as tuples)."""
+    out = {f.name: getattr(args, f.name) for f in fields(cls) if getattr(args, f.name, None) is not None}
+    if getattr(args, "rayleigh", None) and "damping" in {f.name for f in fields(cls)}:
+        out["damping"] = {"rayleigh": tuple(args.rayleigh)}
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
 
 
 def run(args) -> int:
-    from sidprep.pipeline import reduce_job, summary_json
+    import json
 
-    summary = reduce_job(options_from_args(args))
+    from cli.options import cli_flags, quiet_native_output
+    from sidprep.fe_checks import format_checks
+    from sidprep.job import reduce
+    from sidprep.output import output_paths, write_reduction
+    from sidprep.progress import Phases
+
+    ph = Phases(verbose=not args.quiet)
+    with cli_flags():
+        job = job_from_args(args)
+        paths = output_paths(job.mesh, job.output)
+        with quiet_native_output():
+            result = reduce(job.mesh, job.options, phases=ph)
+    if not args.quiet:
+        for note in result.notes:
+            print(f"note: {note}", file=sys.stderr)
+    with ph("write", ", ".join(str(p) for p in paths.values())):
+        files = write_reduction(result.sid, paths, source=job.mesh)
+    if not args.quiet:
+        print(format_checks(result.checks), file=sys.stderr)
     if args.json:
-        print(summary_json(summary))
+        summary = {"files": files, "dof": result.n_dof, "nq": result.sid.nq, "labels": list(result.sid.labels),
+                   "kinds": list(result.sid.mode_kinds), "notes": list(result.notes), "checks": result.checks,
+                   "timings_s": {**result.timings_s, "write": ph.timings_s.get("write", 0.0)},
+                   "peak_memory_mb": result.peak_memory_mb}
+        print(json.dumps(summary, indent=2, default=float))
     else:
-        for path in summary["files"].values():
+        for path in files.values():
             print(path)
     return 0

@@ -1,9 +1,147 @@
 """sidprep: tetrahedral FE models to reduced flexible bodies (SID, Wallrapp 1994).
 
-Data flows one way: mesh -> model -> reduction -> SID -> files.  Importing this package
-is cheap; the FE modules (mesh, assemble, linalg, reduce, ...) are imported on use.
-`sidprep.sid` and `sidprep.io` depend on numpy and h5py only, so the solver can read SID
-files without pulling in the FE side.
+Data flows one way: mesh -> model -> reduction -> SID -> files.  Importing this package is cheap:
+the functions below import the FE modules (mesh, assemble, linalg, reduce, ...) when called.
+`sidprep.sid` and `sidprep.io` depend on numpy and h5py only, so the solver can read SID files
+without pulling in the FE side.
+
+(``reduce_model``, not ``reduce``: the name ``sidprep.reduce`` is the Craig-Bampton module, and
+importing a submodule rebinds the package attribute of its name.)
+
+Python API (all lengths m, masses kg, times s, frequencies Hz)::
+
+    read_mesh(path, size=None, order=2, units="si") -> FEMesh
+    modal_analysis(mesh_or_path, ModalOptions(...)) -> ModalResult
+    reduce_model(mesh_or_path, ReduceOptions(...)) -> ReductionResult (.sid, .checks, .notes)
+    read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
+    sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks: ``sidprep info``)
+    run_batch(jobs, BatchOptions(...)) -> BatchReport
 """
 
+from __future__ import annotations
+
 __version__ = "0.1.0"
+
+__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "read_sid", "write_sid", "sid_info",
+           "run_batch",
+           "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "Job"]
+# places the lead fills at merge (not imported here: ``import sidprep`` never loads the solver):
+#   beam(...)        -> sidprep.beam (issue 9)
+#   load_scene(path) -> solver.scene.load_scene
+#   simulate(scene)  -> the solver's run entry point
+
+#: names resolved on first use (module, attribute): keeps ``import sidprep`` and ``sidprep --help`` fast
+_LAZY = {
+    "ModalOptions": ("sidprep.options", "ModalOptions"),
+    "ReduceOptions": ("sidprep.options", "ReduceOptions"),
+    "OutputOptions": ("sidprep.options", "OutputOptions"),
+    "BatchOptions": ("sidprep.batch", "BatchOptions"),
+    "Job": ("sidprep.jobfile", "Job"),
+    "sid_info": ("sidprep.sid_summary", "sid_info"),
+    # the lead wires these at merge (the solver is never imported by ``import sidprep``):
+    # "beam": ("sidprep.beam", ...), "load_scene": ("solver.scene", "load_scene"),
+    # "simulate": ("solver....", "simulate"),
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'sidprep' has no attribute {name!r}")
+
+
+def read_mesh(path, *, size: float | None = None, order: int = 2, units: str = "si"):
+    """Read a tetrahedral mesh (.msh .inp .bdf .vtu ...) or mesh a geometry file (.geo .step .brep).
+
+    Parameters
+    ----------
+    path : str or Path
+    size : float, optional
+        Element size of a geometry file, in the file's length unit.
+    order : int
+        1 (tet4) or 2 (tet10) for geometry files.
+    units : str
+        "si" or "mm-t-s": the unit system of the file's coordinates; the mesh returned is in metres.
+
+    Returns
+    -------
+    sidprep.mesh.FEMesh
+        points (n, 3) m, cells (e, 4|10), node sets, notes.
+    """
+    from sidprep.material import unit_system
+    from sidprep.mesh import read_mesh as _read
+
+    u = unit_system(units)
+    return _read(path, size=size, order=order).in_metres(u.length_to_m, u.name)
+
+
+def modal_analysis(mesh, options=None, *, phases=None):
+    """Natural frequencies and modes of a tetrahedral FE model (free-free or clamped node sets).
+
+    Parameters
+    ----------
+    mesh : FEMesh or path
+    options : sidprep.ModalOptions, optional
+        count (elastic modes, default 10) or fmax (Hz); clamp node sets; material (default steel); backend.
+    phases : sidprep.progress.Phases, optional
+        Progress lines on stderr and per-phase timings (default silent).
+
+    Returns
+    -------
+    sidprep.analysis.ModalResult
+        frequencies_hz (n,) Hz, rigid modes first; modes (n_free_dof, n) mass-normalised (1/sqrt(kg));
+        residuals (n,); n_rigid; mass_kg; timings_s (s per phase); notes.
+    """
+    from sidprep.analysis import modal_analysis as _modal
+    from sidprep.options import ModalOptions
+
+    return _modal(mesh, options or ModalOptions(), phases=phases)
+
+
+def reduce_model(mesh, options=None, *, phases=None):
+    """Reduce a tetrahedral FE model to a flexible body: an in-memory SID with its checks.
+
+    No printing, no files (write them with ``write_sid``).
+
+    Parameters
+    ----------
+    mesh : FEMesh or path
+    options : sidprep.ReduceOptions, optional
+        Material, interfaces, frame, modes (default 8) or fmax (Hz), FRMs, cut-off factor (5),
+        damping ratio (0.02), stiffening, checks.
+    phases : sidprep.progress.Phases, optional
+
+    Returns
+    -------
+    sidprep.job.ReductionResult
+        sid (SI units), checks (dict; ``passed``), notes, n_dof, timings_s (s), peak_memory_mb (MiB).
+    """
+    from sidprep.job import reduce as _reduce
+    from sidprep.options import ReduceOptions
+
+    return _reduce(mesh, options or ReduceOptions(), phases=phases)
+
+
+def read_sid(path):
+    """Read a SID file by its ending: .sid.h5 / .h5 / .hdf5 or .SID_FEM; returns sidprep.sid.SID (SI)."""
+    from sidprep.io import read_sid as _read
+
+    return _read(path)
+
+
+def write_sid(sid, path, *, comment: str = ""):
+    """Write a SID by the file ending: .sid.h5 (HDF5), .SID_FEM (ASCII), .obj (its surface); atomic.
+    Returns the Path written."""
+    from sidprep.output import write_sid as _write
+
+    return _write(sid, path, comment=comment)
+
+
+def run_batch(jobs, options=None, *, progress=None):
+    """Run many reduction jobs (process pool or Dask cluster, content-addressed cache); see sidprep.batch."""
+    from sidprep.batch import BatchOptions, run_batch as _run
+
+    return _run(jobs, options or BatchOptions(), progress=progress)

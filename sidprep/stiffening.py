@@ -96,7 +96,7 @@ def stiffening_parts(mesh, material, M_fe, im, static_solve, Phi_fe: np.ndarray)
     ----------
     mesh, material : the FE model; M_fe : (3n, 3n) FE mass; im : InterfaceModel;
     static_solve : callable P (n_model, nc) -> u with K u = P on the supports of sid-spec 6.4
-    (sidprep.pipeline.Reduction.static_solve); Phi_fe : (3n, nq) the final basis in FE DOFs.
+    (sidprep.job.Reduction.static_solve); Phi_fe : (3n, nq) the final basis in FE DOFs.
     """
     loads = unit_loads(mesh.points, M_fe, im)
     names = list(loads)

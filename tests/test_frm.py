@@ -12,7 +12,7 @@ from sidprep.material import builtin_material
 from sidprep.mesh import read_mesh
 from sidprep.modes import frequency_response_modes, modal_basis, modal_damping, mode_labels
 from sidprep.fe_checks import master_compliance_full
-from sidprep.pipeline import reduce_body
+from sidprep.job import reduce_body
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 ORTHO_TOL = 1e-9
@@ -89,7 +89,7 @@ def test_bad_mode_requests(bar):
     mesh, K, M, itfs = bar
     with pytest.raises(InputError, match="no elastic mode below"):
         reduce_body(mesh, K, M, itfs, fmax=1.0)
-    with pytest.raises(InputError, match="--frame nowhere: no such interface; valid: free, fixed_end, free_end"):
+    with pytest.raises(InputError, match="frame = 'nowhere': no such interface; valid: free, fixed_end, free_end"):
         reduce_body(mesh, K, M, itfs, frame="nowhere")
     with pytest.raises(InputError, match="only"):
         modal_basis(np.eye(3), np.eye(3), n_modes=5)

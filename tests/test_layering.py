@@ -4,7 +4,7 @@ import subprocess
 import sys
 
 FE_MODULES = ("sidprep.mesh", "sidprep.assemble", "sidprep.linalg", "sidprep.reduce",
-              "sidprep.modes", "sidprep.interfaces", "sidprep.stiffening", "sidprep.pipeline", "skfem")
+              "sidprep.modes", "sidprep.interfaces", "sidprep.stiffening", "sidprep.job", "sidprep.analysis", "skfem")
 
 
 def test_solver_does_not_import_fe_side():

@@ -10,7 +10,7 @@ from cli.main import main
 from sidprep.io.sid_fem import read_sid_fem
 from sidprep.checks import failed_checks
 from sidprep.io.sid_hdf5 import read_checks, read_sid_hdf5
-from sidprep.pipeline import DEFAULT_MODES
+from sidprep.options import DEFAULT_MODES
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 

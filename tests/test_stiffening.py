@@ -11,7 +11,7 @@ from sidprep.assemble import mass_matrix, stiffness_matrix
 from sidprep.interfaces import make_interface
 from sidprep.material import builtin_material
 from sidprep.mesh import read_mesh
-from sidprep.pipeline import reduce_body
+from sidprep.job import reduce_body
 from sidprep.stiffening import centrifugal_fields, stiffening_parts
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"

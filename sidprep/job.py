@@ -1,72 +1,32 @@
-"""A reduction job: mesh + material + interfaces -> SID files (what FEMBS does for SIMPACK).
+"""A reduction job: mesh + material + interfaces -> an in-memory SID with its checks (what FEMBS does).
 
-Steps (each a phase with progress and timing):
+Steps (each a phase of ``sidprep.progress.Phases``; no printing here, no files):
 
 1. read the mesh, assemble K, M, Ms (sidprep.assemble);
 2. couple every interface patch to a 6-DOF master (RBE2 / RBE3, sidprep.interfaces);
 3. first reduction: Craig-Bampton on the master DOFs (sidprep.reduce), fixed-interface modes up
-   to max(2, cutoff_factor) x fmax, or max(CB_MIN_MODES, 3 x --modes) of them;
+   to max(2, cutoff_factor) x fmax, or max(CB_MIN_MODES, 3 x modes) of them;
 4. second step (sidprep.modes): eigenmodes of interest + frequency-response modes, cut-off,
    orthonormalisation; reference frame free (default) or attached to an interface master;
 5. optional geometric stiffening (sidprep.stiffening);
-6. SID invariants (sidprep.sid), FE-comparison checks, files (.sid.h5, .SID_FEM, .obj).
+6. SID invariants (sidprep.sid) and the FE-comparison checks (sidprep.fe_checks).
 
-Defaults (``sidprep reduce MESH`` alone): steel; interfaces = every node set of the mesh that can
-carry 6 DOF, as RBE2 (for the piston rod: big_end and small_end); frame ``free`` - the body
-frame stays at the FE origin, the modes are free-free elastic modes (mean axes to first order),
-which is what a SIMPACK user gets from FEMBS for a body connected by joints at several points;
-8 eigenmodes + FRMs at every interface master DOF, cut-off 5x; 2 % modal damping; all three files.
+Defaults (sidprep.options): steel; interfaces = every node set of the mesh that can carry 6 DOF, as
+RBE2; frame ``free`` (free-free elastic modes, mean axes to first order, what a SIMPACK user gets
+from FEMBS for a body connected at several points); 8 eigenmodes + FRMs at every interface master
+DOF, cut-off 5x; 2 % modal damping.  Files: sidprep.output.
 """
 
 from __future__ import annotations
 
-import json
-import sys
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.fe_checks import fe_checks, format_checks, structured_checks
-
-#: default number of elastic eigenmodes of interest (8: with 6 the piston rod's axial FRMs fall
-#: above the 5x cut-off and its static deflection misses the FEMBS 1 % promise: 5.8 % vs 0.5 %)
-DEFAULT_MODES = 8
-#: default modal damping ratio (typical of bolted steel parts)
-DEFAULT_DAMPING = 0.02
-#: fewest fixed-interface modes of the Craig-Bampton step when --modes is given
-CB_MIN_MODES = 20
-FRAMES_HINT = "free or the name of an interface"
-
-
-@dataclass(frozen=True)
-class ReduceOptions:
-    """Everything a reduction job needs (CLI options or a TOML job file, same names)."""
-
-    mesh: str
-    size: float | None = None
-    order: int = 2
-    E: float | None = None
-    nu: float | None = None
-    rho: float | None = None
-    material: str | None = None
-    units: str = "si"
-    interfaces: tuple = ()
-    frm_nodes: tuple[str, ...] = ()
-    frame: str = "free"
-    modes: int | None = None
-    fmax: float | None = None
-    frm: bool = True
-    cutoff_factor: float = 5.0
-    damping: float | tuple | dict = DEFAULT_DAMPING
-    stiffening: bool = False
-    check_frequencies: bool = True
-    output: str | None = None
-    sid_fem: bool = True
-    obj: bool = True
-    json: bool = False
-    verbose: bool = True
+from sidprep.fe_checks import fe_checks, structured_checks
+from sidprep.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
+                             DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
 
 
 @dataclass(frozen=True)
@@ -95,8 +55,29 @@ class Reduction:
         return self.cb.static_solve(P, self.supports)
 
 
+@dataclass(frozen=True)
+class ReductionResult:
+    """What ``reduce`` returns.
+
+    sid : sidprep.sid.SID (SI units; metadata holds options, material, notes and the checks);
+    checks : dict of the FE-comparison checks (sidprep.fe_checks); notes : advice lines;
+    n_dof : FE DOF count; timings_s : wall seconds per phase; peak_memory_mb : process peak RSS (MiB).
+    """
+
+    sid: object
+    checks: dict
+    notes: tuple[str, ...]
+    n_dof: int
+    timings_s: dict
+    peak_memory_mb: float
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.checks.get("passed", False))
+
+
 # ---------------------------------------------------------------------------------------------
-# options
+# interfaces
 # ---------------------------------------------------------------------------------------------
 
 def parse_interface(spec: str) -> tuple[str, str]:
@@ -106,7 +87,7 @@ def parse_interface(spec: str) -> tuple[str, str]:
     name, _, kind = spec.partition(":")
     kind = (kind or "rbe2").lower()
     if not name or kind not in KINDS:
-        raise InputError(f"--interface {spec}: expected NAME[:rbe2|rbe3]; valid kinds: {', '.join(KINDS)}")
+        raise InputError(f"interface {spec!r}: expected NAME[:rbe2|rbe3]; valid kinds: {', '.join(KINDS)}")
     return name, kind
 
 
@@ -138,50 +119,6 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
                           master_point=spec.get("master_point"))
 
 
-def options_from_job(path) -> ReduceOptions:
-    """Read a TOML job file holding the ReduceOptions fields (paths relative to the file)."""
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        import tomli as tomllib
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the job file ({exc}); fix the TOML syntax") from None
-    valid = set(ReduceOptions.__dataclass_fields__)
-    unknown = sorted(set(data) - valid)
-    if unknown:
-        raise InputError(f"{path}: unknown key(s) {', '.join(unknown)}; valid: {', '.join(sorted(valid))}")
-    if "mesh" not in data:
-        raise InputError(f"{path}: the job file needs mesh = \"FILE\"")
-    data["mesh"] = str((path.parent / data["mesh"]).resolve()) if not Path(data["mesh"]).is_absolute() else data["mesh"]
-    if isinstance(data.get("damping"), list):
-        data["damping"] = tuple(data["damping"])
-    data["interfaces"] = tuple(data.get("interfaces", ()))
-    data["frm_nodes"] = tuple(data.get("frm_nodes", ()))
-    return ReduceOptions(**data)
-
-
-def check_options(o: ReduceOptions) -> None:
-    """One-line InputErrors for inconsistent options."""
-    if o.modes is not None and o.fmax is not None:
-        raise InputError("--modes and --fmax: give one of them, not both")
-    if o.modes is not None and o.modes < 1:
-        raise InputError(f"--modes {o.modes}: must be >= 1")
-    if o.fmax is not None and not o.fmax > 0:
-        raise InputError(f"--fmax {o.fmax}: must be > 0 Hz")
-    if not o.cutoff_factor >= 1:
-        raise InputError(f"--cutoff-factor {o.cutoff_factor}: must be >= 1 (FEMBS default 5)")
-    if isinstance(o.damping, dict):                    # the form, before the expensive work
-        from sidprep.modes import modal_damping
-        modal_damping(np.ones(1), o.damping)
-
-
-# ---------------------------------------------------------------------------------------------
-# the reduction
-# ---------------------------------------------------------------------------------------------
-
 def default_interfaces(mesh) -> list[str]:
     """Node sets that look like interfaces: patches able to carry 6 DOF, as RBE2 ("NAME:rbe2")."""
     from sidprep.interfaces import check_patch
@@ -198,7 +135,7 @@ def default_interfaces(mesh) -> list[str]:
 
 
 def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fmax=None,
-                frm=True, cutoff_factor=5.0, load_nodes=(), phases=None) -> Reduction:
+                frm=True, cutoff_factor=DEFAULT_CUTOFF_FACTOR, load_nodes=(), phases=None) -> Reduction:
     """Steps 2-4 of the module docstring for an assembled FE model.
 
     interfaces : list of sidprep.interfaces.Interface; frame : "free" or an interface name;
@@ -215,7 +152,7 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
         n_modes = DEFAULT_MODES
     names = [i.name for i in interfaces]
     if frame != "free" and frame not in names:
-        raise InputError(f"--frame {frame}: no such interface; valid: free, {', '.join(names) or '(no interfaces)'}")
+        raise InputError(f"frame = {frame!r}: no such interface; valid: free, {', '.join(names) or '(no interfaces)'}")
     with ph("interfaces", f"{len(interfaces)} master node(s)"):
         im = interface_model(mesh.n_nodes, interfaces, mesh.points)
         K_model, M_model = im.project(K_fe), im.project(M_fe)
@@ -287,55 +224,87 @@ def build_sid(red: Reduction, mesh, Ms, *, damping=DEFAULT_DAMPING, stiffening=N
     return dc_replace(sid, surface=surface_modes(mesh, red.Phi_fe))
 
 
-def output_paths(o: ReduceOptions) -> dict[str, Path]:
-    """{"hdf5": ..., "sid_fem": ..., "obj": ...} for the enabled outputs (default: ./<mesh stem>.*)."""
-    h5 = Path(o.output) if o.output else Path(Path(o.mesh).stem + ".sid.h5")
-    stem = h5.name[:-len(".sid.h5")] if h5.name.endswith(".sid.h5") else h5.stem
-    out = {"hdf5": h5}
-    if o.sid_fem:
-        out["sid_fem"] = h5.with_name(stem + ".SID_FEM")
-    if o.obj:
-        out["obj"] = h5.with_name(stem + ".obj")
-    return out
+def check_mode_count(o: ReduceOptions, n_dof: int, n_interfaces: int) -> None:
+    """Reject ``modes`` the model cannot give before the solve: the Craig-Bampton step asks for
+    max(CB_MIN_MODES, 3 modes) fixed-interface modes of the interior DOFs."""
+    if o.modes is None:
+        return
+    interior = n_dof - 6 * max(n_interfaces, 1)
+    most = max(interior // 3, 0)
+    if 3 * o.modes > interior:
+        raise InputError(f"modes = {o.modes}: the model has {n_dof} DOF, enough for at most {most} modes; "
+                         "use fewer modes or a finer mesh")
 
 
-def reduce_job(options: ReduceOptions) -> dict:
-    """Run a reduction job and write its files; returns a JSON-ready summary (paths, checks, timings).
+def check_parts_held(mesh, interfaces, source) -> None:
+    """A mesh of several disconnected parts reduces only if every part carries an interface (otherwise
+    its interior stiffness is singular in any frame); the advice names the parts' sizes."""
+    from sidprep.mesh import connected_parts
 
-    Runs with one BLAS thread (sidprep.linalg.single_threaded_blas)."""
+    n_parts, labels = connected_parts(mesh)
+    if n_parts < 2:
+        return
+    held = set(labels[np.concatenate([i.nodes for i in interfaces])].tolist()) if interfaces else set()
+    loose = [p for p in range(n_parts) if p not in held]
+    if loose:
+        sizes = np.bincount(labels, minlength=n_parts)
+        raise InputError(f"{source}: the mesh has {n_parts} disconnected parts and {len(loose)} of them "
+                         f"(with {', '.join(str(int(sizes[p])) for p in loose[:5])} nodes) carry no interface; "
+                         "join the parts in the mesh (shared nodes) or add an interface on each part")
+
+
+def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> ReductionResult:
+    """Reduce an FE model to a flexible body: ``mesh`` (an FEMesh or a path) -> SID and checks.
+
+    Runs with one BLAS thread (sidprep.linalg.single_threaded_blas); no printing, no files.
+    ``phases`` : sidprep.progress.Phases for progress lines and timings (default silent).
+    """
     from sidprep.linalg import single_threaded_blas
 
+    check_reduce_options(options)
     with single_threaded_blas():
-        return _reduce_job(options)
+        return _reduce(mesh, options, phases)
 
 
-def _reduce_job(options: ReduceOptions) -> dict:
+def load_mesh(mesh, o, ph):
+    """(FEMesh in metres, source name) from an FEMesh or a path, in the unit system of ``o``."""
+    from sidprep.material import unit_system
+    from sidprep.mesh import FEMesh, read_mesh
+
+    units = unit_system(o.units)
+    if isinstance(mesh, FEMesh):
+        return mesh, str(mesh.source)
+    with ph("mesh", str(mesh)):
+        m = read_mesh(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
+    return m, str(mesh)
+
+
+def model_material(o):
+    """(Material in SI, notes): the given material, or the default with a note saying so."""
+    from sidprep.material import material_from_options
+
+    if material_given(o):
+        return material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=o.material, units=o.units), []
+    m = material_from_options(name=DEFAULT_MATERIAL)
+    return m, [f"material: none given, {m.name} used (E = {m.E / 1e9:g} GPa, nu = {m.nu:g}, "
+               f"rho = {m.rho:g} kg/m^3); set material or E, nu, rho"]
+
+
+def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
     from sidprep.interfaces import select_patch
-    from sidprep.io.obj import write_obj
-    from sidprep.io.sid_fem import write_sid_fem
-    from sidprep.io.sid_hdf5 import write_sid_hdf5
-    from sidprep.material import material_from_options, unit_system
-    from sidprep.mesh import read_mesh
+    from sidprep.material import unit_system
     from sidprep.progress import Phases, peak_memory_mb
     from sidprep.stiffening import stiffening_parts
 
-    o = options
-    check_options(o)
-    ph = Phases(verbose=o.verbose)
+    ph = phases or Phases(verbose=False)
     units = unit_system(o.units)
-    material_name = o.material if (o.material or o.E is not None or o.nu is not None or o.rho is not None) else "steel"
-    material = material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=material_name, units=o.units)
-    with ph("mesh", o.mesh):
-        mesh = read_mesh(o.mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
-    notes = list(mesh.notes)
-    if material_name == "steel" and not o.material:
-        notes.append("material: none given, steel used (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3); "
-                     "set --material or --E --nu --rho")
-    if o.verbose:
-        for note in notes:
-            print(f"note: {note}", file=sys.stderr)
+    material, material_notes = model_material(o)
+    mesh, source = load_mesh(mesh_in, o, ph)
+    notes = list(mesh.notes) + material_notes
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
+    check_mode_count(o, mesh.n_dof, len(interfaces))
+    check_parts_held(mesh, interfaces, source)
     with ph("assemble", f"{mesh.n_dof} DOF"):
         K_fe = stiffness_matrix(mesh, material)
         M_fe = mass_matrix(mesh, material)
@@ -347,8 +316,8 @@ def _reduce_job(options: ReduceOptions) -> dict:
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
             stiff = stiffening_parts(mesh, material, M_fe, red.im, red.static_solve, red.Phi_fe)
-    metadata = {"source": str(o.mesh), "mesh_sha256": mesh.sha256, "material": material.as_dict(), "notes": notes,
-                "options": {k: v for k, v in asdict(o).items() if k != "verbose"},
+    metadata = {"source": source, "mesh_sha256": mesh.sha256, "material": material.as_dict(), "notes": notes,
+                "options": {"mesh": source, **asdict(o)},
                 "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
                                 "master_point_m": i.master_point.tolist()} for i in interfaces],
                 "frame": o.frame, "frm_omega_hz": red.basis.frm_omega_hz, "cutoff_hz": red.basis.cutoff_hz,
@@ -358,20 +327,4 @@ def _reduce_job(options: ReduceOptions) -> dict:
     with ph("checks", "reduced vs full FE model"):
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
     sid = replace(sid, metadata={**sid.metadata, "checks": structured_checks(checks)})
-    paths = output_paths(o)
-    with ph("write", ", ".join(str(p) for p in paths.values())):
-        write_sid_hdf5(sid, paths["hdf5"])
-        if "sid_fem" in paths:
-            write_sid_fem(sid, paths["sid_fem"], comment=f"sidprep reduce {Path(o.mesh).name}")
-        if "obj" in paths:
-            write_obj(paths["obj"], sid.surface.points, sid.surface.triangles)
-    summary = {"files": {k: str(v) for k, v in paths.items()}, "dof": mesh.n_dof, "nq": sid.nq, "labels": list(sid.labels),
-               "kinds": list(sid.mode_kinds), "notes": notes, "checks": checks, "timings_s": ph.timings_s,
-               "peak_memory_mb": peak_memory_mb()}
-    if o.verbose:
-        print(format_checks(checks), file=sys.stderr)
-    return summary
-
-
-def summary_json(summary: dict) -> str:
-    return json.dumps(summary, indent=2, default=float)
+    return ReductionResult(sid, checks, tuple(notes), int(mesh.n_dof), dict(ph.timings_s), peak_memory_mb())

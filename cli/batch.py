@@ -1,0 +1,119 @@
+"""``sidprep batch MESH... -o OUTDIR`` or ``sidprep batch study.toml``: many reductions in parallel."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from cli.reduce import add_reduce_arguments
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "batch", help="reduce many meshes or a parameter study (process pool or Dask cluster, cached)",
+        description="Runs the reduction of 'sidprep reduce' over many meshes (files or globs, with the same "
+                    "options) or over a study manifest (study.toml: a base job plus sweeps, docs/batch.md). "
+                    "Jobs run in parallel (one BLAS thread each), never more than fit the memory; finished jobs "
+                    "are cached by content (mesh bytes + options + version), so a re-run or a resumed batch "
+                    "skips them. Exit 0 when every job succeeded, 1 when some failed.")
+    p.add_argument("inputs", nargs="+", metavar="MESH|STUDY.toml", help="mesh files / globs, or one study.toml")
+    add_reduce_arguments(p)
+    p.add_argument("-o", "--outdir", metavar="OUTDIR", help="output folder (default ./batch, or the study's)")
+    p.add_argument("--workers", type=int, help="parallel jobs (default: cores, or the cluster's threads)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("--memory-limit", dest="memory_limit_mb", type=float, metavar="MIB",
+                   help="memory the batch may plan for (default 80 %% of the available memory)")
+    p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None, help="also write .SID_FEM")
+    p.add_argument("--obj", action=argparse.BooleanOptionalAction, default=None, help="also write .obj")
+    p.add_argument("--json", action="store_true", help="print the batch report as JSON on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def batch_from_args(args):
+    """(jobs, BatchOptions) of the command line: a study manifest, or meshes with reduce options."""
+    from dataclasses import replace
+
+    from cli.reduce import options_given
+    from sidprep.batch import BatchOptions, jobs_from_meshes, read_study
+    from sidprep.errors import InputError
+    from sidprep.options import ReduceOptions
+
+    given = options_given(args, BatchOptions)
+    if args.outdir:
+        given["outdir"] = args.outdir
+    if len(args.inputs) == 1 and args.inputs[0].lower().endswith(".toml"):
+        jobs, settings = read_study(args.inputs[0])
+        overrides = options_given(args, ReduceOptions)
+        jobs = [replace(j, options=replace(j.options, **overrides)) for j in jobs]
+        return jobs, BatchOptions(**{**settings, **given})
+    if any(i.lower().endswith(".toml") for i in args.inputs):
+        raise InputError("batch: give one study .toml file, or mesh files; not both")
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers {args.workers}: must be >= 1")
+    return jobs_from_meshes(args.inputs, ReduceOptions(**options_given(args, ReduceOptions))), BatchOptions(**given)
+
+
+def run(args) -> int:
+    import json
+
+    from cli.options import cli_flags
+    from sidprep.batch import run_batch
+    from sidprep.options import check_reduce_options
+
+    with cli_flags():
+        jobs, opts = batch_from_args(args)
+        for job in jobs:
+            check_reduce_options(job.options)
+    if args.quiet:
+        report = run_batch(jobs, opts)
+    else:
+        report = _with_progress(jobs, opts)
+    cached = sum(r["status"] == "cached" for r in report.records)
+    if cached:
+        print(f"sidprep batch: {cached} of {len(report.records)} job(s) served from the cache "
+              f"({opts.outdir}/.cache)", file=sys.stderr)
+    for r in report.failed:
+        print(f"sidprep batch: {r['name']} failed: {r['error']}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"outdir": report.outdir, "wall_s": report.wall_s, "files": report.files,
+                          "jobs": report.records}, default=float))
+    else:
+        print_summary(report)
+    return report.exit_code
+
+
+def _with_progress(jobs, opts):
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from sidprep.batch import run_batch
+
+    console = Console(stderr=True)
+    with Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  TextColumn("{task.description}"), console=console, transient=True) as bar:
+        task = bar.add_task("", total=len(jobs))
+
+        def progress(record, done, total, running):
+            bar.update(task, completed=done, description=("running: " + ", ".join(running)) if running else "")
+        return run_batch(jobs, opts, progress=progress)
+
+
+def print_summary(report) -> None:
+    """The summary table on stdout: one row per job."""
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=f"sidprep batch: {report.outdir} ({report.wall_s:.1f} s)")
+    for col in ("job", "status", "DOF", "wall [s]", "peak [MiB]", "first f [Hz]", "checks", "error / files"):
+        t.add_column(col)
+    for r in report.records:
+        f = r.get("frequencies_hz") or []
+        t.add_row(r["name"], r["status"], str(r.get("dof") or "-"),
+                  f"{r['wall_s']:.2f}" if r.get("wall_s") is not None else "-",
+                  f"{r['peak_memory_mb']:.0f}" if r.get("peak_memory_mb") else "-",
+                  ", ".join(f"{x:.1f}" for x in f[:3]) or "-",
+                  {True: "passed", False: "FAILED", None: "-"}[r.get("checks_passed")],
+                  r["error"] or (r.get("files", {}).get("hdf5", "")))
+    Console().print(t)
+    print(f"report: {', '.join(report.files.values())}")

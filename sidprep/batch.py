@@ -1,0 +1,490 @@
+"""Batch reduction: many jobs on a local process pool or a Dask cluster, with a content-addressed
+cache, memory-aware scheduling and failure isolation.
+
+A batch is a list of ``BatchJob`` (a name, a mesh file and ReduceOptions).  Each job runs in a
+worker process with one BLAS thread (sidprep.job.reduce) and writes OUTDIR/<name>.sid.h5 (+ .SID_FEM,
+.obj) atomically; the driver then writes the job's cache record OUTDIR/.cache/<key>.json, also
+atomically.  The key hashes the mesh file's bytes, the options and the sidprep version, so a re-run
+skips finished jobs and a killed batch resumes without lost or half-written outputs.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import itertools
+import json
+import os
+import re
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+from sidprep.errors import InputError
+from sidprep.options import ReduceOptions
+
+#: memory model of one job (MiB): interpreter + libraries, plus the sparse factor and dense bases
+#: per FE DOF (tet10, CHOLMOD; measured on the bundled bar and piston rod with margin)
+JOB_BASE_MB = 250.0
+JOB_MB_PER_DOF = 0.03
+#: fraction of the available memory a batch may plan for
+MEMORY_FRACTION = 0.8
+#: file endings meshed by gmsh (DOF unknown before meshing: the estimate uses GEOMETRY_DOF_GUESS)
+GEOMETRY_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".iges", ".igs")
+GEOMETRY_DOF_GUESS = 100_000
+#: the first elastic frequencies kept in a job's record
+RECORD_FREQUENCIES = 6
+CACHE_DIR = ".cache"
+#: seconds to wait for a Dask scheduler before giving up
+DASK_CONNECT_S = 10
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """outdir : output folder; workers : parallel jobs (default: cores, or the cluster's threads);
+    scheduler : Dask scheduler address (None = local process pool); memory_limit_mb : memory the
+    batch may plan for (default MEMORY_FRACTION x available); sid_fem, obj : also write those files."""
+
+    outdir: str = "batch"
+    workers: int | None = None
+    scheduler: str | None = None
+    memory_limit_mb: float | None = None
+    sid_fem: bool = True
+    obj: bool = True
+
+
+@dataclass(frozen=True)
+class BatchJob:
+    """One reduction of a batch; ``params`` : the swept values that made it (name -> value)."""
+
+    name: str
+    mesh: str
+    options: ReduceOptions = ReduceOptions()
+    params: tuple = ()
+
+
+@dataclass
+class BatchReport:
+    """records : one dict per job (status ok | cached | failed, error, wall_s, peak_memory_mb, dof,
+    frequencies_hz, checks_passed, checks, files, params); outdir; wall_s of the whole batch."""
+
+    records: list
+    outdir: str
+    wall_s: float = 0.0
+    files: dict = field(default_factory=dict)
+
+    @property
+    def failed(self) -> list:
+        return [r for r in self.records if r["status"] == "failed"]
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.failed else 0
+
+
+# ---------------------------------------------------------------------------------------------
+# jobs
+# ---------------------------------------------------------------------------------------------
+
+def estimate_job_memory_mb(n_dof: int) -> float:
+    """Planned peak memory of one reduction job (MiB) from its FE DOF count (linear model above).
+    The single place the batch scheduler asks; switch it to sidprep.linalg's estimate when available."""
+    return JOB_BASE_MB + JOB_MB_PER_DOF * n_dof
+
+
+def gmsh_node_count(path) -> int | None:
+    """Node count from the $Nodes header of a gmsh .msh file (ASCII v2 / v4) without reading the
+    mesh; None when the header is not found (binary, other format)."""
+    import numpy as np
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+            while b"$Nodes" not in head and len(head) < (64 << 20):
+                chunk = f.read(1 << 20)
+                if not chunk:
+                    return None
+                head += chunk
+            rest = head[head.index(b"$Nodes") + 7:] + f.read(256)
+        version, binary, size = head.split(b"\n", 2)[1].split()[:3]
+        if binary == b"1":                                  # v4 binary: 4 size_t after the tag line
+            return int(np.frombuffer(rest[:4 * int(size)], dtype=f"<u{int(size)}")[1]) if version.startswith(b"4") \
+                else int(rest.split(b"\n", 1)[0])
+        numbers = rest.split(b"\n", 1)[0].split()
+        return int(numbers[1] if len(numbers) == 4 else numbers[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def job_dof(job: BatchJob) -> int:
+    """FE DOF of a job's mesh before it runs: 3 x the nodes of a gmsh header, else the mesh read
+    (geometry files: GEOMETRY_DOF_GUESS); InputError if the file cannot be read."""
+    from sidprep.mesh import read_mesh
+
+    if job.mesh.lower().endswith(GEOMETRY_SUFFIXES):
+        return GEOMETRY_DOF_GUESS
+    n = gmsh_node_count(job.mesh) if job.mesh.lower().endswith(".msh") else None
+    return 3 * n if n else int(read_mesh(job.mesh).n_dof)
+
+
+def job_key(job: BatchJob, opts: BatchOptions) -> str:
+    """Content address: sha256 of the mesh bytes, the options, the outputs and the sidprep version."""
+    from sidprep import __version__
+
+    h = hashlib.sha256()
+    try:
+        h.update(Path(job.mesh).read_bytes())
+    except OSError:
+        h.update(b"<unreadable>" + job.mesh.encode())
+    h.update(json.dumps({"options": asdict(job.options), "name": job.name, "sid_fem": opts.sid_fem,
+                         "obj": opts.obj, "version": __version__}, sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.=+-]+", "_", str(text)).strip("_")
+
+
+def unique_names(jobs: list[BatchJob]) -> list[BatchJob]:
+    """Jobs with distinct names (a repeated name gets -2, -3, ...)."""
+    seen: dict[str, int] = {}
+    out = []
+    for j in jobs:
+        n = seen.get(j.name, 0) + 1
+        seen[j.name] = n
+        out.append(j if n == 1 else replace(j, name=f"{j.name}-{n}"))
+    return out
+
+
+def jobs_from_meshes(meshes, options: ReduceOptions = ReduceOptions()) -> list[BatchJob]:
+    """One job per mesh file (globs expanded); InputError for a pattern that matches nothing."""
+    files = []
+    for m in meshes:
+        hits = sorted(glob.glob(str(m))) if glob.has_magic(str(m)) else [str(m)]
+        if not hits:
+            raise InputError(f"{m}: no file matches this pattern; check the path")
+        files.extend(hits)
+    return unique_names([BatchJob(_safe(Path(f).name.split(".")[0]), f, options) for f in files])
+
+
+def read_study(path) -> tuple[list[BatchJob], dict]:
+    """Jobs and [batch] settings of a study manifest (docs/batch.md).
+
+    [job] : a base job (job-file keys; ``mesh`` relative to the manifest); [sweep] : key -> list of
+    values (``mesh`` entries may be globs), combined as the cartesian product (``combine =
+    "product"``, default) or element-wise (``combine = "zip"``); [[case]] : explicit override tables
+    (each crossed with the sweep); [batch] : outdir (relative to the manifest), workers, scheduler,
+    memory_limit_mb, sid_fem, obj.
+    """
+    from sidprep.jobfile import job_from_table, split_job_table
+    from sidprep.tables import checked_table, read_toml
+
+    path = Path(path)
+    doc = read_toml(path, "study file")
+    unknown = sorted(set(doc) - {"job", "sweep", "case", "batch"})
+    if unknown:
+        raise InputError(f"{path}: unknown table(s) {', '.join(unknown)}; valid: job, sweep, case, batch")
+    base = dict(doc.get("job", {}))
+    sweep = dict(doc.get("sweep", {}))
+    combine = sweep.pop("combine", "product")
+    if combine not in ("product", "zip"):
+        raise InputError(f"{path}: [sweep] combine = {combine!r}: expected \"product\" or \"zip\"")
+    for key, values in sweep.items():
+        if not isinstance(values, list) or not values:
+            raise InputError(f"{path}: [sweep] {key} = {values!r}: expected a non-empty list of values")
+    if "mesh" in sweep:
+        sweep["mesh"] = [str(f) for m in sweep["mesh"]
+                         for f in (sorted(glob.glob(str(path.parent / m))) if glob.has_magic(m) else [m])]
+        if not sweep["mesh"]:
+            raise InputError(f"{path}: [sweep] mesh: no file matches; check the patterns")
+    keys = list(sweep)
+    if combine == "zip":
+        lengths = {len(v) for v in sweep.values()}
+        if len(lengths) > 1:
+            raise InputError(f"{path}: [sweep] combine = \"zip\" needs lists of equal length")
+        points = list(zip(*sweep.values()))
+    else:
+        points = list(itertools.product(*sweep.values()))
+    cases = doc.get("case", [{}]) or [{}]
+    jobs = []
+    for c, case in enumerate(cases):
+        for point in points:
+            params = dict(zip(keys, point))
+            table = {**base, **case, **params}
+            context = f"[case {c + 1}]" if len(cases) > 1 else ("[sweep]" if params else "[job]")
+            data = split_job_table(table, path, path.parent, context=context)
+            if data.get("mesh") is None:
+                raise InputError(f"{path}: [job] needs mesh = \"FILE\" or [sweep] mesh = [...]")
+            job = job_from_table(data)
+            shown = {k: (Path(v).name.split(".")[0] if k == "mesh" else v) for k, v in {**case, **params}.items()}
+            label = "-".join(f"{k}={v}" for k, v in shown.items() if k != "mesh")
+            name = _safe(Path(job.mesh).name.split(".")[0] + (f"-{label}" if label else ""))
+            jobs.append(BatchJob(name, job.mesh, job.options, tuple(sorted(shown.items()))))
+    settings = checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")
+    if "outdir" in settings and not Path(settings["outdir"]).is_absolute():
+        settings["outdir"] = str(path.parent / settings["outdir"])
+    return unique_names(jobs), settings
+
+
+# ---------------------------------------------------------------------------------------------
+# running
+# ---------------------------------------------------------------------------------------------
+
+def failed_record(job: BatchJob, error: str) -> dict:
+    """The record of a job that did not produce a body (every field of a report row)."""
+    return {"name": job.name, "mesh": job.mesh, "params": dict(job.params), "status": "failed", "error": error,
+            "wall_s": None, "peak_memory_mb": None, "dof": None, "frequencies_hz": [], "checks_passed": None,
+            "checks": {}, "files": {}}
+
+
+def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) -> dict:
+    """Run one job in the current process and write its files; never raises (failures are records)."""
+    import numpy as np
+
+    from sidprep.job import reduce
+    from sidprep.options import OutputOptions
+    from sidprep.output import output_paths, write_reduction
+    from sidprep.progress import peak_memory_mb
+
+    t0 = time.perf_counter()
+    record = failed_record(job, "")
+    record["started_unix_s"] = time.time()
+    try:
+        paths = output_paths(job.mesh, OutputOptions(str(Path(outdir) / f"{job.name}.sid.h5"), sid_fem, obj))
+        result = reduce(job.mesh, job.options)
+        record["files"] = write_reduction(result.sid, paths, source=job.mesh)
+        f = np.asarray(result.sid.frequencies_hz)
+        eigen = [float(x) for x, k in zip(f, result.sid.mode_kinds) if k == "eigen"]
+        record.update(status="ok", dof=result.n_dof, frequencies_hz=eigen[:RECORD_FREQUENCIES],
+                      checks_passed=result.passed,
+                      checks={k: v for k, v in result.checks.items() if isinstance(v, (bool, int, float))})
+    except InputError as exc:
+        record["error"] = str(exc)
+    except Exception as exc:  # a job's internal error must not stop the batch
+        record["error"] = f"internal error: {type(exc).__name__}: {exc}"
+    record["wall_s"] = time.perf_counter() - t0
+    record["finished_unix_s"] = time.time()
+    record["peak_memory_mb"] = peak_memory_mb()
+    return record
+
+
+def available_memory_mb() -> float:
+    """MemAvailable of /proc/meminfo (MiB); 4 GiB where unknown."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return 4096.0
+
+
+class _LocalPool:
+    """A process pool of ``workers`` processes (forkserver: clean workers, reused across jobs)."""
+
+    def __init__(self, workers: int):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
+        self.workers = workers
+
+    def submit(self, *args):
+        return self.pool.submit(run_job, *args)
+
+    def wait(self, futures):
+        from concurrent.futures import FIRST_COMPLETED, wait
+        return wait(futures, return_when=FIRST_COMPLETED).done
+
+    def close(self):
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _DaskPool:
+    """The same interface on a dask.distributed cluster (``address`` of its scheduler)."""
+
+    def __init__(self, address, workers: int | None):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("scheduler: dask.distributed is not installed; pip install distributed") from None
+        try:
+            self.client = address if hasattr(address, "submit") else Client(address, timeout=DASK_CONNECT_S)
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"scheduler {address}: cannot connect ({exc}); check the address and that the "
+                             "scheduler runs") from None
+        self.own = not hasattr(address, "submit")
+        info = self.client.scheduler_info()["workers"].values()
+        self.workers = workers or max(sum(w.get("nthreads", 1) for w in info), 1)
+        self.memory_mb = sum(w.get("memory_limit", 0) or 0 for w in info) / 2**20 or None
+
+    def submit(self, *args):
+        return self.client.submit(run_job, *args, pure=False)
+
+    def wait(self, futures):
+        from distributed import wait
+        return wait(list(futures), return_when="FIRST_COMPLETED").done
+
+    def close(self):
+        if self.own:
+            self.client.close()
+
+
+def _cached(record_path: Path) -> dict | None:
+    """The finished record of a job if it and all its files are on disk."""
+    try:
+        record = json.loads(record_path.read_text())
+    except (OSError, ValueError):
+        return None
+    if record.get("status") != "ok" or not all(Path(p).is_file() for p in record["files"].values()):
+        return None
+    return record
+
+
+def _write_json(path: Path, data) -> None:
+    from sidprep.io.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=1, default=float))
+
+
+def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, progress=None,
+              client=None) -> BatchReport:
+    """Run ``jobs``; returns the BatchReport and writes OUTDIR/batch.json and batch.csv.
+
+    progress : callable(record or None, done, total, running_names), optional; called as jobs
+    start and finish.  client : a dask.distributed Client to use instead of ``options.scheduler``.
+    Jobs start only while the sum of their estimated peak memory (estimate_job_memory_mb) fits the
+    budget; at least one always runs.
+    """
+    t0 = time.perf_counter()
+    outdir = Path(options.outdir)
+    cache = outdir / CACHE_DIR
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{outdir}: cannot create the output folder ({exc.strerror}); choose a writable folder") from None
+    jobs = unique_names(list(jobs))
+    records: dict[str, dict] = {}
+    todo = []
+    for job in jobs:
+        key = job_key(job, options)
+        hit = _cached(cache / f"{key}.json")
+        if hit is not None:
+            records[job.name] = {**hit, "status": "cached", "params": dict(job.params)}
+        else:
+            todo.append((job, key))
+    total = len(jobs)
+    if progress:
+        for r in records.values():
+            progress(r, len(records), total, [])
+    if todo:
+        _run_pending(todo, options, client, records, cache, progress, total)
+    report = BatchReport([records[j.name] for j in jobs], str(outdir), time.perf_counter() - t0)
+    report.files = write_report(report)
+    return report
+
+
+def _run_pending(todo, options, client, records, cache, progress, total):
+    pool = _DaskPool(client or options.scheduler, options.workers) if (client or options.scheduler) \
+        else _LocalPool(options.workers or os.cpu_count() or 1)
+    budget = options.memory_limit_mb or getattr(pool, "memory_mb", None) or MEMORY_FRACTION * available_memory_mb()
+    queue = []
+    for job, key in todo:                                   # DOF and memory before starting; bad mesh -> record
+        try:
+            queue.append((job, key, estimate_job_memory_mb(job_dof(job))))
+        except InputError as exc:
+            records[job.name] = failed_record(job, str(exc))
+            if progress:
+                progress(records[job.name], len(records), total, [])
+    running = {}
+    try:
+        while queue or running:
+            planned = sum(m for _, _, m in running.values())
+            while queue and len(running) < pool.workers and (not running or planned + queue[0][2] <= budget):
+                job, key, mem = queue.pop(0)
+                running[pool.submit(job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
+                planned += mem
+                if progress:
+                    progress(None, len(records), total, [j.name for j, _, _ in running.values()])
+            for fut in pool.wait(list(running)):
+                job, key, mem = running.pop(fut)
+                try:
+                    record = fut.result()
+                except Exception as exc:                    # a worker died (killed, out of memory)
+                    record = failed_record(job, f"worker lost: {type(exc).__name__}: {exc}")
+                record["params"] = dict(job.params)
+                record["estimated_memory_mb"] = mem
+                if record["status"] == "ok":
+                    _write_json(cache / f"{key}.json", record)
+                records[job.name] = record
+                if progress:
+                    progress(record, len(records), total, [j.name for j, _, _ in running.values()])
+    finally:
+        pool.close()
+
+
+CSV_COLUMNS = ("name", "status", "error", "wall_s", "peak_memory_mb", "dof", "frequencies_hz", "checks_passed",
+               "files", "params")
+
+
+def write_report(report: BatchReport) -> dict:
+    """OUTDIR/batch.json and batch.csv (atomic); returns their paths."""
+    import csv
+    import io
+
+    from sidprep.io.atomic import atomic_path
+
+    outdir = Path(report.outdir)
+    data = {"outdir": report.outdir, "wall_s": report.wall_s, "jobs": report.records,
+            "ok": sum(r["status"] != "failed" for r in report.records), "failed": len(report.failed)}
+    _write_json(outdir / "batch.json", data)
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(CSV_COLUMNS)
+    for r in report.records:
+        w.writerow([" ".join(f"{x:.6g}" for x in r.get(c) or []) if c == "frequencies_hz"
+                    else (" ".join(r.get(c, {}).values()) if c == "files"
+                          else (json.dumps(r.get(c)) if c == "params" else r.get(c))) for c in CSV_COLUMNS])
+    with atomic_path(outdir / "batch.csv") as tmp:
+        tmp.write_text(buf.getvalue())
+    files = {"json": str(outdir / "batch.json"), "csv": str(outdir / "batch.csv")}
+    plot = study_plot(report)
+    if plot:
+        files["plot"] = plot
+    return files
+
+
+def study_plot(report: BatchReport) -> str | None:
+    """OUTDIR/study.png: first elastic frequencies against the one numeric swept parameter, if any."""
+    ok = [r for r in report.records if r["status"] != "failed" and r.get("frequencies_hz")]
+    numeric = sorted({k for r in ok for k, v in r.get("params", {}).items()
+                      if isinstance(v, (int, float)) and not isinstance(v, bool)})
+    if len(ok) < 2 or len(numeric) != 1:
+        return None
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sidprep.io.atomic import atomic_path
+
+    key = numeric[0]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    groups: dict[str, list] = {}
+    for r in ok:
+        other = ", ".join(f"{k}={v}" for k, v in r["params"].items() if k != key)
+        groups.setdefault(other, []).append(r)
+    for other, rs in groups.items():
+        rs = sorted(rs, key=lambda r: r["params"][key])
+        for i in range(min(3, min(len(r["frequencies_hz"]) for r in rs))):
+            ax.plot([r["params"][key] for r in rs], [r["frequencies_hz"][i] for r in rs], "o-",
+                    label=f"mode {i + 1}" + (f" ({other})" if other else ""))
+    ax.set_xlabel(key)
+    ax.set_ylabel("elastic eigenfrequency [Hz]")
+    ax.legend(fontsize=7)
+    ax.grid(True, alpha=0.3)
+    path = Path(report.outdir) / "study.png"
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+    return str(path)

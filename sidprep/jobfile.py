@@ -1,0 +1,54 @@
+"""TOML job files of ``sidprep reduce JOB.toml``: the ReduceOptions and OutputOptions fields plus
+``mesh``; ``mesh`` and ``output`` are relative to the job file's folder."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from sidprep.options import OutputOptions, ReduceOptions
+from sidprep.tables import checked_table, read_toml
+
+
+@dataclass(frozen=True)
+class Job:
+    """One reduction job: the mesh (path), the reduction settings and the files to write."""
+
+    mesh: str
+    options: ReduceOptions = ReduceOptions()
+    output: OutputOptions = OutputOptions()
+
+
+@dataclass(frozen=True)
+class _JobTable(ReduceOptions, OutputOptions):
+    """Every key a job file may hold (checked by sidprep.tables)."""
+
+    mesh: str | None = None
+
+
+def split_job_table(table: dict, source, base: Path, *, context: str = "") -> dict:
+    """A checked job table with ``mesh`` and ``output`` resolved against ``base``."""
+    data = checked_table(table, _JobTable, source, context=context)
+    for key in ("mesh", "output"):
+        if data.get(key) is not None and not Path(data[key]).is_absolute():
+            data[key] = str((base / data[key]).resolve())
+    return data
+
+
+def job_from_table(data: dict) -> Job:
+    """Job from a checked table (split_job_table); ``mesh`` must be set."""
+    red = {f.name for f in fields(ReduceOptions)}
+    out = {f.name for f in fields(OutputOptions)}
+    return Job(data["mesh"], ReduceOptions(**{k: v for k, v in data.items() if k in red}),
+               OutputOptions(**{k: v for k, v in data.items() if k in out}))
+
+
+def read_job(path) -> Job:
+    """The Job of a TOML job file (one-line InputErrors: file not found, syntax, key, type)."""
+    from sidprep.errors import InputError
+
+    path = Path(path)
+    data = split_job_table(read_toml(path, "job file"), path, path.parent)
+    if data.get("mesh") is None:
+        raise InputError(f"{path}: the job file needs mesh = \"FILE\" (relative to the job file)")
+    return job_from_table(data)

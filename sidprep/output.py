@@ -1,0 +1,51 @@
+"""Files of a reduction: where they go (``output_paths``) and writing them (``write_reduction``).
+
+Every file is written atomically (sidprep.io.atomic): a killed run leaves no half-written output.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from sidprep.options import OutputOptions, check_output
+
+
+def output_paths(mesh, out: OutputOptions = OutputOptions()) -> dict[str, Path]:
+    """{"hdf5": ..., "sid_fem": ..., "obj": ...} for the enabled outputs (default ./<mesh stem>.sid.h5),
+    checked (file type, folder writable) before any work."""
+    h5 = check_output(out.output if out.output else Path(Path(mesh).stem + ".sid.h5"))
+    stem = h5.name[:-len(".sid.h5")] if h5.name.lower().endswith(".sid.h5") else h5.stem
+    paths = {"hdf5": h5}
+    if out.sid_fem:
+        paths["sid_fem"] = h5.with_name(stem + ".SID_FEM")
+    if out.obj:
+        paths["obj"] = h5.with_name(stem + ".obj")
+    return paths
+
+
+def write_sid(sid, path, *, comment: str = "") -> Path:
+    """Write ``sid`` by the file ending: .sid.h5 / .h5 / .hdf5 (HDF5), .SID_FEM (ASCII), .obj (surface)."""
+    from sidprep.errors import InputError
+
+    path = Path(path)
+    name = path.name.lower()
+    if name.endswith((".sid.h5", ".h5", ".hdf5")):
+        from sidprep.io.sid_hdf5 import write_sid_hdf5
+        return write_sid_hdf5(sid, path)
+    if name.endswith(".sid_fem"):
+        from sidprep.io.sid_fem import write_sid_fem
+        return write_sid_fem(sid, path, comment=comment)
+    if name.endswith(".obj"):
+        from sidprep.io.obj import write_obj
+        if sid.surface is None:
+            raise InputError(f"{path}: this SID has no surface to write as OBJ")
+        return write_obj(path, sid.surface.points, sid.surface.triangles)
+    raise InputError(f"{path}: unknown SID file type; use .sid.h5, .SID_FEM or .obj")
+
+
+def write_reduction(sid, paths: dict[str, Path], *, source: str = "") -> dict[str, str]:
+    """Write the files named by ``output_paths``; returns {kind: path string}."""
+    comment = f"sidprep reduce {Path(source).name}" if source else ""
+    for path in paths.values():
+        write_sid(sid, path, comment=comment)
+    return {k: str(v) for k, v in paths.items()}

@@ -1,0 +1,59 @@
+"""What a SID file contains, as a JSON-ready summary (``sidprep info``, ``sidprep.sid_info``)."""
+
+from __future__ import annotations
+
+
+def sid_info(path) -> dict:
+    """Read a SID file (.sid.h5 / .SID_FEM), run its model checks, return ``body_summary``."""
+    from sidprep.checks import sid_checks
+    from sidprep.io import read_sid
+
+    sid = read_sid(path)
+    return body_summary(sid, sid_checks(sid))
+
+
+def body_summary(sid, checks: dict) -> dict:
+    """JSON-ready summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes."""
+    import numpy as np
+
+    from sidprep.sid import inertia_matrix
+
+    c = sid.mdCM.M0[:, 0] / sid.mass if sid.mass else np.zeros(3)
+    I_o = inertia_matrix(sid.J.M0[:, 0])
+    I_cm = I_o - sid.mass * (c @ c * np.eye(3) - np.outer(c, c))     # parallel-axis theorem
+    finite = lambda x: [float(v) if np.isfinite(v) else None for v in x]  # noqa: E731
+    meta = sid.metadata if isinstance(sid.metadata, dict) else {}
+    return {
+        "mass_kg": float(sid.mass),
+        "center_of_mass": finite(c),
+        "inertia": {"about_origin": I_o.tolist(), "about_center_of_mass": I_cm.tolist(),
+                    "unit": "kg m^2", "note": "products of inertia are negative integrals (Ixy = -int xy dm)"},
+        "n_modes": sid.nq,
+        "frequencies_hz": finite(np.asarray(sid.frequencies_hz, dtype=float)),
+        "mode_kinds": list(sid.mode_kinds),
+        "labels": list(sid.labels),
+        "nodes": [{"id": n.node_id, "name": n.name, "position": finite(n.origin.M0[:, 0])}
+                  for n in sid.nodes],
+        "units": sid.units,
+        "geometric_stiffness": sorted(sid.stiffening),
+        "surface_triangles": 0 if sid.surface is None else int(len(sid.surface.triangles)),
+        "sid_fem_dialect": meta.get("sid_fem_dialect"),
+        "checks": checks,
+    }
+
+
+def strict_json(value):
+    """``value`` with numpy types as Python numbers and non-finite floats as None (valid JSON)."""
+    import math
+
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {str(k): strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [strict_json(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

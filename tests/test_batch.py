@@ -1,0 +1,165 @@
+"""``sidprep batch``: failure isolation, the content-addressed cache, resume after SIGKILL, Dask.
+
+Independent references: an uninterrupted run's files (resume), the local pool's files (Dask), a
+one-job ``sidprep reduce`` of the same mesh (batch output), the bar's first free-free frequency
+from ``sidprep modes`` (a separate full-model eigen solve) within the reduction's check tolerance.
+"""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli.main import main
+from sidprep.batch import BatchOptions, jobs_from_meshes, read_study, run_batch
+from sidprep.io.sid_hdf5 import read_sid_hdf5
+from sidprep.options import ReduceOptions
+
+ROOT = Path(__file__).resolve().parents[1]
+BAR = ROOT / "data" / "meshes" / "bar.msh"
+#: few modes, no full-model frequency check: the batch machinery, not the reduction, is tested here
+FAST = ["--modes", "2", "--no-check-frequencies", "--no-obj"]
+#: relative tolerance of the reduced bar's first elastic frequency against the full FE model
+FREQ_RTOL = 1e-3
+
+
+def sid_arrays(path):
+    s = read_sid_hdf5(path)
+    return [s.mass, s.frequencies_hz, s.Me.M0, s.Ke.M0, s.Ct.M0, s.Cr.M0, s.J.M0]
+
+
+def assert_same_sids(a: Path, b: Path, names):
+    for n in names:
+        for x, y in zip(sid_arrays(a / f"{n}.sid.h5"), sid_arrays(b / f"{n}.sid.h5")):
+            np.testing.assert_array_equal(x, y)
+        assert (a / f"{n}.SID_FEM").read_bytes() == (b / f"{n}.SID_FEM").read_bytes()
+
+
+@pytest.fixture
+def meshes(tmp_path):
+    d = tmp_path / "in"
+    d.mkdir()
+    for name in ("bar_a", "bar_b", "bar_c"):
+        shutil.copy(BAR, d / f"{name}.msh")
+    (d / "corrupt.msh").write_text("$MeshFormat\n4.1 0 8\nthis is not a mesh\n")
+    return d
+
+
+def test_bundled_meshes_plus_a_corrupt_one_give_good_outputs_and_one_failure_then_the_cache(
+        meshes, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["batch", str(meshes / "*.msh"), *FAST, "-o", str(out), "--workers", "2", "--json", "-q"]
+    assert main(argv) == 1                                      # one job failed
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    status = {r["name"]: r["status"] for r in report["jobs"]}
+    assert status == {"bar_a": "ok", "bar_b": "ok", "bar_c": "ok", "corrupt": "failed"}
+    failures = [line for line in captured.err.splitlines() if "failed" in line]
+    assert len(failures) == 1 and "corrupt" in failures[0]
+    # the batch's body equals a one-job reduce of the same mesh with the same options
+    one = tmp_path / "one"
+    assert main(["reduce", str(meshes / "bar_a.msh"), *FAST, "-o", str(one / "bar_a.sid.h5"), "-q"]) == 0
+    capsys.readouterr()
+    assert_same_sids(out, one, ["bar_a"])
+    # the first elastic frequency agrees with a full-model eigen solve (sidprep modes)
+    assert main(["modes", str(BAR), "--count", "1", "--json", "-q"]) == 0
+    f_full = json.loads(capsys.readouterr().out)["frequencies_hz"][0]
+    rec = next(r for r in report["jobs"] if r["name"] == "bar_a")
+    assert rec["frequencies_hz"][0] == pytest.approx(f_full, rel=FREQ_RTOL)
+    assert rec["dof"] == 3372 and rec["wall_s"] > 0 and rec["peak_memory_mb"] > 0
+    table = json.loads((out / "batch.json").read_text())
+    assert table["ok"] == 3 and table["failed"] == 1
+    assert (out / "batch.csv").read_text().count("\n") == 5
+    # re-run: served from the cache, says so, same exit code
+    t0 = time.perf_counter()
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    assert time.perf_counter() - t0 < 5.0
+    assert {r["name"]: r["status"] for r in json.loads(captured.out)["jobs"]}["bar_b"] == "cached"
+    assert "3 of 4 job(s) served from the cache" in captured.err
+
+
+def test_a_batch_killed_mid_way_resumes_to_the_outputs_of_an_uninterrupted_run(tmp_path):
+    meshes = tmp_path / "in"
+    meshes.mkdir()
+    names = [f"bar{i}" for i in range(6)]
+    for n in names:
+        shutil.copy(BAR, meshes / f"{n}.msh")
+    ref, killed = tmp_path / "ref", tmp_path / "killed"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-m", "cli.main", "batch", str(meshes / "*.msh"), *FAST, "--workers", "2", "-q"]
+    proc = subprocess.Popen(cmd + ["-o", str(killed)], env=env, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list((killed / ".cache").glob("*.json"))) < 2:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)                          # the driver and its pool
+    proc.wait()
+    done = len(list((killed / ".cache").glob("*.json")))
+    assert 2 <= done < len(names), "the kill came too late to test a resume"
+    assert not list(killed.glob("*.part"))                       # no half-written file under a final name
+    resumed = subprocess.run(cmd + ["-o", str(killed), "--json"], env=env, capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    status = [r["status"] for r in json.loads(resumed.stdout)["jobs"]]
+    assert status.count("cached") >= 2 and status.count("cached") + status.count("ok") == len(names)
+    assert subprocess.run(cmd + ["-o", str(ref)], env=env).returncode == 0
+    assert_same_sids(ref, killed, names)
+
+
+def test_the_dask_path_gives_the_local_pool_results(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    jobs = jobs_from_meshes([BAR], ReduceOptions(modes=2, check_frequencies=False))
+    local = run_batch(jobs, BatchOptions(outdir=str(tmp_path / "local"), workers=1, obj=False))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c, \
+            distributed.Client(c) as client:
+        remote = run_batch(jobs, BatchOptions(outdir=str(tmp_path / "dask"), obj=False), client=client)
+    assert [r["status"] for r in remote.records] == ["ok"]
+    assert remote.records[0]["frequencies_hz"] == local.records[0]["frequencies_hz"]
+    assert_same_sids(tmp_path / "local", tmp_path / "dask", ["bar"])
+
+
+def test_a_study_sweeps_the_cartesian_product_and_plots_frequencies(tmp_path):
+    study = tmp_path / "study.toml"
+    shutil.copy(BAR, tmp_path / "bar.msh")
+    study.write_text('[job]\nmesh = "bar.msh"\ncheck_frequencies = false\nobj = false\n'
+                     '[sweep]\nmodes = [2, 3]\nmaterial = ["steel", "aluminium"]\n[batch]\noutdir = "res"\n')
+    jobs, settings = read_study(study)
+    assert len(jobs) == 4 and settings["outdir"] == str(tmp_path / "res")
+    assert sorted(j.name for j in jobs)[0] == "bar-modes=2-material=aluminium"
+    report = run_batch(jobs, BatchOptions(**settings, workers=2))
+    assert report.exit_code == 0 and Path(report.files["plot"]).is_file()     # f vs the numeric sweep (modes)
+    f = {j.name: r["frequencies_hz"][0] for j, r in zip(jobs, report.records)}
+    # same shape and nu: f scales exactly with sqrt(E / rho); EN 1999-1-1 aluminium E = 70 GPa, rho = 2700 kg/m^3,
+    # EN 1993-1-1 steel 210 GPa, 7850 kg/m^3 (both nu = 0.3)
+    ratio = f["bar-modes=2-material=aluminium"] / f["bar-modes=2-material=steel"]
+    assert ratio == pytest.approx(np.sqrt((70e9 / 2700) / (210e9 / 7850)), rel=1e-6)
+
+
+def test_a_study_with_a_wrong_type_names_file_key_and_type(tmp_path, capsys):
+    study = tmp_path / "s.toml"
+    study.write_text('[job]\nmesh = "bar.msh"\n[sweep]\nmodes = ["six"]\n')
+    assert main(["batch", str(study)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "s.toml" in err and "modes = 'six': expected an integer" in err
+
+
+def test_jobs_start_only_while_their_memory_estimate_fits(tmp_path):
+    from sidprep.batch import estimate_job_memory_mb
+
+    meshes = []
+    for i in range(3):
+        shutil.copy(BAR, tmp_path / f"b{i}.msh")
+        meshes.append(tmp_path / f"b{i}.msh")
+    jobs = jobs_from_meshes(meshes, ReduceOptions(modes=2, check_frequencies=False))
+    one_fits = 1.5 * estimate_job_memory_mb(3372)                # room for one bar job, not two
+    report = run_batch(jobs, BatchOptions(outdir=str(tmp_path / "o"), workers=2, memory_limit_mb=one_fits, obj=False))
+    spans = sorted((r["started_unix_s"], r["finished_unix_s"]) for r in report.records)
+    assert report.exit_code == 0
+    assert all(a_end <= b_start for (_, a_end), (b_start, _) in zip(spans, spans[1:]))   # never two at once
