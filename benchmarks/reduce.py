@@ -5,7 +5,7 @@
 1. ``sidprep reduce data/meshes/piston_rod.msh`` end to end (a fresh process: imports, mesh, assembly,
    reduction, checks, three files), median of --repeat runs, phases from the JSON summary.
 2. The same on a generated >= 100k-DOF bar (1.0 x 0.05 x 0.08 m, tet10, element size --big-size).
-3. Craig-Bampton alone at ~150k DOF (--cb-size): sidprep.reduce.craig_bampton (CHOLMOD, K_ii
+3. Craig-Bampton alone at ~150k DOF (--cb-size): sidprep.craig_bampton.craig_bampton (CHOLMOD, K_ii
    factorised once and reused for the constraint modes and the shift-invert Lanczos) vs plain scipy
    (one SuperLU factorisation of K_ii reused the same way, ``eigsh``), same mesh, same 20 modes.
 
@@ -87,7 +87,7 @@ def plain_scipy_cb(K, M, b, n_modes):
     """Craig-Bampton the textbook way: one SuperLU factorisation of K_ii, eigsh shift-invert at 0."""
     import scipy.sparse.linalg as spla
 
-    from sidprep.reduce import split_dofs
+    from sidprep.craig_bampton import split_dofs
 
     b, i = split_dofs(K.shape[0], b)
     K_ii, M_ii = K[i][:, i].tocsc(), M[i][:, i].tocsr()
@@ -114,7 +114,7 @@ import json, sys
 sys.path.insert(0, {str(ROOT)!r}); sys.path.insert(0, {str(ROOT / 'benchmarks')!r})
 from pathlib import Path
 import reduce as bench
-from sidprep.reduce import craig_bampton
+from sidprep.craig_bampton import craig_bampton
 geo, mesh = bench.bar_mesh({h}, Path({str(folder)!r}))
 K, M, b = bench.cb_inputs(mesh)
 if sys.argv[1] == "sidprep":

@@ -23,10 +23,6 @@ from pathlib import Path
 from sidprep.errors import InputError
 from sidprep.options import ReduceOptions
 
-#: memory model of one job (MiB): interpreter + libraries, plus the sparse factor and dense bases
-#: per FE DOF (tet10, CHOLMOD; measured on the bundled bar and piston rod with margin)
-JOB_BASE_MB = 250.0
-JOB_MB_PER_DOF = 0.03
 #: fraction of the available memory a batch may plan for
 MEMORY_FRACTION = 0.8
 #: file endings meshed by gmsh (DOF unknown before meshing: the estimate uses GEOMETRY_DOF_GUESS)
@@ -87,9 +83,11 @@ class BatchReport:
 # ---------------------------------------------------------------------------------------------
 
 def estimate_job_memory_mb(n_dof: int) -> float:
-    """Planned peak memory of one reduction job (MiB) from its FE DOF count (linear model above).
-    The single place the batch scheduler asks; switch it to sidprep.linalg's estimate when available."""
-    return JOB_BASE_MB + JOB_MB_PER_DOF * n_dof
+    """Planned peak memory of one reduction job (MiB) from its FE DOF count: the estimate the
+    reduction itself checks before it starts (sidprep.craig_bampton.reduction_peak_bytes)."""
+    from sidprep.craig_bampton import reduction_peak_bytes
+
+    return reduction_peak_bytes(n_dof) / 2.0**20
 
 
 def gmsh_node_count(path) -> int | None:

@@ -4,7 +4,7 @@ Steps (each a phase of ``sidprep.progress.Phases``; no printing here, no files):
 
 1. read the mesh, assemble K, M, Ms (sidprep.assemble);
 2. couple every interface patch to a 6-DOF master (RBE2 / RBE3, sidprep.interfaces);
-3. first reduction: Craig-Bampton on the master DOFs (sidprep.reduce), fixed-interface modes up
+3. first reduction: Craig-Bampton on the master DOFs (sidprep.craig_bampton), fixed-interface modes up
    to max(2, cutoff_factor) x fmax, or max(CB_MIN_MODES, 3 x modes) of them;
 4. second step (sidprep.modes): eigenmodes of interest + frequency-response modes, cut-off,
    orthonormalisation; reference frame free (default) or attached to an interface master;
@@ -144,7 +144,7 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
     from sidprep.interfaces import interface_model, rigid_modes_model
     from sidprep.modes import modal_basis
     from sidprep.progress import Phases
-    from sidprep.reduce import craig_bampton
+    from sidprep.craig_bampton import craig_bampton
     from sidprep.stiffening import support_dofs
 
     ph = phases or Phases(verbose=False)

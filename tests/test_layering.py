@@ -3,7 +3,7 @@
 import subprocess
 import sys
 
-FE_MODULES = ("sidprep.mesh", "sidprep.assemble", "sidprep.linalg", "sidprep.reduce",
+FE_MODULES = ("sidprep.mesh", "sidprep.assemble", "sidprep.linalg", "sidprep.craig_bampton",
               "sidprep.modes", "sidprep.interfaces", "sidprep.stiffening", "sidprep.job", "sidprep.analysis", "skfem")
 
 

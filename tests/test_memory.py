@@ -104,7 +104,7 @@ def test_memory_limit_from_the_environment(monkeypatch):
 
 
 def test_reduction_refused_before_the_work_when_it_cannot_fit():
-    from sidprep.reduce import craig_bampton
+    from sidprep.craig_bampton import craig_bampton
 
     mesh = femesh(__import__("test_assemble").skfem_box(n=2), 2)[0]
     K, M = stiffness_and_mass(mesh, MAT)

@@ -13,7 +13,7 @@ from sidprep.linalg import eigen_modes, factorize
 from sidprep.material import builtin_material
 from sidprep.mesh import read_mesh
 from sidprep.modes import eigen_pairs, hz
-from sidprep.reduce import craig_bampton, guyan
+from sidprep.craig_bampton import craig_bampton, guyan
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 #: Guyan condensation is exact for loads at the boundary: round-off only

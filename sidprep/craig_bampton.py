@@ -125,12 +125,19 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
 REDUCE_OVER_MODES_PEAK = 2.2
 
 
+def reduction_peak_bytes(n_dof: int, nnz: int | None = None) -> float:
+    """Estimated peak memory (bytes) of a whole reduction of an n_dof model, before it runs."""
+    from sidprep.linalg import estimate_peak_memory
+
+    return REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz).direct_peak_bytes
+
+
 def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None) -> None:
     """Refuse (InputError, one line) a reduction whose estimated peak exceeds the memory this run may
     use, before the factorisation starts, instead of meeting the out-of-memory killer."""
-    from sidprep.linalg import MEMORY_HEADROOM, available_memory_bytes, estimate_peak_memory
+    from sidprep.linalg import MEMORY_HEADROOM, available_memory_bytes
 
-    need = REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz).direct_peak_bytes
+    need = reduction_peak_bytes(n_dof, nnz)
     avail = available_memory_bytes() if memory_limit is None else float(memory_limit)
     if need > MEMORY_HEADROOM * avail:
         raise InputError(f"model too large for this machine: the reduction of {n_dof} DOF needs ~{need / 1024 ** 3:.1f} GB, "
