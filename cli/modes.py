@@ -22,7 +22,7 @@ def register(subparsers) -> None:
     n.add_argument("--fmax", type=float, metavar="HZ", help="all modes up to this frequency")
     p.add_argument("--clamp", action="append", default=[], metavar="GROUP",
                    help="fix all DOFs of the nodes of this node set (repeat for several)")
-    p.add_argument("--backend", default="auto", choices=("auto", "cholmod", "superlu", "lobpcg"),
+    p.add_argument("--backend", default="auto", choices=("auto", "cholmod", "superlu", "lobpcg", "dense"),
                    help="eigen solver: shift-invert Lanczos with CHOLMOD / SuperLU, or AMG-LOBPCG (large models)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of the table")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")

@@ -102,8 +102,8 @@ def modal_analysis(mesh, options: ModalOptions = ModalOptions(), *, phases=None)
     mass_kg = float(M.sum() / 3.0)
     if len(clamped):
         K, M = restriction.restrict(K), restriction.restrict(M)
-    near_null = rigid_body_modes(mesh.points)[restriction.free] if o.backend == "lobpcg" else None
+    near_null = rigid_body_modes(mesh.points)[restriction.free] if o.backend in ("auto", "lobpcg") else None
     res = eigen_modes(K, M, count=count, fmax=o.fmax, backend=o.backend, n_rigid_max=n_rigid_max,
-                      near_null=near_null, phases=ph)
+                      near_null=near_null, extent=np.ptp(mesh.points, axis=0), phases=ph)
     return ModalResult(res.frequencies_hz, res.vectors, res.residuals, res.n_rigid, mass_kg, mesh.n_dof,
                        int(K.shape[0]), mesh, material, tuple(notes), res.backend, res.sigma, dict(ph.timings_s))

@@ -77,7 +77,7 @@ class OutputOptions:
 @dataclass(frozen=True)
 class ModalOptions(ModelOptions):
     """A modal analysis (sidprep.analysis.modal_analysis): ``count`` elastic modes or all up to
-    ``fmax`` (Hz); ``clamp`` node sets fixed; ``backend`` auto | cholmod | superlu | lobpcg."""
+    ``fmax`` (Hz); ``clamp`` node sets fixed; ``backend`` auto | cholmod | superlu | lobpcg | dense."""
 
     count: int | None = None
     fmax: float | None = None
