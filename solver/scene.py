@@ -290,6 +290,19 @@ def _flexible_body(name: str, t: _Table, pose: dict):
     return body, {"kind": "flexible", "source": str(path)}
 
 
+def _beam_body(name: str, t: _Table, pose: dict):
+    """An analytical Euler-Bernoulli Beam declared inline (sidprep.beam: its SID in memory)."""
+    from sidprep.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
+    from solver.system import FlexibleBody
+
+    beam = {key: t.raw(key) for key in BEAM_TABLE_KEYS if t.has(key)}
+    sid = beam_sid(beam_options_from_table(beam, f"{t.file}: [{t.where}]"))
+    q0 = t.array("q0", None, shape=(sid.nq,))
+    qd0 = t.array("qd0", None, shape=(sid.nq,))
+    body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), **pose)
+    return body, {"kind": "beam", "source": ""}
+
+
 def _rigid_body(name: str, t: _Table, pose: dict):
     from solver.system import RigidBody
 
@@ -305,17 +318,21 @@ def _rigid_body(name: str, t: _Table, pose: dict):
     return body, {"kind": "rigid", "source": "" if obj is None else str(obj)}
 
 
+#: body tables by their `type`: a SID file, an inline analytical beam, a rigid body
+BODY_TYPES = {"flexible": _flexible_body, "beam": _beam_body, "rigid": _rigid_body}
+
+
 def _bodies(file: Path, root: dict, system) -> dict:
     sources = {}
     for name, t in _subtables(file, root, "bodies"):
-        kind = t.string("type", choices=("flexible", "rigid"))
+        kind = t.string("type", choices=tuple(BODY_TYPES))
         pose = {"position": t.vector("position", None), "rotation": t.rotation(),
                 "velocity": t.vector("velocity", None), "omega": t.vector("omega", None)}
-        body, sources[name] = (_flexible_body if kind == "flexible" else _rigid_body)(name, t, pose)
+        body, sources[name] = BODY_TYPES[kind](name, t, pose)
         t.finish()
         system.add(body)
     if not sources:
-        raise InputError(f"{file}: no bodies; add at least one [bodies.<name>] table with type = \"flexible\" or \"rigid\"")
+        raise InputError(f"{file}: no bodies; add at least one [bodies.<name>] table with type = \"flexible\", \"beam\" or \"rigid\"")
     return sources
 
 
