@@ -66,7 +66,7 @@ def animation_surfaces(scene) -> dict:
     from solver.animation import obj_surface, sid_surface
 
     surfaces = {}
-    for b in scene.system.bodies:
+    for b in getattr(scene.system, "bodies", ()):          # absolute-nodal beams carry no surface
         src = scene.sources[b.name]
         if src["kind"] == "flexible":
             surfaces[b.name] = sid_surface(b.sid)
@@ -77,9 +77,12 @@ def animation_surfaces(scene) -> dict:
 
 def run(args) -> int:
     from sidprep.progress import Phases
+    from sidprep.tables import require_toml
     from solver.results import json_safe, plot_signals, write_csv, write_results
     from solver.scene import load_scene, simulate
 
+    require_toml(args.scene, "scene file", "write a scene (docs/scenes.md); a mesh is reduced first: "
+                 f"sidprep reduce {args.scene}")
     phases = Phases(verbose=not args.quiet)
     with phases("scene", args.scene):
         scene = load_scene(args.scene, t_end=args.t_end)

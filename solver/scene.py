@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
+from solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
+                                   load_absolute_nodal_scene, simulate_absolute_nodal)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -536,6 +538,9 @@ def empty_result(system):
     signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
     from solver.system import BodyHistory, JointHistory, Result
 
+    if isinstance(system, AbsoluteNodalModel):
+        return initial_result(system)
+
     z = np.zeros((0, 3))
     return Result(
         t=np.zeros(0),
@@ -577,6 +582,8 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
 
     path = Path(path)
     root, text = read_toml(path)
+    if is_absolute_nodal_scene(root):
+        return _absolute_nodal_scene(path, root, text, t_end)
     known = ("scene", "solver", "output", "bodies", "markers", "joints", "drivers", "forces")
     for key in root:
         if key not in known:
@@ -606,6 +613,16 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
                  system=system, simulate_kwargs=kwargs, output=output, sources=sources)
 
 
+def _absolute_nodal_scene(path: Path, root: dict, text: str, t_end: float | None) -> Scene:
+    """A scene of absolute-nodal beams (its [beams.<name>] tables; solver.absolute_nodal)."""
+    an = load_absolute_nodal_scene(root, path, t_end=t_end)
+    return Scene(path=path, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(), title=an.model.title,
+                 system=an.model, output=an.output,
+                 simulate_kwargs={"t_end": an.settings.t_end, "h": an.settings.step, "method": "rk4",
+                                  "settings": an.settings},
+                 sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams})
+
+
 def simulate(scene: Scene):
     """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> solver.system.Result.
 
@@ -613,6 +630,8 @@ def simulate(scene: Scene):
     with the scene file named first.
     """
     try:
+        if isinstance(scene.system, AbsoluteNodalModel):
+            return simulate_absolute_nodal(scene.system, scene.simulate_kwargs["settings"])
         return scene.system.simulate(**scene.simulate_kwargs)
     except InputError as exc:
         raise InputError(f"{scene.path}: {exc}") from None

@@ -175,3 +175,18 @@ def test_floating_frame_solver_agrees_and_the_difference_shrinks(tmp_path):
         assert d_fine < tol, (key, d_fine)
         assert d_fine < 0.5 * d_coarse, (key, d_fine, d_coarse)          # shrinks with refinement
         assert d_fine < flexible / 3, (key, d_fine, flexible)             # and is small against the flexibility
+
+
+def test_scene_file_runs_through_sidprep_simulate(tmp_path):
+    """The two-link scene through `sidprep simulate` (the scene dispatches to this formulation):
+    the results file holds the run, whose total energy stays within the conservation tolerance, and
+    the signals are listed before a run."""
+    from cli.main import main
+    from solver.results import read_results, signal
+
+    scene = Path(__file__).resolve().parents[1] / "examples" / "two_link_manipulator" / "scene.toml"
+    out = tmp_path / "two.results.h5"
+    assert main(["simulate", str(scene), "--t-end", "0.05", "-o", str(out), "--json", "--quiet"]) == 0
+    total = signal(read_results(out).result, "energy.total")[0]
+    assert np.max(np.abs(total - total[0])) / total[0] < TWO_LINK_ENERGY_TOL
+    assert main(["simulate", str(scene), "--list-signals"]) == 0

@@ -100,7 +100,7 @@ def test_list_signals_names_every_signal_without_simulating(scene, tmp_path, cap
 
 def test_missing_scene_file(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "none.toml")]) == 2
-    assert "no such scene file" in capsys.readouterr().err
+    assert "scene file not found" in capsys.readouterr().err
 
 
 RIGID_ROD_TIED_TOO_FAR = """
