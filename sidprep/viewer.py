@@ -274,3 +274,229 @@ def write_mode_page(sid_path, out_path=None, obj_path=None) -> Path:
             + "<h4>checks</h4>" + _table(_checks_rows(sid)))
     script = _MODE_SCRIPT % (json.dumps(data), PLOT_ID)
     return write_page(out_path, f"{sid_path.name}", _figure(surface, nodes, size), controls, side, script)
+
+
+# ---------------------------------------------------------------------------------------------
+# the simulated mechanism (sidprep animate)
+
+#: at most this many time samples go into a page or a movie (every k-th output sample)
+MAX_PAGE_FRAMES = 300
+MAX_MOVIE_FRAMES = 60
+
+
+def resolve_source(source: str, results_path: Path, scene_path: str) -> Path:
+    """Find a body's SID/OBJ file named in a results file: as stored, beside the scene file, or
+    beside the results file."""
+    candidates = [Path(source)]
+    if scene_path:
+        candidates.append(Path(scene_path).parent / Path(source).name)
+        candidates.append(Path(scene_path).parent / source)
+    candidates.append(results_path.parent / Path(source).name)
+    found = next((c for c in candidates if c.is_file()), None)
+    if found is None:
+        raise InputError(f"{results_path}: the body file {source!r} it names is not found (tried "
+                         f"{', '.join(map(str, candidates))}); run `sidprep animate` from the simulation's folder")
+    return found
+
+
+def mechanism_surfaces(results_path) -> tuple[object, dict]:
+    """The results (``solver.results.ResultsFile``) and {body name: BodySurface} of its bodies
+    with a shape: flexible bodies from their SID (interpolated when it has few nodes), rigid
+    bodies from their OBJ (no modes)."""
+    from sidprep.io import read_sid
+    from solver.results import read_results
+
+    results_path = Path(results_path)
+    rf = read_results(results_path)
+    scene_path = rf.scene.get("path", "")
+    surfaces = {}
+    for name, info in rf.bodies.items():
+        if not info.get("source"):
+            continue
+        path = resolve_source(info["source"], results_path, scene_path)
+        if info.get("kind") == "flexible":
+            surfaces[name] = body_surface(read_sid(path), str(path))
+        else:
+            points, triangles = read_obj(path)
+            surfaces[name] = BodySurface(points, triangles, np.zeros((len(points), 3, 0)), path.name)
+    if not surfaces:
+        raise InputError(f"{results_path}: no body has a surface to animate; give rigid bodies an `obj` "
+                         "or flexible bodies a SID file")
+    return rf, surfaces
+
+
+def body_motion(surface: BodySurface, r: np.ndarray, A: np.ndarray, q: np.ndarray, scale: float = 1.0):
+    """Inertial positions (nt, ns, 3) and elastic displacement magnitudes (nt, ns) of the surface.
+
+    x = r_O + A (c + scale * S q)  (sid-spec section 5.2); |u| = |S q| (true size, m).
+    r (nt, 3), A (nt, 3, 3), q (nt, nq).
+    """
+    u = np.einsum("sak,tk->tsa", surface.shapes, q) if surface.shapes.shape[2] else np.zeros((len(r),) + surface.points.shape)
+    x = r[:, None, :] + np.einsum("tab,tsb->tsa", A, surface.points[None] + scale * u)
+    return x, np.linalg.norm(u, axis=2)
+
+
+def _samples(nt: int, limit: int) -> np.ndarray:
+    return np.arange(0, nt, max(1, int(np.ceil(nt / limit))))
+
+
+def exaggeration(result, surfaces: dict) -> float:
+    """Scale that draws the largest elastic displacement of the run at DISPLAY_FRACTION of the
+    mechanism size (1 when nothing deforms)."""
+    peak, extent = 0.0, []
+    for name, s in surfaces.items():
+        b = result.bodies[name]
+        x, umag = body_motion(s, b.position, b.rotation, b.q)
+        peak = max(peak, float(umag.max()))
+        extent.append(x.reshape(-1, 3))
+    size = float(np.linalg.norm(np.ptp(np.vstack(extent), axis=0)))
+    return DISPLAY_FRACTION * size / peak if peak > 0 else 1.0
+
+
+_MECHANISM_SCRIPT = """
+const D = %s;
+const gd = document.getElementById('%s');
+const slider = document.getElementById('time'), mode = document.getElementById('deform');
+let playing = false, wall0 = 0, t0 = 0, last = 0;
+function show(i) {
+  const s = mode.value === 'exaggerated' ? D.exaggeration : 1.0;
+  const xs = [], ys = [], zs = [], cs = [];
+  for (const B of D.bodies) {
+    const n = B.c.length / 3, r = B.r[i], A = B.A[i], q = B.q[i];
+    const x = new Array(n), y = new Array(n), z = new Array(n), c = new Array(n);
+    for (let p = 0; p < n; p++) {
+      let u0 = 0, u1 = 0, u2 = 0;
+      for (let k = 0; k < q.length; k++) {
+        const o = (3 * p) * q.length;
+        u0 += B.S[o + k] * q[k]; u1 += B.S[o + q.length + k] * q[k]; u2 += B.S[o + 2 * q.length + k] * q[k];
+      }
+      const l0 = B.c[3*p] + s * u0, l1 = B.c[3*p+1] + s * u1, l2 = B.c[3*p+2] + s * u2;
+      x[p] = r[0] + A[0]*l0 + A[1]*l1 + A[2]*l2;
+      y[p] = r[1] + A[3]*l0 + A[4]*l1 + A[5]*l2;
+      z[p] = r[2] + A[6]*l0 + A[7]*l1 + A[8]*l2;
+      c[p] = Math.hypot(u0, u1, u2);
+    }
+    xs.push(x); ys.push(y); zs.push(z); cs.push(c);
+  }
+  Plotly.restyle(gd, {x: xs, y: ys, z: zs, intensity: cs}, D.bodies.map((_, b) => b));
+  document.getElementById('clock').textContent = D.t[i].toFixed(4);
+}
+function tick(now) {
+  if (playing && now - last > 40) {
+    last = now;
+    const t = t0 + (now - wall0) / 1000;
+    let i = D.t.findIndex(v => v >= t);
+    if (i < 0) { i = D.t.length - 1; playing = false; document.getElementById('play').textContent = 'play'; }
+    slider.value = i; show(i);
+  }
+  requestAnimationFrame(tick);
+}
+document.getElementById('play').onclick = function () {
+  playing = !playing; this.textContent = playing ? 'pause' : 'play';
+  if (+slider.value >= D.t.length - 1) slider.value = 0;
+  wall0 = performance.now(); t0 = D.t[+slider.value];
+};
+slider.oninput = () => show(+slider.value); mode.onchange = () => show(+slider.value);
+const m = /t=(\\d+)/.exec(location.hash);
+if (m) slider.value = Math.min(+m[1], D.t.length - 1);
+if (/exaggerated/.test(location.hash)) mode.value = 'exaggerated';
+show(+slider.value);
+requestAnimationFrame(tick);
+"""
+
+
+def write_mechanism_page(results_path, out_path) -> Path:
+    """Self-contained HTML page of a simulated mechanism: surfaces coloured by |u| (m), a time
+    slider with real-time play, true or exaggerated deformation.  Append ``#t=N&exaggerated``
+    to the address to open at sample N with exaggerated deformation."""
+    import plotly.graph_objects as go
+
+    rf, surfaces = mechanism_surfaces(results_path)
+    result = rf.result
+    keep = _samples(len(result.t), MAX_PAGE_FRAMES)
+    scale = exaggeration(result, surfaces)
+    bodies, traces, allx, umax = [], [], [], 0.0
+    for name, s in surfaces.items():
+        b = result.bodies[name]
+        x, umag = body_motion(s, b.position[keep], b.rotation[keep], b.q[keep], scale)
+        allx.append(x.reshape(-1, 3))
+        umax = max(umax, float(umag.max()))
+        nq = s.shapes.shape[2]
+        bodies.append({"c": s.points.ravel().tolist(), "S": s.shapes.reshape(-1).tolist() if nq else [],
+                       "r": b.position[keep].tolist(), "A": b.rotation[keep].reshape(len(keep), 9).tolist(),
+                       "q": b.q[keep][:, :nq].tolist() if nq else [[] for _ in keep]})
+        t = s.triangles
+        traces.append(go.Mesh3d(x=x[0, :, 0], y=x[0, :, 1], z=x[0, :, 2], i=t[:, 0], j=t[:, 1], k=t[:, 2],
+                                intensity=umag[0], colorscale="Viridis", cmin=0, cmax=1, name=name,
+                                coloraxis="coloraxis"))
+    cloud = np.vstack(allx)
+    lo, hi = cloud.min(axis=0), cloud.max(axis=0)
+    pad = 0.05 * float(np.max(hi - lo) or 1.0)
+    ranges = [[float(a - pad), float(b + pad)] for a, b in zip(lo, hi)]
+    spans = np.array([r[1] - r[0] for r in ranges])
+    fig = go.Figure(traces)
+    fig.update_layout(scene=dict(xaxis=dict(range=ranges[0]), yaxis=dict(range=ranges[1]),
+                                 zaxis=dict(range=ranges[2]), aspectmode="manual",
+                                 aspectratio=dict(zip("xyz", (spans / spans.max()).tolist()))),
+                      coloraxis=dict(colorscale="Viridis", cmin=0, cmax=umax or 1.0,
+                                     colorbar=dict(title="|u| (m)")),
+                      margin=dict(l=0, r=0, t=0, b=0), showlegend=False)
+    data = {"t": result.t[keep].tolist(), "exaggeration": scale, "bodies": bodies}
+    controls = (f"<button id='play'>play</button> t = <span id='clock'></span> s "
+                f"<input id='time' type='range' min='0' max='{len(keep) - 1}' step='1' value='0' style='width:40%'> "
+                "<select id='deform'><option value='real'>real deformation</option>"
+                f"<option value='exaggerated'>exaggerated x {scale:.3g}</option></select>")
+    rows = [("results", html.escape(Path(results_path).name)), ("scene", html.escape(rf.scene.get("path", ""))),
+            ("time", f"{result.t[0]:.4g} .. {result.t[-1]:.4g} s, {len(result.t)} samples ({len(keep)} shown)"),
+            ("max |u|", f"{umax:.3g} m")]
+    rows += [(name, html.escape(s.source)) for name, s in surfaces.items()]
+    script = _MECHANISM_SCRIPT % (json.dumps(data), PLOT_ID)
+    return write_page(out_path, Path(results_path).name, fig, controls, _table(rows), script)
+
+
+def write_mechanism_movie(results_path, out_path, exaggerated: bool = True) -> Path:
+    """An .mp4 (needs ffmpeg) or .gif movie of the mechanism with matplotlib, at most
+    MAX_MOVIE_FRAMES frames, surfaces coloured by |u|."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib import animation
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    out_path = Path(out_path)
+    suffix = out_path.suffix.lower()
+    if suffix == ".mp4" and not animation.FFMpegWriter.isAvailable():
+        raise InputError(f"{out_path}: writing .mp4 needs ffmpeg (apt-get install ffmpeg); write a .gif instead")
+    rf, surfaces = mechanism_surfaces(results_path)
+    result = rf.result
+    keep = _samples(len(result.t), MAX_MOVIE_FRAMES)
+    scale = exaggeration(result, surfaces) if exaggerated else 1.0
+    motion = {n: body_motion(s, result.bodies[n].position[keep], result.bodies[n].rotation[keep],
+                             result.bodies[n].q[keep], scale) for n, s in surfaces.items()}
+    cloud = np.vstack([x.reshape(-1, 3) for x, _ in motion.values()])
+    umax = max(float(u.max()) for _, u in motion.values()) or 1.0
+    fig = plt.figure(figsize=(6, 5), dpi=80)
+    ax = fig.add_subplot(projection="3d")
+    cmap = plt.get_cmap("viridis")
+
+    def draw(f):
+        ax.cla()
+        for name, s in surfaces.items():
+            x, u = motion[name]
+            colours = cmap(u[f][s.triangles].mean(axis=1) / umax)
+            ax.add_collection3d(Poly3DCollection(x[f][s.triangles], facecolors=colours, linewidths=0))
+        for set_lim, a in ((ax.set_xlim, 0), (ax.set_ylim, 1), (ax.set_zlim, 2)):
+            set_lim(cloud[:, a].min(), cloud[:, a].max())
+        ax.set_box_aspect(np.ptp(cloud, axis=0) + 1e-12)
+        ax.set_title(f"t = {result.t[keep][f]:.3f} s, deformation x {scale:.3g}")
+
+    movie = animation.FuncAnimation(fig, draw, frames=len(keep))
+    dt = float(np.median(np.diff(result.t[keep]))) if len(keep) > 1 else 0.1
+    fps = max(1, min(30, round(1.0 / dt)))
+    writer = animation.PillowWriter(fps=fps) if suffix == ".gif" else animation.FFMpegWriter(fps=fps)
+    with atomic_path(out_path) as tmp:
+        movie.save(str(tmp) + suffix, writer=writer)
+        Path(str(tmp) + suffix).replace(tmp)
+    plt.close(fig)
+    return out_path
