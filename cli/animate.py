@@ -1,0 +1,33 @@
+"""``sidprep animate``: the simulated mechanism as a self-contained HTML page or a movie."""
+
+from __future__ import annotations
+
+MOVIE_SUFFIXES = (".html", ".mp4", ".gif")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("animate", help="HTML page (or .mp4/.gif movie) of a simulated mechanism",
+                              description="Animate a results file of `sidprep simulate`: flexible bodies' "
+                                          "deformed surfaces coloured by displacement, rigid bodies from "
+                                          "their OBJ, a time slider, real or exaggerated deformation.")
+    p.add_argument("results", metavar="RESULTS.h5", help="results file of sidprep simulate")
+    p.add_argument("-o", "--output", metavar="OUT", help="movie.html (default RESULTS.html), .mp4 or .gif")
+    p.add_argument("--real", action="store_true", help="movies: true deformation (default exaggerated)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from sidprep.errors import InputError
+    from sidprep.viewer import write_mechanism_movie, write_mechanism_page
+
+    out = Path(args.output) if args.output else Path(args.results).with_suffix(".html")
+    if out.suffix.lower() not in MOVIE_SUFFIXES:
+        raise InputError(f"{out}: unknown output type; use .html, .mp4 or .gif")
+    if out.suffix.lower() == ".html":
+        path = write_mechanism_page(args.results, out)
+    else:
+        path = write_mechanism_movie(args.results, out, exaggerated=not args.real)
+    print(f"wrote {path}")
+    return 0

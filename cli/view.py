@@ -1,0 +1,23 @@
+"""``sidprep view``: one self-contained HTML page showing a SID body and its modes."""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("view", help="HTML page of a SID body: surface, nodes, frame, animated modes",
+                              description="Write one self-contained HTML page (opens offline) showing the "
+                                          "body's surface, interface nodes and frame, each mode animated on "
+                                          "demand, and its mass, CM, inertia and checks.")
+    p.add_argument("sid", metavar="BODY", help="SID file (.sid.h5 or .SID_FEM)")
+    p.add_argument("--obj", metavar="SURFACE.obj", help="surface to animate (body frame, SID units); "
+                   "default: the SID's surface modes, else the convex hull of its nodes")
+    p.add_argument("-o", "--output", metavar="PAGE.html", help="page to write (default BODY.html)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from sidprep.viewer import write_mode_page
+
+    path = write_mode_page(args.sid, args.output, args.obj)
+    print(f"wrote {path}")
+    return 0
