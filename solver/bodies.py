@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.sid import ge_tensor, gr_tensor
+from sidprep.sid import ge_tensor, gr_tensor, inertia_matrix
 from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
 from solver.kinematics import COMPILED, as_rotation, cross, exp_so3, jit, matmul, skew
 
@@ -36,14 +36,9 @@ def _omega_hat(w: np.ndarray) -> np.ndarray:
     return np.array([w[0] * w[0], w[1] * w[1], w[2] * w[2], w[0] * w[1], w[1] * w[2], w[0] * w[2]])
 
 
-def _inertia_6_to_3x3(j6) -> np.ndarray:
-    xx, yy, zz, xy, xz, yz = np.ravel(j6)
-    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-
-
 def _i1_tensor(j_m1: np.ndarray) -> np.ndarray:
     """J.M1 (6, nq, 1) -> I1 (nq, 3, 3)."""
-    return np.stack([_inertia_6_to_3x3(j_m1[:, k, 0]) for k in range(j_m1.shape[1])])
+    return np.stack([inertia_matrix(j_m1[:, k, 0]) for k in range(j_m1.shape[1])])
 
 
 def mode_pairs_from_kom_kr(kom: np.ndarray, kr: np.ndarray) -> np.ndarray:
@@ -370,7 +365,7 @@ class RigidBody(_MassBody):
         super().__init__(name, position, rotation, velocity, omega)
         c = np.asarray(com, float)
         i = np.asarray(inertia, float)
-        i_cm = np.diag(i) if i.shape == (3,) else (_inertia_6_to_3x3(i) if i.shape == (6,) else i)
+        i_cm = np.diag(i) if i.shape == (3,) else (inertia_matrix(i) if i.shape == (6,) else i)
         if mass <= 0 or i_cm.shape != (3, 3):
             raise ValueError(f"rigid body '{name}': need mass > 0 and a 3x3 / 6-vector inertia")
         self.obj = obj
@@ -503,7 +498,7 @@ class FlexibleBody(_MassBody):
         model = BodyModel(
             mass=float(s.mass),
             md0=s.mdCM.M0[:, 0].copy(),
-            I0=_inertia_6_to_3x3(s.J.M0[:, 0]) if s.J.M0.shape[0] == 6 else s.J.M0.copy(),
+            I0=inertia_matrix(s.J.M0[:, 0]) if s.J.M0.shape[0] == 6 else s.J.M0.copy(),
             Me=s.Me.M0.copy(),
             Ke=s.Ke.M0.copy(),
             md1=(md1[:, :, 0].T.copy() if md1 is not None else np.zeros((nq, 3))) if inertia_change else None,

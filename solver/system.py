@@ -458,6 +458,9 @@ class System:
             r += c.nrows
         self.m_all = r
         self.kept = np.ones(r, bool)
+        self._accept_ctx = None
+        for j in self.joints:  # per-run state: each run unwraps its angles from the start
+            j._angle_ref = 0.0
 
     def initial_pose(self) -> tuple[Pose, np.ndarray]:
         """Pose and velocities from the bodies' initial values (not yet consistent)."""
