@@ -28,6 +28,10 @@ MODAL_DIAGONAL_RTOL = 1e-8
 RIGID_ORTHOGONALITY_RTOL = 1e-6
 #: expected zero-energy modes of an unconstrained body
 FREE_BODY_RIGID_MODES = 6
+#: smallest eigenvalue of Ke / largest |eigenvalue| tolerated below zero (round-off of a PSD matrix)
+KE_PSD_RTOL = 1e-9
+#: relative slack of the inertia triangle inequalities I_a + I_b >= I_c (a thin rod reaches equality)
+TRIANGLE_RTOL = 1e-9
 
 
 def _relative(residual: np.ndarray, reference: np.ndarray) -> float:
@@ -143,6 +147,42 @@ def modal_checks(sid: SID) -> dict:
     return out
 
 
+def inertia_about_cm(sid: SID) -> np.ndarray:
+    """3x3 inertia (kg m^2) about the centre of mass: J - m (|c|^2 E - c c^T), c = mdCM / m."""
+    c = np.ravel(sid.mdCM.M0) / sid.mass
+    return inertia_matrix(sid.J.M0) - sid.mass * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+def physical_checks(sid: SID) -> dict:
+    """Is the SID physically possible?  Mass, inertia about the CM, Ke (any SID, any generator).
+
+    A deleted or zeroed data line (a damaged file) typically breaks one of these: the principal
+    moments of inertia about the CM must be positive and satisfy I_a + I_b >= I_c; Ke must be
+    positive semidefinite (Me positive definite is checked in :func:`modal_checks`).
+    """
+    mass = float(sid.mass)
+    out = {"mass > 0": _entry(0.0 if mass > 0 else float("inf"), 0.0,
+                              f"rigid-body mass m = {mass:.6g} kg (value 0 when positive)")}
+    if not mass > 0:
+        return out
+    p = np.sort(np.linalg.eigvalsh(inertia_about_cm(sid)))
+    scale = max(abs(p[-1]), 1e-300)
+    out["inertia about CM positive definite"] = _entry(
+        max(-p[0] / scale, 0.0) if p[0] > 0 else float("inf"), 0.0,
+        f"principal moments about the CM {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2 "
+        "(value -min/max, inf when one is <= 0)")
+    out["inertia triangle inequalities"] = _entry(
+        max((p[2] - p[0] - p[1]) / scale, 0.0), TRIANGLE_RTOL,
+        "largest principal moment <= sum of the other two (value (I3 - I1 - I2)/I3)")
+    if sid.nq:
+        Ke = 0.5 * (sid.Ke.M0 + sid.Ke.M0.T)
+        ev = np.linalg.eigvalsh(Ke)
+        out["Ke positive semidefinite"] = _entry(
+            max(-ev[0], 0.0) / max(abs(ev).max(), 1e-300), KE_PSD_RTOL,
+            "modal stiffness has no negative eigenvalue (value -min/max)")
+    return out
+
+
 def _reduction_report(meta) -> dict:
     """``metadata["checks"]`` when written as one flat report (scalars + a "passed" flag)."""
     report = meta.get("checks") if isinstance(meta, dict) else None
@@ -211,7 +251,7 @@ def normalise_external(checks) -> dict:
 def sid_checks(sid: SID) -> dict:
     """All checks of ``sid``: identities, modal data, free-body checks, and the FE comparisons."""
     meta = sid.metadata if isinstance(sid.metadata, dict) else {}
-    return {**node_identities(sid), **inertia_identities(sid), **modal_checks(sid),
+    return {**physical_checks(sid), **node_identities(sid), **inertia_identities(sid), **modal_checks(sid),
             **free_body_checks(sid), **normalise_external(meta.get("checks"))}
 
 
