@@ -78,6 +78,7 @@ def modal_analysis(mesh, options: ModalOptions = ModalOptions(), *, phases=None)
     from sidprep.assemble import stiffness_and_mass
     from sidprep.job import load_mesh, model_material
     from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
+    from sidprep.plausibility import unit_warnings
     from sidprep.progress import Phases
 
     o = options
@@ -105,5 +106,7 @@ def modal_analysis(mesh, options: ModalOptions = ModalOptions(), *, phases=None)
     near_null = rigid_body_modes(mesh.points)[restriction.free] if o.backend in ("auto", "lobpcg") else None
     res = eigen_modes(K, M, count=count, fmax=o.fmax, backend=o.backend, n_rigid_max=n_rigid_max,
                       near_null=near_null, extent=np.ptp(mesh.points, axis=0), phases=ph)
+    elastic_hz = res.frequencies_hz[res.n_rigid:]
+    notes += unit_warnings(mesh.points, material, mass_kg, float(elastic_hz[0]) if len(elastic_hz) else None)
     return ModalResult(res.frequencies_hz, res.vectors, res.residuals, res.n_rigid, mass_kg, mesh.n_dof,
                        int(K.shape[0]), mesh, material, tuple(notes), res.backend, res.sigma, dict(ph.timings_s))

@@ -294,6 +294,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
     from sidprep.interfaces import select_patch
     from sidprep.material import unit_system
+    from sidprep.plausibility import unit_warnings
     from sidprep.progress import Phases, peak_memory_mb
     from sidprep.stiffening import stiffening_parts
 
@@ -312,6 +313,8 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
     red = reduce_body(mesh, K_fe, M_fe, interfaces, frame=o.frame, n_modes=o.modes, fmax=o.fmax,
                       frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
+    eigen_hz = [f for f, kind in zip(red.basis.frequencies_hz, red.basis.kinds) if kind == "eigen" and f > 0]
+    notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0), min(eigen_hz, default=None))
     stiff = None
     if o.stiffening:
         with ph("stiffening", "unit load cases"):

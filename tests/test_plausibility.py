@@ -50,3 +50,22 @@ def test_frequency_far_from_wave_speed_estimate_warns():
     points, mass = points_and_mass("piston_rod.msh")
     warnings = unit_warnings(points, STEEL, mass, PISTON_ROD_F1_HZ * 1e3)
     assert len(warnings) == 1 and "wave-speed estimate" in warnings[0]
+
+
+def test_modes_and_reduce_warn_end_to_end(tmp_path, capsys):
+    """`sidprep modes` and `sidprep reduce` of the bar drawn in millimetres but run as SI print the
+    warning (stderr) naming --units mm-t-s; run with --units mm-t-s they do not."""
+    import meshio
+
+    from cli.main import main
+
+    m = meshio.read(MESHES / "bar.msh")
+    m.points = m.points * 1000.0
+    mm = tmp_path / "bar_mm.msh"
+    meshio.write(mm, m, file_format="gmsh22", binary=False)
+    assert main(["modes", str(mm), "--count", "2", "--json"]) == 0
+    assert "--units mm-t-s" in capsys.readouterr().err
+    assert main(["reduce", str(mm), "--modes", "2", "--no-frm", "-o", str(tmp_path / "bar.sid.h5")]) == 0
+    assert "--units mm-t-s" in capsys.readouterr().err
+    assert main(["modes", str(mm), "--count", "2", "--units", "mm-t-s", "--json"]) == 0
+    assert "--units" not in capsys.readouterr().err
