@@ -25,16 +25,6 @@ BLOCK_TIMEOUT_S = 300
 #: the README's set-up block installs the package and runs the whole suite: that is CI itself
 #: (.ci/run), so it is not run again from inside the suite
 SET_UP = ("pip install", "installs sidprep and runs the test suite: CI (.ci/run) does exactly this")
-#: docs owned by other helpers whose blocks fail today; the lead fixes them at merge and deletes
-#: the entry (each is skipped with its reason, visibly)
-PENDING = {
-    "docs/performance.md": "runs the on-demand benchmark (29k-DOF mesh it does not make first): "
-                           "needs a docs-test: skip marker or the make_bar.py step",
-    "docs/scenes.md": "block 1 simulates scene.toml, which does not exist at the repository root",
-    "docs/solver.md": "the Python sketch fails; the core helper is rewriting this doc",
-    "examples/flexible_pendulum/README.md": "block 2 runs from the example's folder: needs "
-                                            "'cd examples/flexible_pendulum' in the block",
-}
 #: what is copied into the temporary checkout (the files the docs use)
 #: (the code itself runs from this checkout, so numba's kernel cache is reused between blocks)
 COPIED = ("data", "examples", "benchmarks", "docs", "README.md")
@@ -70,8 +60,6 @@ def run_block(lang: str, code: str, cwd: Path) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("doc", [d for d in DOCS if blocks(d)], ids=lambda d: str(d.relative_to(ROOT)))
 def test_doc_blocks_run_as_written(doc, tmp_path):
-    if str(doc.relative_to(ROOT)) in PENDING:
-        pytest.skip(f"pending fix at merge: {PENDING[str(doc.relative_to(ROOT))]}")
     cwd = checkout(tmp_path)
     failures, skipped = [], []
     for k, (lang, code, why) in enumerate(blocks(doc), 1):
