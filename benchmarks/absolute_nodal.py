@@ -32,8 +32,8 @@ CASES = ((4, 2.5e-4), (8, 1.25e-4), (16, 5e-5))
 def main(argv=None):
     from dataclasses import replace
 
-    from solver.absolute_nodal import AbsoluteNodalSettings, assemble, integrate, load_absolute_nodal_scene
-    from solver.scene import read_toml
+    from sidprep.solver.absolute_nodal import AbsoluteNodalSettings, assemble, integrate, load_absolute_nodal_scene
+    from sidprep.solver.scene import read_toml
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--repeat", type=int, default=7)

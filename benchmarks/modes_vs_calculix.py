@@ -80,7 +80,7 @@ def run_ccx(case: str, mesh: Path, workdir: Path) -> dict:
 
 def run_sidprep(case: str, mesh: Path, workdir: Path) -> dict:
     env = dict(os.environ, **SINGLE_THREAD)
-    cmd = [sys.executable, "-m", "cli.main", "modes", str(mesh), "--material", "steel", "--json", "-q",
+    cmd = [sys.executable, "-m", "sidprep.cli.main", "modes", str(mesh), "--material", "steel", "--json", "-q",
            *CASES[case]["args"]]
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
     out, wall, rss = gnu_time(cmd, env, workdir)

@@ -54,7 +54,7 @@ def run_reduce(mesh: Path, repeat: int, extra=()) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(repeat):
             t0, c0 = time.perf_counter(), children_cpu_s()
-            out = subprocess.run([sys.executable, "-m", "cli.main", "reduce", str(mesh), "-q", "--json", *extra],
+            out = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(mesh), "-q", "--json", *extra],
                                  cwd=tmp, env={**os.environ, "PYTHONPATH": str(ROOT)},
                                  capture_output=True, text=True, check=True)
             walls.append(time.perf_counter() - t0)

@@ -71,14 +71,14 @@ def estimate_mb(mesh_path: Path, n_modes: int, clamp: bool) -> tuple[int, float]
 
 
 def run_modes(mesh: Path, work: Path) -> dict:
-    cmd = [sys.executable, "-m", "cli.main", "modes", str(mesh), "--clamp", "fixed_end", "--count", "10"]
+    cmd = [sys.executable, "-m", "sidprep.cli.main", "modes", str(mesh), "--clamp", "fixed_end", "--count", "10"]
     _, err, wall, rss = timed(cmd, work)
     note = next((line.strip() for line in err.splitlines() if "memory estimate" in line), "")
     return {"wall_s": wall, "rss_mb": rss, "choice": note.rpartition("backend ")[2] or "?"}
 
 
 def run_reduce(mesh: Path, work: Path) -> dict:
-    cmd = [sys.executable, "-m", "cli.main", "reduce", str(mesh), "--interface", "fixed_end", "--interface",
+    cmd = [sys.executable, "-m", "sidprep.cli.main", "reduce", str(mesh), "--interface", "fixed_end", "--interface",
            "free_end", "--modes", "30", "-q", "--json", "-o", str(work / "out.h5")]
     out, _, wall, rss = timed(cmd, work)
     summary = json.loads(out)
@@ -100,7 +100,7 @@ def piston_rod(repeat: int) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(repeat):
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "cli.main", "reduce", str(REPO / "data/meshes/piston_rod.msh"),
+            subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(REPO / "data/meshes/piston_rod.msh"),
                             "-q", "-o", str(Path(tmp) / "p.h5")], check=True, cwd=REPO,
                            env=dict(os.environ, PYTHONPATH=str(REPO)))
             walls.append(time.perf_counter() - t0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cli.reduce import add_reduce_arguments
+from sidprep.cli.reduce import add_reduce_arguments
 
 
 def register(subparsers) -> None:
@@ -34,7 +34,7 @@ def batch_from_args(args):
     """(jobs, BatchOptions) of the command line: a study manifest, or meshes with reduce options."""
     from dataclasses import replace
 
-    from cli.reduce import options_given
+    from sidprep.cli.reduce import options_given
     from sidprep.batch import BatchOptions, jobs_from_meshes, read_study
     from sidprep.errors import InputError
     from sidprep.options import ReduceOptions
@@ -57,7 +57,7 @@ def batch_from_args(args):
 def run(args) -> int:
     import json
 
-    from cli.options import cli_flags
+    from sidprep.cli.options import cli_flags
     from sidprep.batch import run_batch
     from sidprep.options import check_reduce_options
 

@@ -14,7 +14,7 @@ import importlib
 import pkgutil
 import sys
 
-import cli
+from sidprep import cli
 from sidprep import __version__
 from sidprep.errors import InputError
 
@@ -30,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     for info in sorted(pkgutil.iter_modules(cli.__path__), key=lambda m: m.name):
         if info.name == "main":
             continue
-        module = importlib.import_module(f"cli.{info.name}")
+        module = importlib.import_module(f"sidprep.cli.{info.name}")
         if hasattr(module, "register"):
             module.register(sub)
     return parser

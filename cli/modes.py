@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from cli.options import add_model_arguments, cli_flags, quiet_native_output
+from sidprep.cli.options import add_model_arguments, cli_flags, quiet_native_output
 
 
 def register(subparsers) -> None:

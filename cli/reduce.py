@@ -6,7 +6,7 @@ import argparse
 import sys
 from dataclasses import fields, replace
 
-from cli.options import add_model_arguments
+from sidprep.cli.options import add_model_arguments
 
 
 def add_reduce_arguments(p) -> None:
@@ -73,7 +73,7 @@ def options_given(args, cls) -> dict:
 def run(args) -> int:
     import json
 
-    from cli.options import cli_flags, quiet_native_output
+    from sidprep.cli.options import cli_flags, quiet_native_output
     from sidprep.fe_checks import format_checks
     from sidprep.job import reduce
     from sidprep.output import output_paths, write_reduction

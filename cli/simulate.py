@@ -43,7 +43,7 @@ def effects_summary(report) -> dict:
 
 def summary(scene, result, outputs: dict) -> dict:
     """The JSON summary of a run (see docs/scenes.md, "Output")."""
-    from solver.results import energy_summary
+    from sidprep.solver.results import energy_summary
 
     stats = result.stats
     return {
@@ -63,7 +63,7 @@ def summary(scene, result, outputs: dict) -> dict:
 
 def animation_surfaces(scene) -> dict:
     """{body name: Surface} of every body that has a shape (flexible: SID surface; rigid: OBJ)."""
-    from solver.animation import obj_surface, sid_surface
+    from sidprep.solver.animation import obj_surface, sid_surface
 
     surfaces = {}
     for b in getattr(scene.system, "bodies", ()):          # absolute-nodal beams carry no surface
@@ -78,8 +78,8 @@ def animation_surfaces(scene) -> dict:
 def run(args) -> int:
     from sidprep.progress import Phases
     from sidprep.tables import require_toml
-    from solver.results import json_safe, plot_signals, write_csv, write_results
-    from solver.scene import load_scene, simulate
+    from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results
+    from sidprep.solver.scene import load_scene, simulate
 
     require_toml(args.scene, "scene file", "write a scene (docs/scenes.md); a mesh is reduced first: "
                  f"sidprep reduce {args.scene}")
@@ -87,8 +87,8 @@ def run(args) -> int:
     with phases("scene", args.scene):
         scene = load_scene(args.scene, t_end=args.t_end)
     if args.list_signals:
-        from solver.results import signal_names
-        from solver.scene import empty_result
+        from sidprep.solver.results import signal_names
+        from sidprep.solver.scene import empty_result
 
         print("\n".join(signal_names(empty_result(scene.system))))
         return 0
@@ -110,7 +110,7 @@ def run(args) -> int:
         if args.csv or scene.output.csv:
             outputs["csv"] = str(write_csv(result, signals, beside(".csv")))
     if args.animate or scene.output.animate:
-        from solver.animation import write_animation
+        from sidprep.solver.animation import write_animation
 
         with phases("animate", f"{len(result.t)} frames"):
             outputs["animation"] = str(write_animation(result, animation_surfaces(scene), beside(".pvd")))

@@ -5,8 +5,8 @@ the functions below import the FE modules (mesh, assemble, linalg, reduce, ...) 
 `sidprep.sid` and `sidprep.io` depend on numpy and h5py only, so the solver can read SID files
 without pulling in the FE side.
 
-(``reduce_model``, not ``reduce``: the name ``sidprep.reduce`` is the Craig-Bampton module, and
-importing a submodule rebinds the package attribute of its name.)
+The solver and the command line are the subpackages ``sidprep.solver`` and ``sidprep.cli`` (the
+repository's top-level folders solver/ and cli/).
 
 Python API (all lengths m, masses kg, times s, frequencies Hz)::
 
@@ -16,19 +16,17 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
     sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks: ``sidprep info``)
     run_batch(jobs, BatchOptions(...)) -> BatchReport
+    beam(BeamOptions(...)) -> SID                           (analytical Euler-Bernoulli beam)
+    load_scene(path) -> Scene;  simulate(scene) -> Result  (the solver: docs/scenes.md)
 """
 
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "read_sid", "write_sid", "sid_info",
-           "run_batch",
-           "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "Job"]
-# places the lead fills at merge (not imported here: ``import sidprep`` never loads the solver):
-#   beam(...)        -> sidprep.beam (issue 9)
-#   load_scene(path) -> solver.scene.load_scene
-#   simulate(scene)  -> the solver's run entry point
+__all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "reduce", "read_sid", "write_sid",
+           "sid_info", "run_batch", "beam", "load_scene", "simulate",
+           "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "BeamOptions", "Job"]
 
 #: names resolved on first use (module, attribute): keeps ``import sidprep`` and ``sidprep --help`` fast
 _LAZY = {
@@ -38,9 +36,10 @@ _LAZY = {
     "BatchOptions": ("sidprep.batch", "BatchOptions"),
     "Job": ("sidprep.jobfile", "Job"),
     "sid_info": ("sidprep.sid_summary", "sid_info"),
-    # the lead wires these at merge (the solver is never imported by ``import sidprep``):
-    # "beam": ("sidprep.beam", ...), "load_scene": ("solver.scene", "load_scene"),
-    # "simulate": ("solver....", "simulate"),
+    "BeamOptions": ("sidprep.beam", "BeamOptions"),
+    "beam": ("sidprep.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)
+    "load_scene": ("sidprep.solver.scene", "load_scene"),   # scene TOML -> Scene (system, settings)
+    "simulate": ("sidprep.solver.scene", "simulate"),       # Scene -> solver Result
 }
 
 
@@ -145,3 +144,22 @@ def run_batch(jobs, options=None, *, progress=None):
     from sidprep.batch import BatchOptions, run_batch as _run
 
     return _run(jobs, options or BatchOptions(), progress=progress)
+
+
+def reduce(mesh, options=None, *, phases=None):
+    """The same as ``reduce_model`` (the CLI's ``sidprep reduce`` without files)."""
+    return reduce_model(mesh, options, phases=phases)
+
+
+def _source_checkout_subpackages() -> None:
+    """Installed, the repository's top-level folders solver/ and cli/ are the subpackages
+    sidprep.solver and sidprep.cli (pyproject's package-dir); in a source checkout they sit beside
+    this package, so the checkout's top is added to the package's search path."""
+    from pathlib import Path
+
+    top = Path(__file__).resolve().parent.parent
+    if (top / "pyproject.toml").is_file() and (top / "solver" / "__init__.py").is_file():
+        __path__.append(str(top))  # noqa: F821 - the package's own search path
+
+
+_source_checkout_subpackages()

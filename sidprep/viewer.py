@@ -303,7 +303,7 @@ def mechanism_surfaces(results_path) -> tuple[object, dict]:
     with a shape: flexible bodies from their SID (interpolated when it has few nodes), rigid
     bodies from their OBJ (no modes)."""
     from sidprep.io import read_sid
-    from solver.results import read_results
+    from sidprep.solver.results import read_results
 
     results_path = Path(results_path)
     rf = read_results(results_path)

@@ -37,7 +37,7 @@ import numba
 import numpy as np
 
 from sidprep.errors import InputError
-from solver.integrators.runge_kutta import rk4_fixed
+from sidprep.solver.integrators.runge_kutta import rk4_fixed
 
 #: Baumgarte stabilisation of the driver constraints, Phi'' + 2 a Phi' + a^2 Phi = 0 (1/s)
 BAUMGARTE_RATE = 20.0
@@ -665,8 +665,8 @@ def initial_result(model: AbsoluteNodalModel):
 
 def _result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.ndarray, stats: dict):
     """Signals, energies and reactions of the sampled states Y (nt, 4 nf) at times t."""
-    from solver.effects import EffectsReport
-    from solver.system import BodyHistory, JointHistory, Result
+    from sidprep.solver.effects import EffectsReport
+    from sidprep.solver.system import BodyHistory, JointHistory, Result
 
     X, V, A, lam, strain = _samples(asm, t, Y)
     nt = len(t)
@@ -780,7 +780,7 @@ def load_absolute_nodal_scene(root: dict, source, t_end: float | None = None) ->
     [drivers.<name>] support, beam, speed (rad/s) | speed_deg, delta | delta_deg, duration (s);
     [forces.<name>] point, force = [fx, fy] (N).  ``t_end`` overrides [solver] t_end.
     """
-    from solver.scene import _output_settings, _subtables, _Table
+    from sidprep.solver.scene import _output_settings, _subtables, _Table
 
     source = Path(source)
     for key in root:
@@ -827,7 +827,7 @@ def load_absolute_nodal_scene(root: dict, source, t_end: float | None = None) ->
         forces.append(NodalForce(name, t.string("point"), tuple(t.array("force", shape=(2,)))))
         t.finish()
     model = AbsoluteNodalModel(tuple(beams), tuple(supports), tuple(drivers), tuple(forces), gravity, zero, title)
-    from solver.results import signal
+    from sidprep.solver.results import signal
 
     try:                                                 # validate before the long work
         first = initial_result(model)

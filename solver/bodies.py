@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.sid import ge_tensor, gr_tensor, inertia_matrix
-from solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
-from solver.kinematics import COMPILED, as_rotation, cross, exp_so3, jit, matmul, skew
+from sidprep.solver.effects import EFFECTS, MASS_MATRIX_EFFECTS
+from sidprep.solver.kinematics import COMPILED, as_rotation, cross, exp_so3, jit, matmul, skew
 
 _E3 = np.eye(3)
 

@@ -164,7 +164,7 @@ class EffectsReport:
 # ---------------------------------------------------------------------------- choosing effects
 def _scene_facts(system, body) -> dict:
     """Properties of the scene that decide ``auto`` for one body."""
-    from solver.bodies import Ground
+    from sidprep.solver.bodies import Ground
 
     attached = [j for j in system.joints if body in (j.marker1.body, j.marker2.body)]
     fixed_to_ground = any(j.kind == "fixed" and isinstance(

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver.bodies import Marker
-from solver.joints import Joint
+from sidprep.solver.bodies import Marker
+from sidprep.solver.joints import Joint
 
 
 class Table:

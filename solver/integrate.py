@@ -30,10 +30,10 @@ import numpy as np
 
 from sidprep.errors import InputError
 
-from solver.bodies import RigidBody
-from solver.effects import EFFECTS, build_report, choose_effects, estimate_sizes, parse_effects
-from solver.kinematics import exp_so3, jit, matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
-from solver.system import REDUNDANCY_TOL, BodyHistory, Context, JointHistory, Pose, Result, _Kernel, _system_kernel
+from sidprep.solver.bodies import RigidBody
+from sidprep.solver.effects import EFFECTS, build_report, choose_effects, estimate_sizes, parse_effects
+from sidprep.solver.kinematics import exp_so3, jit, matrix_to_quaternion, quaternion_rate, quaternion_to_matrix
+from sidprep.solver.system import REDUNDANCY_TOL, BodyHistory, Context, JointHistory, Pose, Result, _Kernel, _system_kernel
 
 #: Gauss-Newton tolerance of the initial position projection (constraint residual, m or rad)
 POSITION_TOL = 1e-12

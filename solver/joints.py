@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.bodies import Marker
-from solver.kinematics import cross, jit
+from sidprep.solver.bodies import Marker
+from sidprep.solver.kinematics import cross, jit
 
 # constraint rows as (kind, axis of marker 1, axis of marker 2); kind "p" = position, "a" = angle
 _ROWS = {

@@ -41,8 +41,8 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.io.atomic import atomic_path
-from solver.effects import EffectEntry, EffectsReport
-from solver.system import BodyHistory, JointHistory, Result
+from sidprep.solver.effects import EffectEntry, EffectsReport
+from sidprep.solver.system import BodyHistory, JointHistory, Result
 
 FORMAT = "sidprep-results"
 FORMAT_VERSION = 1

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
+from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
                                    load_absolute_nodal_scene, simulate_absolute_nodal)
 
 if sys.version_info >= (3, 11):
@@ -177,7 +177,7 @@ class _Table:
 
     def rotation(self, key: str = "rotation") -> np.ndarray | None:
         """A rotation matrix from a 3x3 matrix (orthonormal, det +1) or a rotation vector (rad)."""
-        from solver.kinematics import exp_so3
+        from sidprep.solver.kinematics import exp_so3
 
         v = self.raw(key, None)
         if v is None:
@@ -219,7 +219,7 @@ def _subtables(file: Path, root: dict, name: str):
 
 
 def _effects(t: _Table, key: str, default):
-    from solver.effects import EFFECTS
+    from sidprep.solver.effects import EFFECTS
 
     v = t.raw(key, default)
     if v is None or v in ("auto", "all"):
@@ -274,7 +274,7 @@ def _missing_sid(t: _Table, path: Path) -> None:
 
 
 def _flexible_body(name: str, t: _Table, pose: dict):
-    from solver.system import FlexibleBody
+    from sidprep.solver.system import FlexibleBody
 
     path = t.path("sid")
     if not path.is_file():
@@ -295,7 +295,7 @@ def _flexible_body(name: str, t: _Table, pose: dict):
 def _beam_body(name: str, t: _Table, pose: dict):
     """An analytical Euler-Bernoulli Beam declared inline (sidprep.beam: its SID in memory)."""
     from sidprep.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
-    from solver.system import FlexibleBody
+    from sidprep.solver.system import FlexibleBody
 
     beam = {key: t.raw(key) for key in BEAM_TABLE_KEYS if t.has(key)}
     sid = beam_sid(beam_options_from_table(beam, f"{t.file}: [{t.where}]"))
@@ -306,7 +306,7 @@ def _beam_body(name: str, t: _Table, pose: dict):
 
 
 def _rigid_body(name: str, t: _Table, pose: dict):
-    from solver.system import RigidBody
+    from sidprep.solver.system import RigidBody
 
     mass = t.number("mass", positive=True)
     inertia = t.array("inertia")
@@ -352,7 +352,7 @@ def _z_axis_rotation(t: _Table) -> np.ndarray:
 
 
 def _markers(file: Path, root: dict, system) -> dict:
-    from solver.system import FlexibleBody
+    from sidprep.solver.system import FlexibleBody
 
     bodies = {b.name: b for b in system.bodies}
     markers = {}
@@ -414,7 +414,7 @@ def _marker_pair(t: _Table, markers: dict):
 
 
 def _joints(file: Path, root: dict, system, markers: dict) -> dict:
-    from solver.system import JOINT_TYPES
+    from sidprep.solver.system import JOINT_TYPES
 
     joints = {}
     for name, t in _subtables(file, root, "joints"):
@@ -428,7 +428,7 @@ def _joints(file: Path, root: dict, system, markers: dict) -> dict:
 
 
 def _motion(t: _Table):
-    from solver.system import ConstantSpeed, SmoothStart, TabulatedMotion
+    from sidprep.solver.system import ConstantSpeed, SmoothStart, TabulatedMotion
 
     kind = t.string("motion", choices=("constant_speed", "smooth_start", "table"))
     if kind == "constant_speed":
@@ -442,7 +442,7 @@ def _motion(t: _Table):
 
 
 def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
-    from solver.system import Driver
+    from sidprep.solver.system import Driver
 
     drivers = {}
     for name, t in _subtables(file, root, "drivers"):
@@ -456,7 +456,7 @@ def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
 
 def _load_value(t: _Table, joints: dict):
     """Constant vector / scalar `value`, or a `table` {x, y, period} over time or `argument` joint."""
-    from solver.system import Table
+    from sidprep.solver.system import Table
 
     argument = _lookup(t, "argument", joints, "joint") if t.has("argument") else None
     if t.has("table"):
@@ -474,7 +474,7 @@ def _load_value(t: _Table, joints: dict):
 
 
 def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None:
-    from solver import system as api
+    from sidprep.solver import system as api
 
     kinds = ("point_force", "point_torque", "spring_damper", "joint_force", "joint_friction")
     for name, t in _subtables(file, root, "forces"):
@@ -536,7 +536,7 @@ def _check_names(file: Path, root: dict) -> None:
 def empty_result(system):
     """A Result with no samples but every body, joint, marker and energy of ``system``: what the
     signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
-    from solver.system import BodyHistory, JointHistory, Result
+    from sidprep.solver.system import BodyHistory, JointHistory, Result
 
     if isinstance(system, AbsoluteNodalModel):
         return initial_result(system)
@@ -555,7 +555,7 @@ def empty_result(system):
 
 def _check_signals(file: Path, scene_signals, system) -> None:
     """Every requested signal must exist (checked on an empty Result of this system)."""
-    from solver.results import signal
+    from sidprep.solver.results import signal
 
     empty = empty_result(system)
     for name in scene_signals:
@@ -578,7 +578,7 @@ def read_toml(path: Path) -> tuple[dict, str]:
 
 def load_scene(path, *, t_end: float | None = None) -> Scene:
     """Parse the scene file ``path`` and build its System; ``t_end`` overrides [solver] t_end."""
-    from solver.system import System
+    from sidprep.solver.system import System
 
     path = Path(path)
     root, text = read_toml(path)

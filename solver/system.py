@@ -2,7 +2,7 @@
 
 Usage::
 
-    from solver.system import System, FlexibleBody, Revolute   # all public names re-exported
+    from sidprep.solver.system import System, FlexibleBody, Revolute   # all public names re-exported
     sys = System(gravity=(0, 0, -9.81))
     bar = sys.add(FlexibleBody("bar.sid.h5", name="bar"))
     pivot = sys.add(Revolute(sys.ground.marker(rotation=...), bar.node_marker(node_id=1)))
@@ -25,14 +25,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from solver.bodies import (Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody, _body_equations,
+from sidprep.solver.bodies import (Body, FlexibleBody, Ground, Marker, RigidBody, _MassBody, _body_equations,
                            _marker_kinematics)
-from solver.effects import EFFECTS, EffectsReport
-from solver.forces import (JointForce, JointFriction, PointForce, PointTorque, SpringDamper, Table,
+from sidprep.solver.effects import EFFECTS, EffectsReport
+from sidprep.solver.forces import (JointForce, JointFriction, PointForce, PointTorque, SpringDamper, Table,
                            bump_stop)
-from solver.joints import (ConstantSpeed, Cylindrical, Driver, Fixed, Joint, JOINT_TYPES, Planar,
+from sidprep.solver.joints import (ConstantSpeed, Cylindrical, Driver, Fixed, Joint, JOINT_TYPES, Planar,
                            Prismatic, Revolute, SmoothStart, Spherical, TabulatedMotion, _joint_rows)
-from solver.kinematics import COMPILED, cross, exp_so3, jit, matmul
+from sidprep.solver.kinematics import COMPILED, cross, exp_so3, jit, matmul
 
 __all__ = [
     "System", "Result", "BodyHistory", "JointHistory", "Ground", "RigidBody", "FlexibleBody", "Marker",
@@ -596,7 +596,7 @@ class System:
         newton_tol : Newton tolerance: position correction / system length L per step
         baumgarte : stabilisation rate (1/s) of the explicit methods
         """
-        from solver.integrate import integrate
+        from sidprep.solver.integrate import integrate
 
         return integrate(self, t_end, h=h, method=method, rho_inf=rho_inf, rtol=rtol, atol=atol,
                          effects=self.effects if effects is None else effects, output_dt=output_dt,

@@ -10,11 +10,11 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from sidprep.errors import InputError
-from solver.absolute_nodal import (AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Driver, Support, assemble,
+from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Driver, Support, assemble,
                                    initial_vector, integrate, kernel_params, load_absolute_nodal_scene, rhs,
                                    simulate_absolute_nodal, unpack)
-from solver.integrators.runge_kutta import rk4_fixed
-from solver.scene import read_toml
+from sidprep.solver.integrators.runge_kutta import rk4_fixed
+from sidprep.solver.scene import read_toml
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "two_link_manipulator" / "scene.toml"
 G = 9.81
@@ -181,8 +181,8 @@ def test_scene_file_runs_through_sidprep_simulate(tmp_path):
     """The two-link scene through `sidprep simulate` (the scene dispatches to this formulation):
     the results file holds the run, whose total energy stays within the conservation tolerance, and
     the signals are listed before a run."""
-    from cli.main import main
-    from solver.results import read_results, signal
+    from sidprep.cli.main import main
+    from sidprep.solver.results import read_results, signal
 
     scene = Path(__file__).resolve().parents[1] / "examples" / "two_link_manipulator" / "scene.toml"
     out = tmp_path / "two.results.h5"

@@ -6,9 +6,9 @@ import xml.etree.ElementTree as ET
 import meshio
 import numpy as np
 
-from solver.animation import MAX_VTU_FILES, Surface, write_animation
-from solver.effects import EffectsReport
-from solver.system import Result
+from sidprep.solver.animation import MAX_VTU_FILES, Surface, write_animation
+from sidprep.solver.effects import EffectsReport
+from sidprep.solver.system import Result
 from test_view_animate import RATE, history, rz
 
 

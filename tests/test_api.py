@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import sidprep
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.io.sid_hdf5 import read_sid_hdf5
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.batch import BatchOptions, jobs_from_meshes, read_study, run_batch
 from sidprep.io.sid_hdf5 import read_sid_hdf5
 from sidprep.options import ReduceOptions
@@ -94,7 +94,7 @@ def test_a_batch_killed_mid_way_resumes_to_the_outputs_of_an_uninterrupted_run(t
         shutil.copy(BAR, meshes / f"{n}.msh")
     ref, killed = tmp_path / "ref", tmp_path / "killed"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    cmd = [sys.executable, "-m", "cli.main", "batch", str(meshes / "*.msh"), *FAST, "--workers", "2", "-q"]
+    cmd = [sys.executable, "-m", "sidprep.cli.main", "batch", str(meshes / "*.msh"), *FAST, "--workers", "2", "-q"]
     proc = subprocess.Popen(cmd + ["-o", str(killed)], env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120

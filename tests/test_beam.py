@@ -141,7 +141,7 @@ def test_scene_table_and_bad_input():
 
 def test_cli_writes_a_sid_that_info_lists_and_rejects_bad_input(tmp_path):
     out = tmp_path / "b.sid.h5"
-    run = lambda *a: subprocess.run([sys.executable, "-m", "cli.main", *a], capture_output=True, text=True)  # noqa: E731
+    run = lambda *a: subprocess.run([sys.executable, "-m", "sidprep.cli.main", *a], capture_output=True, text=True)  # noqa: E731
     r = run("beam", "--length", "1", "--section", "rectangle:0.02,0.01", "--material", "steel",
             "--bc", "pinned-pinned", "--modes", "xz:1-2,xy:1", "-o", str(out))
     assert r.returncode == 0, r.stderr

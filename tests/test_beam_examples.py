@@ -19,7 +19,7 @@ BUCKLING_AMPLITUDE_RTOL = 0.02
 
 
 def cli(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "cli.main", *args], capture_output=True, text=True, cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "sidprep.cli.main", *args], capture_output=True, text=True, cwd=cwd,
                           env={**__import__("os").environ, "PYTHONPATH": str(ROOT)})
 
 

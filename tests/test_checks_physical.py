@@ -40,7 +40,7 @@ def test_inertia_about_cm_matches_closed_form():
 
 
 def _cli_check(path):
-    return subprocess.run([sys.executable, "-m", "cli.main", "check", str(path)], cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "sidprep.cli.main", "check", str(path)], cwd=ROOT,
                           capture_output=True, text=True)
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"
@@ -75,7 +75,7 @@ def test_modes_notes_go_to_stderr_and_json_stays_parseable(capsys):
 
 
 def test_native_stdout_is_sent_to_stderr(capfd):
-    from cli.options import quiet_native_output
+    from sidprep.cli.options import quiet_native_output
 
     import os
     with quiet_native_output():

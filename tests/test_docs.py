@@ -46,7 +46,7 @@ def checkout(tmp: Path) -> Path:
     bin_dir = tmp / ".bin"
     bin_dir.mkdir()
     shim = bin_dir / "sidprep"
-    shim.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m cli.main "$@"\n')
+    shim.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m sidprep.cli.main "$@"\n')
     shim.chmod(0o755)
     return tmp
 

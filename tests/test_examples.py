@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.io import read_sid
 from sidprep.sid import inertia_matrix
-from solver.results import read_results
+from sidprep.solver.results import read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 PENDULUM = str(ROOT / "examples/flexible_pendulum/scene.toml")

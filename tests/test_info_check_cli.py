@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.io.sid_fem import write_sid_fem
 from sidprep.io.sid_hdf5 import write_sid_hdf5
 from sidprep.sid import Taylor

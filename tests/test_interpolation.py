@@ -81,7 +81,7 @@ def farthest_points(points, n):
 def piston_rod_sid(tmp_path_factory):
     from pathlib import Path
 
-    from cli.main import main
+    from sidprep.cli.main import main
     from sidprep.io import read_sid
     mesh = Path(__file__).resolve().parents[1] / "data" / "meshes" / "piston_rod.msh"
     out = tmp_path_factory.mktemp("rod") / "rod.sid.h5"

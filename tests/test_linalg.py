@@ -207,7 +207,7 @@ def test_one_tet_mesh_never_crashes_the_process(tmp_path, command):
     """Issue 14 item 1: ARPACK/CHOLMOD on a 12-DOF problem aborted with malloc()/SIGSEGV."""
     mesh = tmp_path / "one_tet.msh"
     mesh.write_text(ONE_TET)
-    args = [sys.executable, "-m", "cli.main", command[0], str(mesh), *command[1:]]
+    args = [sys.executable, "-m", "sidprep.cli.main", command[0], str(mesh), *command[1:]]
     if command[0] == "reduce":
         args += ["-o", str(tmp_path / "out.h5")]
     root = Path(__file__).resolve().parents[1]

@@ -7,7 +7,7 @@ import meshio
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 
 BAR = Path(__file__).resolve().parents[1] / ".." / "shared" / "validation" / "meshes" / "bar_h0.02_mesh.inp"
 needs_bar = pytest.mark.skipif(not BAR.exists(), reason="../shared/validation not present")

@@ -57,7 +57,7 @@ def test_modes_and_reduce_warn_end_to_end(tmp_path, capsys):
     warning (stderr) naming --units mm-t-s; run with --units mm-t-s they do not."""
     import meshio
 
-    from cli.main import main
+    from sidprep.cli.main import main
 
     m = meshio.read(MESHES / "bar.msh")
     m.points = m.points * 1000.0

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.io.sid_fem import read_sid_fem
 from sidprep.checks import failed_checks
 from sidprep.io.sid_hdf5 import read_checks, read_sid_hdf5

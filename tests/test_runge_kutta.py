@@ -4,7 +4,7 @@ import numba
 import numpy as np
 import pytest
 
-from solver.integrators.runge_kutta import rk4_fixed, rk4_step
+from sidprep.solver.integrators.runge_kutta import rk4_fixed, rk4_step
 
 #: fourth order: the global error falls by 2^4 = 16 per halving of h, within 10 %
 ORDER_RATIO, ORDER_RATIO_TOL = 16.0, 0.10

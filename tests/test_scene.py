@@ -12,7 +12,7 @@ import pytest
 from sidprep.errors import InputError
 from sidprep.io.sid_hdf5 import write_sid_hdf5
 from sidprep.sid import sid_invariants
-from solver.scene import load_scene, simulate
+from sidprep.solver.scene import load_scene, simulate
 
 #: relative error of the small-angle pendulum (amplitude 0.01 rad: nonlinearity ~ theta0^2 / 16)
 PENDULUM_RTOL = 2e-3

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from sidprep.errors import InputError
-from solver.results import signal
-from solver.scene import load_scene, simulate
+from sidprep.solver.results import signal
+from sidprep.solver.scene import load_scene, simulate
 
 #: steel (sidprep.material "steel") and the beam-buckling example's section: L = 1.69 m, 22.9 mm square
 E, RHO, L, SIDE = 210e9, 7850.0, 1.69, 0.0229

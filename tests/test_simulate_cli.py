@@ -7,9 +7,9 @@ import meshio
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.io.sid_hdf5 import write_sid_hdf5
-from solver.results import read_results
+from sidprep.solver.results import read_results
 from test_scene import TINY_SCENE, tiny_sid
 
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sidprep.sid import sid_invariants
-from solver.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
-from solver.kinematics import exp_so3, skew
+from sidprep.solver.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
+from sidprep.solver.kinematics import exp_so3, skew
 
 CARTOP = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem" / "cartopPragV32.SID_FEM"
 

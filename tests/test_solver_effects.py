@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from test_solver_bodies import bar_sid
 
-from solver.effects import EFFECTS, WARN_LEVEL, parse_effects
-from solver.joints import ConstantSpeed, Driver, Revolute
-from solver.system import FlexibleBody, System
+from sidprep.solver.effects import EFFECTS, WARN_LEVEL, parse_effects
+from sidprep.solver.joints import ConstantSpeed, Driver, Revolute
+from sidprep.solver.system import FlexibleBody, System
 
 SPIN = 10.0  # rad/s
 FREQS = (5.0, 8.0, 12.0, 15.0)  # Hz: (SPIN / omega_1)^2 = 0.10
@@ -98,8 +98,8 @@ def test_load_stiffening_by_a_tip_force():
     h_ext,e = phi(q)^T F), checked against the linear modal ODE; left out, the report warns."""
     from scipy.integrate import solve_ivp
 
-    from solver.forces import PointForce
-    from solver.joints import Fixed
+    from sidprep.solver.forces import PointForce
+    from sidprep.solver.joints import Fixed
 
     nq, load = 4, 300.0
     rng = np.random.default_rng(2)
@@ -143,7 +143,7 @@ def test_spinning_cantilever_flapwise_frequency_follows_southwell(tmp_path):
     """End to end: `sidprep reduce --stiffening` on the bundled bar (clamped frame), spun about z
     at 20 Hz through its clamped face: f^2 = f0^2 + K Omega^2 (K = 1.193) with centrifugal
     stiffening (Kom + K0omega), K = 0 without it (the flapwise mode has no Kom part)."""
-    from cli.main import main
+    from sidprep.cli.main import main
 
     out = tmp_path / "bar.sid.h5"
     assert main(["reduce", str(MESH), "--interface", "fixed_end:rbe2", "--frame", "fixed_end", "--modes", "4",

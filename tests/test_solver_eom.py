@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from test_solver_bodies import random_nodal_sid
 
-from solver.bodies import FlexibleBody
-from solver.effects import EFFECTS as EFFECTS_ALL
+from sidprep.solver.bodies import FlexibleBody
+from sidprep.solver.effects import EFFECTS as EFFECTS_ALL
 
 #: relative agreement with the brute force (round-off)
 EOM_RTOL = 1e-10

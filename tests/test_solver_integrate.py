@@ -5,8 +5,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from test_solver_bodies import CARTOP, bar_sid, random_nodal_sid
 
-from solver.integrate import genalpha_parameters
-from solver.system import FlexibleBody, Revolute, RigidBody, Spherical, System
+from sidprep.solver.integrate import genalpha_parameters
+from sidprep.solver.system import FlexibleBody, Revolute, RigidBody, Spherical, System
 
 #: free spinning body, exact model, DOP853 at rtol 1e-10: energy / angular momentum drift
 CONSERVATION_TOL = 1e-6
@@ -160,8 +160,8 @@ def test_compiled_loop_equals_python_loop(monkeypatch, driven):
     same steps, same states, reactions, driver effort and energy flows.  (With step-size control
     the round-off moves accept / reject decisions; the compiled controller is checked by
     test_rigid_pendulum_with_step_size_control.)"""
-    import solver.integrate as integrate
-    from solver.system import Driver, SmoothStart
+    import sidprep.solver.integrate as integrate
+    from sidprep.solver.system import Driver, SmoothStart
 
     sid = bar_sid(damping=0.02)
 
@@ -231,7 +231,7 @@ def test_out_of_plane_load_decides_the_planar_form():
     """A tip force along the hinge axis that starts only at t = 0.2 s (the detection samples times
     up to t_end): on a hinged rigid rod the joint takes it (planar; the recovered reaction is
     the force), on a hinged flexible bar it bends the out-of-plane modes (3D coordinates)."""
-    from solver.system import PointForce, Table
+    from sidprep.solver.system import PointForce, Table
 
     late_force = Table([0.0, 0.2, 0.21, 1.0], [0.0, 0.0, 5.0, 5.0])
 

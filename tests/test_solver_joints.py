@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from test_solver_bodies import bar_sid
 
-from solver.bodies import RigidBody
-from solver.integrate import project_positions
-from solver.forces import JointFriction, PointForce, SpringDamper, Table, bump_stop
-from solver.joints import JOINT_TYPES, ConstantSpeed, Driver, Prismatic, Revolute, SmoothStart
-from solver.system import Context, FlexibleBody, System
+from sidprep.solver.bodies import RigidBody
+from sidprep.solver.integrate import project_positions
+from sidprep.solver.forces import JointFriction, PointForce, SpringDamper, Table, bump_stop
+from sidprep.solver.joints import JOINT_TYPES, ConstantSpeed, Driver, Prismatic, Revolute, SmoothStart
+from sidprep.solver.system import Context, FlexibleBody, System
 
 #: central-difference check of the velocity rows (step 1e-6)
 FD_TOL = 1e-8

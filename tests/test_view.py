@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 # ../shared beside the clone (CI), or two levels up (a worktree under wt/)

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
+from sidprep.cli.main import main
 from sidprep.io.obj import write_obj
-from solver.effects import EffectsReport
-from solver.results import write_results
-from solver.system import BodyHistory, Result
+from sidprep.solver.effects import EffectsReport
+from sidprep.solver.results import write_results
+from sidprep.solver.system import BodyHistory, Result
 from test_view import assert_renders, browser
 
 ROOT = Path(__file__).resolve().parents[1]

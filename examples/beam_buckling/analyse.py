@@ -1,6 +1,6 @@
 """Bending amplitude at mid-span vs the static amplification 1/(1 - F/F_cr); writes buckling.png.
 
-Run after `python -m cli.main simulate scene.toml --csv` (and scene_no_stiffening.toml)."""
+Run after `python -m sidprep.cli.main simulate scene.toml --csv` (and scene_no_stiffening.toml)."""
 
 import csv
 import math

@@ -59,7 +59,7 @@ def reduced_strip(size: float, modes: int, work: Path) -> Path:
                         str(WIDTH), str(THICK), "--size", str(size), "--out", str(mesh)], check=True,
                        stdout=subprocess.DEVNULL)
     if not sid.exists():
-        subprocess.run([sys.executable, "-m", "cli.main", "reduce", str(mesh), "-o", str(sid), "--interface", "fixed_end",
+        subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(mesh), "-o", str(sid), "--interface", "fixed_end",
                         "--interface", "free_end", "--modes", str(modes), "--stiffening", "--damping", "0", "--no-sid-fem", "--no-obj",
                         "--no-check-frequencies", "--E", str(E), "--nu", str(NU), "--rho", str(RHO), "-q"],
                        check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
@@ -119,7 +119,7 @@ markers = ["elbow1", "elbow2"]
 
 def ffr_signals(sid: Path, t_end: float, step: float, t: np.ndarray, work: Path) -> dict:
     """phi1, phi2 - phi1 (rad), tip x, y (m) of the FFR run at the times ``t``."""
-    from solver.scene import load_scene, simulate
+    from sidprep.solver.scene import load_scene, simulate
 
     path = work / "ffr_scene.toml"
     path.write_text(ffr_scene_text(sid, t_end, step))
@@ -139,7 +139,7 @@ def _chain_signals(pin, elbow, tip) -> dict:
 def anc_signals(elements: int, t_end: float, rate: float, EI: float = EI):
     """Times and the same signals of the absolute-nodal model with ``elements`` per link (EA of
     the strip), RK4 at 90 % of its stability limit."""
-    from solver.absolute_nodal import (RK4_STABILITY, AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Support,
+    from sidprep.solver.absolute_nodal import (RK4_STABILITY, AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Support,
                                        assemble, highest_frequency, simulate_absolute_nodal)
 
     beams = (Beam("link1", LENGTH, MASS, EI, EA_STRIP, elements, ("pin", "elbow"), 0.0),

@@ -15,9 +15,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))   # the repository's solver package
 
-from solver.absolute_nodal import load_absolute_nodal_scene, simulate_absolute_nodal  # noqa: E402
-from solver.results import write_csv, write_results  # noqa: E402
-from solver.scene import read_toml  # noqa: E402
+from sidprep.solver.absolute_nodal import load_absolute_nodal_scene, simulate_absolute_nodal  # noqa: E402
+from sidprep.solver.results import write_csv, write_results  # noqa: E402
+from sidprep.solver.scene import read_toml  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

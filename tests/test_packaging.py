@@ -1,0 +1,35 @@
+"""One import namespace: sidprep, sidprep.solver, sidprep.cli (issue 12). Every package folder of the
+repository is listed in pyproject.toml under the name it installs as, so a wheel holds all of it."""
+
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+ROOT = Path(__file__).resolve().parents[1]
+#: top-level folder -> the import name it installs as
+INSTALLED_AS = {"sidprep": "sidprep", "solver": "sidprep.solver", "cli": "sidprep.cli"}
+
+
+def test_every_package_folder_is_installed_under_sidprep():
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = {INSTALLED_AS[init.relative_to(ROOT).parts[0]] + "".join("." + p for p in init.relative_to(ROOT).parts[1:-1])
+             for top in INSTALLED_AS for init in (ROOT / top).rglob("__init__.py")}
+    assert found == set(config["packages"])
+    assert config["package-dir"] == {v: k for k, v in INSTALLED_AS.items() if k != v}
+
+
+def test_no_generic_top_level_names_in_the_source():
+    """Code imports the solver and the CLI as sidprep.solver / sidprep.cli only."""
+    offenders = []
+    for path in [*ROOT.glob("*/**/*.py")]:
+        if ".venv" in path.parts or "data" in path.parts:
+            continue
+        for n, line in enumerate(path.read_text().splitlines(), 1):
+            stripped = line.strip()
+            if stripped.split(" ")[:2] in (["from", "solver"], ["import", "solver"], ["from", "cli"], ["import", "cli"]) \
+                    or stripped.startswith(("from solver.", "import solver.", "from cli.", "import cli.")):
+                offenders.append(f"{path.relative_to(ROOT)}:{n}: {stripped}")
+    assert not offenders, "\n".join(offenders)
