@@ -177,14 +177,10 @@ SHEAR_3D_RTOL = 3e-3
 def test_beam_matches_the_3d_bar_reduced_by_the_fe_route_up_to_the_timoshenko_correction(tmp_path):
     from pathlib import Path
 
-    from sidprep.io.sid_hdf5 import read_sid_hdf5
-    from sidprep.pipeline import ReduceOptions, reduce_job
+    import sidprep
 
     mesh = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
-    out = tmp_path / "bar.sid.h5"
-    reduce_job(ReduceOptions(mesh=str(mesh), material="steel", modes=4, output=str(out), sid_fem=False,
-                             obj=False, check_frequencies=False, verbose=False))
-    fe = read_sid_hdf5(out)
+    fe = sidprep.reduce(mesh, sidprep.ReduceOptions(material="steel", modes=4, check_frequencies=False)).sid
     f_fe = np.sort(fe.frequencies_hz[np.array(fe.mode_kinds) == "eigen"])[:4]    # y1, z1, y2, z2
     modes = (("xy", 1), ("xz", 1), ("xy", 2), ("xz", 2))
     beam = beam_sid(BeamOptions(length=1.0, section=Section("rectangle", (0.05, 0.08)), bc="free-free",
@@ -206,14 +202,12 @@ def test_stiffening_terms_match_the_fe_route_on_the_clamped_3d_bar(tmp_path):
     of the bar clamped at x = 0, reduced with --stiffening by the FE route, against the Beam's."""
     from pathlib import Path
 
-    from sidprep.io.sid_hdf5 import read_sid_hdf5
-    from sidprep.pipeline import ReduceOptions, reduce_job
+    import sidprep
 
     mesh = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
-    reduce_job(ReduceOptions(mesh=str(mesh), material="steel", interfaces=("fixed_end",), frame="fixed_end",
-                             modes=4, frm=False, stiffening=True, output=str(tmp_path / "c.sid.h5"),
-                             sid_fem=False, obj=False, check_frequencies=False, verbose=False))
-    fe = read_sid_hdf5(tmp_path / "c.sid.h5")
+    fe = sidprep.reduce(mesh, sidprep.ReduceOptions(material="steel", interfaces=("fixed_end",), frame="fixed_end",
+                                                    modes=4, frm=False, stiffening=True,
+                                                    check_frequencies=False)).sid
     beam = beam_sid(BeamOptions(length=1.0, section=Section("rectangle", (0.05, 0.08)), bc="clamped-free",
                                 modes=parse_modes("xy:1,xz:1,xy:2,xz:2"), material="steel"))
     for sid_fe_slot, sid_beam_slot in ((fe.Oe.M1[:, :, 1], beam.Oe.M1[:, :, 1]),
