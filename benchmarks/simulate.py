@@ -104,7 +104,7 @@ def run_sidprep(sid, h: float, planar=None) -> tuple[np.ndarray, np.ndarray, flo
     planar : None (the solver detects the planar scene and integrates the in-plane coordinates
     and modes only) or False (all 3D coordinates and modes, like Exudyn).
     """
-    from sidprep.solver.system import FlexibleBody, Revolute, System
+    from sidprep.solver import FlexibleBody, Revolute, System
 
     axis_y = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]).T   # z -> y
     system = System(gravity=GRAVITY, planar=planar)

@@ -58,7 +58,7 @@ def reduced_bar(folder: Path) -> Path:
 
 def pendulum(sid, planar=None):
     """The hinged bar as a System, its tip node marker (hinge = SID node 0, tip = node 1)."""
-    from sidprep.solver.system import FlexibleBody, Revolute, System
+    from sidprep.solver import FlexibleBody, Revolute, System
 
     system = System(gravity=(0.0, 0.0, -9.81))
     if planar is not None:

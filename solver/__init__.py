@@ -1,5 +1,38 @@
-"""Floating-frame-of-reference (FFR) multibody integrator that consumes SID files.
+"""Floating-frame-of-reference (FFR) multibody solver that consumes SID files.
+
+The package reads as the flow of a simulation: ``model`` (bodies, markers, joints, drivers,
+force elements, System: descriptions and checks) -> ``equations`` (the one compiled
+implementation of the body equations, constraints, force elements and energies) ->
+``integrators`` (settings, generalised-alpha, Runge-Kutta, consistent start, planar scenes)
+-> ``run`` (one simulation, owning its state) -> ``postprocess`` / ``results`` (Result, files).
 
 Never imports sidprep's FE side (mesh, assemble, linalg, reduce, ...): its only inputs from
 there are SID files, read through ``sidprep.sid`` and ``sidprep.io`` (numpy/h5py only).
+The public names below are imported on first use::
+
+    from sidprep.solver import System, FlexibleBody, Revolute, SolverSettings
 """
+
+from __future__ import annotations
+
+import importlib
+
+_PUBLIC = {
+    "sidprep.solver.model.system": ("System",),
+    "sidprep.solver.model.bodies": ("Ground", "RigidBody", "FlexibleBody", "Marker"),
+    "sidprep.solver.model.joints": ("Spherical", "Revolute", "Cylindrical", "Prismatic", "Planar", "Fixed",
+                                    "JOINT_TYPES", "Driver", "ConstantSpeed", "SmoothStart", "TabulatedMotion"),
+    "sidprep.solver.model.forces": ("PointForce", "PointTorque", "SpringDamper", "BumpStop", "bump_stop",
+                                    "JointForce", "JointFriction", "Table"),
+    "sidprep.solver.effects": ("EFFECTS",),
+    "sidprep.solver.integrators.settings": ("SolverSettings", "METHODS"),
+    "sidprep.solver.results": ("Result", "BodyHistory", "JointHistory"),
+}
+_WHERE = {name: module for module, names in _PUBLIC.items() for name in names}
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module 'sidprep.solver' has no attribute {name!r}")

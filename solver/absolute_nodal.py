@@ -17,7 +17,7 @@ inertial X-Y plane) of the nodes of two-node elements; beams joined by a revolut
   Lagrange multipliers (the paper's remark after eq. 14) with Baumgarte stabilisation.
 * Classic RK4 (solver/integrators/runge_kutta.py) with a compiled right-hand side.
 
-Outputs are a ``solver.system.Result`` (solver/results.py writes and plots it): a body per beam
+Outputs are a ``solver.results.Result`` (solver/results.py writes and plots it): a body per beam
 (position / rotation / velocity / omega of its chord frame at the first node; q = [flexural
 displacement -theta_n L, flexural slope theta_n - theta_1] as in the paper's Figs. 9-12), a
 marker per point, a revolute "joint" per support (coordinate = the beam's chord angle phi) and
@@ -647,7 +647,7 @@ def _samples(asm: Assembly, t: np.ndarray, Y: np.ndarray):
 
 
 def simulate_absolute_nodal(model: AbsoluteNodalModel, settings: AbsoluteNodalSettings = AbsoluteNodalSettings()):
-    """Simulate ``model`` -> ``solver.system.Result`` (write it with solver.results.write_results)."""
+    """Simulate ``model`` -> ``solver.results.Result`` (write it with solver.results.write_results)."""
     asm = assemble(model)
     t, Y, cpu = integrate(asm, settings)
     stats = {"method": "rk4", "cpu_time": cpu, "steps": int(round(settings.t_end / settings.step)), "rejected": 0,
@@ -666,7 +666,7 @@ def initial_result(model: AbsoluteNodalModel):
 def _result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.ndarray, stats: dict):
     """Signals, energies and reactions of the sampled states Y (nt, 4 nf) at times t."""
     from sidprep.solver.effects import EffectsReport
-    from sidprep.solver.system import BodyHistory, JointHistory, Result
+    from sidprep.solver.results import BodyHistory, JointHistory, Result
 
     X, V, A, lam, strain = _samples(asm, t, Y)
     nt = len(t)

@@ -164,7 +164,7 @@ class EffectsReport:
 # ---------------------------------------------------------------------------- choosing effects
 def _scene_facts(system, body) -> dict:
     """Properties of the scene that decide ``auto`` for one body."""
-    from sidprep.solver.bodies import Ground
+    from sidprep.solver.model.bodies import Ground
 
     attached = [j for j in system.joints if body in (j.marker1.body, j.marker2.body)]
     fixed_to_ground = any(j.kind == "fixed" and isinstance(
@@ -244,7 +244,7 @@ def estimate_sizes(body, samples: dict, gravity: np.ndarray) -> dict[str, tuple[
     samples: q, qd, omega, rotation, acceleration (nt, ...) of the body and ``node_loads``
     [(marker, force (nt, 3) K, torque (nt, 3) K)] at node markers (joint reactions included).
     """
-    full = body.build_model(set(EFFECTS), gravity=True)
+    full = body.terms(set(EFFECTS), gravity=True)
     s = body.sid
     q, qd, w = samples["q"], samples["qd"], samples["omega"]
     rot, acc = samples["rotation"], samples["acceleration"]

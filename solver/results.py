@@ -1,6 +1,6 @@
 """Results files of a simulation (HDF5), their reader, CSV export and PNG plots of signals.
 
-The data are the solver's ``solver.system.Result``.  HDF5 layout (SI; each dataset carries
+The data are a ``Result`` (defined here; built by solver/postprocess.py).  HDF5 layout (SI; each dataset carries
 its unit in the attribute ``units``)::
 
     /                      attrs: format="sidprep-results", format_version, units="SI",
@@ -42,7 +42,68 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.io.atomic import atomic_path
 from sidprep.solver.effects import EffectEntry, EffectsReport
-from sidprep.solver.system import BodyHistory, JointHistory, Result
+
+
+@dataclass
+class BodyHistory:
+    """Time series of one body; arrays have leading dimension nt (output samples).
+
+    position (nt, 3) r_O, m; rotation (nt, 3, 3) A (body -> inertial); velocity (nt, 3) v_O,
+    m/s inertial; omega (nt, 3) rad/s body components; q, qd (nt, nq); acceleration
+    (nt, 6 + nq) du/dt = [dv_O/dt, omega_dot, q_ddot].
+    """
+
+    name: str
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    omega: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    acceleration: np.ndarray
+
+
+@dataclass
+class JointHistory:
+    """Reaction of one joint / driver on body 2 at marker 2.
+
+    force, torque (nt, 3), N / N m, inertial components; force_local, torque_local (nt, 3) in
+    marker-1 components; coordinate, rate (nt,) joint angle (rad) or slide (m) and its rate
+    (NaN for joints without a coordinate); effort (nt,) driver torque/force along z1 (drivers).
+    """
+
+    name: str
+    kind: str
+    force: np.ndarray
+    torque: np.ndarray
+    force_local: np.ndarray
+    torque_local: np.ndarray
+    coordinate: np.ndarray
+    rate: np.ndarray
+    effort: np.ndarray
+
+
+@dataclass
+class Result:
+    """Everything a simulation produced (solver/results.py writes it to files).
+
+    t (nt,) s; bodies {name: BodyHistory}; joints {name: JointHistory} (joints and drivers);
+    markers {name: (nt, 3)} inertial marker positions; energy {kinetic, strain, gravity,
+    spring, dissipated, external, total} (nt,) J (total = kinetic + strain + gravity + spring
+    + dissipated - external: constant up to integration error); constraint_error (nt,) max |g|;
+    effects: EffectsReport; stats: method, cpu_time (s), steps, rejected, newton_iterations,
+    jacobians, dropped constraint rows, h_min/h_max used.
+    """
+
+    t: np.ndarray
+    bodies: dict
+    joints: dict
+    markers: dict
+    energy: dict
+    constraint_error: np.ndarray
+    effects: EffectsReport
+    stats: dict = field(default_factory=dict)
+
 
 FORMAT = "sidprep-results"
 FORMAT_VERSION = 1
@@ -171,7 +232,7 @@ def _put(group, name: str, data, units: str) -> None:
 
 def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str, str] | None = None,
                   bodies: Mapping[str, Mapping[str, str]] | None = None) -> Path:
-    """Write ``result`` (solver.system.Result) to the HDF5 file ``path`` atomically.
+    """Write ``result`` (Result) to the HDF5 file ``path`` atomically.
 
     scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
     """

@@ -1,4 +1,4 @@
-"""Scene files (TOML) -> a ``solver.system.System`` plus solver and output settings.
+"""Scene files (TOML) -> a ``sidprep.solver.System`` plus solver and output settings.
 
 The format is documented with a complete example in ``docs/scenes.md``.  Tables::
 
@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.solver.integrators.settings import METHODS
 from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
                                    load_absolute_nodal_scene, simulate_absolute_nodal)
 
@@ -40,7 +41,6 @@ _REQUIRED = object()
 RESERVED_NAMES = ("ground", "energy")
 #: |z_axis| and orthonormality of rotation matrices are checked to this tolerance
 ROTATION_TOL = 1e-6
-METHODS = ("genalpha", "rk45", "dop853")
 
 
 @dataclass(frozen=True)
@@ -177,7 +177,7 @@ class _Table:
 
     def rotation(self, key: str = "rotation") -> np.ndarray | None:
         """A rotation matrix from a 3x3 matrix (orthonormal, det +1) or a rotation vector (rad)."""
-        from sidprep.solver.kinematics import exp_so3
+        from sidprep.solver.equations.rotations import exp_so3
 
         v = self.raw(key, None)
         if v is None:
@@ -274,7 +274,7 @@ def _missing_sid(t: _Table, path: Path) -> None:
 
 
 def _flexible_body(name: str, t: _Table, pose: dict):
-    from sidprep.solver.system import FlexibleBody
+    from sidprep.solver import FlexibleBody
 
     path = t.path("sid")
     if not path.is_file():
@@ -295,7 +295,7 @@ def _flexible_body(name: str, t: _Table, pose: dict):
 def _beam_body(name: str, t: _Table, pose: dict):
     """An analytical Euler-Bernoulli Beam declared inline (sidprep.beam: its SID in memory)."""
     from sidprep.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
-    from sidprep.solver.system import FlexibleBody
+    from sidprep.solver import FlexibleBody
 
     beam = {key: t.raw(key) for key in BEAM_TABLE_KEYS if t.has(key)}
     sid = beam_sid(beam_options_from_table(beam, f"{t.file}: [{t.where}]"))
@@ -306,7 +306,7 @@ def _beam_body(name: str, t: _Table, pose: dict):
 
 
 def _rigid_body(name: str, t: _Table, pose: dict):
-    from sidprep.solver.system import RigidBody
+    from sidprep.solver import RigidBody
 
     mass = t.number("mass", positive=True)
     inertia = t.array("inertia")
@@ -352,7 +352,7 @@ def _z_axis_rotation(t: _Table) -> np.ndarray:
 
 
 def _markers(file: Path, root: dict, system) -> dict:
-    from sidprep.solver.system import FlexibleBody
+    from sidprep.solver import FlexibleBody
 
     bodies = {b.name: b for b in system.bodies}
     markers = {}
@@ -414,7 +414,7 @@ def _marker_pair(t: _Table, markers: dict):
 
 
 def _joints(file: Path, root: dict, system, markers: dict) -> dict:
-    from sidprep.solver.system import JOINT_TYPES
+    from sidprep.solver import JOINT_TYPES
 
     joints = {}
     for name, t in _subtables(file, root, "joints"):
@@ -428,7 +428,7 @@ def _joints(file: Path, root: dict, system, markers: dict) -> dict:
 
 
 def _motion(t: _Table):
-    from sidprep.solver.system import ConstantSpeed, SmoothStart, TabulatedMotion
+    from sidprep.solver import ConstantSpeed, SmoothStart, TabulatedMotion
 
     kind = t.string("motion", choices=("constant_speed", "smooth_start", "table"))
     if kind == "constant_speed":
@@ -442,7 +442,7 @@ def _motion(t: _Table):
 
 
 def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
-    from sidprep.solver.system import Driver
+    from sidprep.solver import Driver
 
     drivers = {}
     for name, t in _subtables(file, root, "drivers"):
@@ -456,7 +456,7 @@ def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
 
 def _load_value(t: _Table, joints: dict):
     """Constant vector / scalar `value`, or a `table` {x, y, period} over time or `argument` joint."""
-    from sidprep.solver.system import Table
+    from sidprep.solver import Table
 
     argument = _lookup(t, "argument", joints, "joint") if t.has("argument") else None
     if t.has("table"):
@@ -474,7 +474,7 @@ def _load_value(t: _Table, joints: dict):
 
 
 def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None:
-    from sidprep.solver import system as api
+    import sidprep.solver as api
 
     kinds = ("point_force", "point_torque", "spring_damper", "joint_force", "joint_friction")
     for name, t in _subtables(file, root, "forces"):
@@ -502,9 +502,8 @@ def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None
             joint = _lookup(t, "joint", joints, "joint")
             if joint.coordinate_kind is None:
                 t.fail("joint", f"a {joint.kind} joint has no coordinate", "use a revolute, cylindrical or prismatic joint")
-            k, c = t.number("stiffness", 0.0), t.number("damping", 0.0)
-            x0, f0 = t.number("reference", 0.0), t.number("constant", 0.0)
-            element = api.JointForce(joint, lambda x, xd, time, k=k, c=c, x0=x0, f0=f0: f0 - k * (x - x0) - c * xd,
+            element = api.JointForce(joint, stiffness=t.number("stiffness", 0.0), damping=t.number("damping", 0.0),
+                                     reference=t.number("reference", 0.0), constant=t.number("constant", 0.0),
                                      name=name)
         else:
             joint = _lookup(t, "joint", joints, "joint")
@@ -536,7 +535,7 @@ def _check_names(file: Path, root: dict) -> None:
 def empty_result(system):
     """A Result with no samples but every body, joint, marker and energy of ``system``: what the
     signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
-    from sidprep.solver.system import BodyHistory, JointHistory, Result
+    from sidprep.solver import BodyHistory, JointHistory, Result
 
     if isinstance(system, AbsoluteNodalModel):
         return initial_result(system)
@@ -578,7 +577,7 @@ def read_toml(path: Path) -> tuple[dict, str]:
 
 def load_scene(path, *, t_end: float | None = None) -> Scene:
     """Parse the scene file ``path`` and build its System; ``t_end`` overrides [solver] t_end."""
-    from sidprep.solver.system import System
+    from sidprep.solver import System
 
     path = Path(path)
     root, text = read_toml(path)
@@ -624,7 +623,7 @@ def _absolute_nodal_scene(path: Path, root: dict, text: str, t_end: float | None
 
 
 def simulate(scene: Scene):
-    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> solver.system.Result.
+    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> sidprep.solver.Result.
 
     The solver's own InputErrors (e.g. Newton failure, joints that cannot close) are re-raised
     with the scene file named first.

@@ -8,7 +8,7 @@ import numpy as np
 
 from sidprep.solver.animation import MAX_VTU_FILES, Surface, write_animation
 from sidprep.solver.effects import EffectsReport
-from sidprep.solver.system import Result
+from sidprep.solver import Result
 from test_view_animate import RATE, history, rz
 
 

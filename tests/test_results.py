@@ -15,7 +15,7 @@ from sidprep.errors import InputError
 from sidprep.solver.animation import Surface, obj_surface, write_animation
 from sidprep.solver.effects import EffectEntry, EffectsReport
 from sidprep.solver.results import energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
-from sidprep.solver.system import BodyHistory, JointHistory, Result
+from sidprep.solver import BodyHistory, JointHistory, Result
 
 NT = 4
 ROT_Z90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])

@@ -1,4 +1,4 @@
-"""Solver bodies: SID -> BodyModel, markers on nodes, rigid bodies; test-model builders.
+"""Solver bodies: SID -> BodyTerms, markers on nodes, rigid bodies; test-model builders.
 
 The builders here (``random_nodal_sid``, ``bar_sid``) are imported by the other solver tests.
 """
@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from sidprep.sid import sid_invariants
-from sidprep.solver.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
-from sidprep.solver.kinematics import exp_so3, skew
+from sidprep.solver.model.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
+from sidprep.solver.equations.constraints import marker_kinematics
+from sidprep.solver.equations.layout import body_matrices
+from sidprep.solver.equations.rotations import exp_so3, skew
 
 CARTOP = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem" / "cartopPragV32.SID_FEM"
 
@@ -82,14 +84,17 @@ def test_node_marker_kinematics_match_nodal_motion():
     rng = np.random.default_rng(3)
     r, A, q = rng.normal(size=3), exp_so3(rng.normal(size=3)), rng.normal(size=sid.nq) * 0.1
     u = rng.normal(size=6 + sid.nq)
-    p, Am, jt, jr, d = mk.kinematics(r, A, q)
+    def kinematics(r, A, q):
+        return marker_kinematics(r, A, q, mk.position, mk.rotation, mk.phi, mk.psi)
+
+    p, Am, jt, jr, d = kinematics(r, A, q)
     phi_n = Phi.reshape(len(X), 3, sid.nq)[1]
     assert np.allclose(p, r + A @ (X[1] + phi_n @ q), atol=1e-14)
     # time derivative along u by central differences
     eps = 1e-6
 
     def pos(sign):
-        return mk.kinematics(r + sign * eps * u[:3], A @ exp_so3(sign * eps * u[3:6]), q + sign * eps * u[6:])[0]
+        return kinematics(r + sign * eps * u[:3], A @ exp_so3(sign * eps * u[3:6]), q + sign * eps * u[6:])[0]
 
     assert np.allclose((pos(1) - pos(-1)) / (2 * eps), jt @ u, rtol=1e-8, atol=1e-9)
     assert np.allclose(jr @ u, A @ (u[3:6]), atol=1e-14)  # psi = 0 for these nodes
@@ -100,8 +105,9 @@ def test_rigid_body_inertia_about_origin():
     icm = np.diag([1.0, 2.0, 3.0])
     body = RigidBody(m, c, icm)
     expected = icm + m * (c @ c * np.eye(3) - np.outer(c, c))
-    assert np.allclose(body.model.I0, expected, rtol=1e-15)
-    mk = body.model.mass_matrix(np.zeros(0))
+    terms = body.terms(set(), gravity=False)
+    assert np.allclose(terms.I0, expected, rtol=1e-15)
+    mk = body_matrices(terms, np.zeros(0), np.zeros(0), np.zeros(3), np.zeros(3))[0]
     assert np.allclose(mk[3:6, :3], m * skew(c))
 
 
@@ -109,18 +115,22 @@ def test_effect_switches_drop_terms():
     """A body without first-order effects has a constant mass matrix; with them it changes."""
     sid = random_nodal_sid()[0]
     body = FlexibleBody(sid)
-    body.configure({"coupling"}, gravity=False)
-    assert body.model.constant_mass and body.model.Oe0 is None and body.model.Gr0 is None
-    body.configure({"coupling", "inertia_change"}, gravity=False)
-    assert not body.model.constant_mass
+    terms = body.terms({"coupling"}, gravity=False)
+    assert terms.constant_mass and terms.Oe0 is None and terms.Gr0 is None
+    terms = body.terms({"coupling", "inertia_change"}, gravity=False)
+    assert not terms.constant_mass
     q = np.full(sid.nq, 0.1)
-    assert not np.allclose(body.model.mass_matrix(q), body.model.mass_matrix(0 * q))
+
+    def mass(q):
+        return body_matrices(terms, q, 0 * q, np.zeros(3), np.zeros(3))[0]
+
+    assert not np.allclose(mass(q), mass(0 * q))
 
 
 @pytest.mark.skipif(not CARTOP.is_file(), reason="reference SID files not beside the clone")
 def test_cartop_reads_as_flexible_body():
     body = FlexibleBody(CARTOP, name="cartop")
-    assert body.nq == 3 and abs(body.model.mass - 9.0824) < 1e-12
+    assert body.nq == 3 and abs(body.sid.mass - 9.0824) < 1e-12
     avail = body.available()
     assert avail["damping"] and avail["centrifugal_stiffening"]
     assert body.node_marker(0).position.shape == (3,)

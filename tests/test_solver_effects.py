@@ -8,8 +8,8 @@ import pytest
 from test_solver_bodies import bar_sid
 
 from sidprep.solver.effects import EFFECTS, WARN_LEVEL, parse_effects
-from sidprep.solver.joints import ConstantSpeed, Driver, Revolute
-from sidprep.solver.system import FlexibleBody, System
+from sidprep.solver.model.joints import ConstantSpeed, Driver, Revolute
+from sidprep.solver import FlexibleBody, System
 
 SPIN = 10.0  # rad/s
 FREQS = (5.0, 8.0, 12.0, 15.0)  # Hz: (SPIN / omega_1)^2 = 0.10
@@ -86,11 +86,10 @@ def test_centrifugal_stiffening_raises_the_spinning_frequency():
 
 def test_only_named_terms_are_assembled():
     body = FlexibleBody(with_k0omega(bar_sid(freqs=FREQS, damping=0.02)))
-    body.configure({"coupling"}, gravity=False)
-    m = body.model
+    m = body.terms({"coupling"}, gravity=False)
     assert m.Oe0 is None and m.Oe1 is None and m.Gr0 is None and m.De is None and m.constant_mass
-    body.configure({"coupling", "centrifugal_stiffening"}, gravity=False)
-    assert body.model.Oe1 is not None and body.model.Oe0 is None
+    m = body.terms({"coupling", "centrifugal_stiffening"}, gravity=False)
+    assert m.Oe1 is not None and m.Oe0 is None
 
 
 def test_load_stiffening_by_a_tip_force():
@@ -98,8 +97,8 @@ def test_load_stiffening_by_a_tip_force():
     h_ext,e = phi(q)^T F), checked against the linear modal ODE; left out, the report warns."""
     from scipy.integrate import solve_ivp
 
-    from sidprep.solver.forces import PointForce
-    from sidprep.solver.joints import Fixed
+    from sidprep.solver.model.forces import PointForce
+    from sidprep.solver.model.joints import Fixed
 
     nq, load = 4, 300.0
     rng = np.random.default_rng(2)

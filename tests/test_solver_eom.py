@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from test_solver_bodies import random_nodal_sid
 
-from sidprep.solver.bodies import FlexibleBody
-from sidprep.solver.effects import EFFECTS as EFFECTS_ALL
+from sidprep.solver.equations.layout import body_matrices
+from sidprep.solver.model.bodies import FlexibleBody
 
 #: relative agreement with the brute force (round-off)
 EOM_RTOL = 1e-10
@@ -36,11 +36,9 @@ def brute_force(X, Ms, Phi, q, qd, qdd, w, wd, a0):
     return force, moment, modal
 
 
-def sid_side(body, q, qd, qdd, w, wd, a0):
-    model = body.model
-    mk = model.mass_matrix(q)
-    h = model.internal_forces(q, qd, w, np.zeros(3), mk)
-    h[6:] += model.Ke @ q  # remove the elastic force: compare the kinetic terms only
+def sid_side(terms, q, qd, qdd, w, wd, a0):
+    mk, h = body_matrices(terms, q, qd, w, np.zeros(3))
+    h[6:] += terms.Ke @ q  # remove the elastic force: compare the kinetic terms only
     lhs = mk @ np.concatenate([a0, wd, qdd]) - h
     return lhs[:3], lhs[3:6], lhs[6:]
 
@@ -48,13 +46,12 @@ def sid_side(body, q, qd, qdd, w, wd, a0):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_sid_equations_match_brute_force_exactly(seed):
     sid, X, Ms, Phi = random_nodal_sid(seed=seed)
-    body = FlexibleBody(sid)
-    body.configure(EXACT_KINETICS, gravity=False)
+    terms = FlexibleBody(sid).terms(EXACT_KINETICS, gravity=False)
     rng = np.random.default_rng(10 + seed)
     q, qd, qdd = (rng.normal(size=sid.nq) * s for s in (0.3, 1.0, 2.0))
     w, wd, a0 = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
     ref = brute_force(X, Ms, Phi, q, qd, qdd, w, wd, a0)
-    got = sid_side(body, q, qd, qdd, w, wd, a0)
+    got = sid_side(terms, q, qd, qdd, w, wd, a0)
     for r, g in zip(ref, got):
         assert np.linalg.norm(g - r) <= EOM_RTOL * np.linalg.norm(r)
 
@@ -62,15 +59,14 @@ def test_sid_equations_match_brute_force_exactly(seed):
 def test_first_order_model_matches_brute_force_to_first_order():
     """Without I2/Gr1 the error is O(q^2): halving q divides it by ~4."""
     sid, X, Ms, Phi = random_nodal_sid(seed=2)
-    body = FlexibleBody(sid)
-    body.configure(EXACT_KINETICS - {"second_order_inertia"}, gravity=False)
+    terms = FlexibleBody(sid).terms(EXACT_KINETICS - {"second_order_inertia"}, gravity=False)
     rng = np.random.default_rng(5)
     q0, qd, qdd = (rng.normal(size=sid.nq) for _ in range(3))
     w, wd, a0 = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
     errors = []
     for s in (1e-2, 5e-3):
         ref = brute_force(X, Ms, Phi, s * q0, s * qd, qdd, w, wd, a0)
-        got = sid_side(body, s * q0, s * qd, qdd, w, wd, a0)
+        got = sid_side(terms, s * q0, s * qd, qdd, w, wd, a0)
         errors.append(np.linalg.norm(got[1] - ref[1]))
     assert 3.5 < errors[0] / errors[1] < 4.5
 
@@ -78,36 +74,12 @@ def test_first_order_model_matches_brute_force_to_first_order():
 def test_gravity_enters_as_mass_matrix_column():
     """Gravity equals a uniform acceleration -g of every particle (sid-spec 5.2)."""
     sid, X, Ms, Phi = random_nodal_sid(seed=3)
-    body = FlexibleBody(sid)
-    body.configure(EXACT_KINETICS | {"gravity"}, gravity=True)
+    terms = FlexibleBody(sid).terms(EXACT_KINETICS | {"gravity"}, gravity=True)
     q = np.random.default_rng(1).normal(size=sid.nq) * 0.2
     g = np.array([0.3, -1.0, -9.81])
-    model = body.model
     zero = np.zeros(sid.nq)
-    h = model.internal_forces(q, zero, np.zeros(3), g, model.mass_matrix(q))
-    h[6:] += model.Ke @ q
+    h = body_matrices(terms, q, zero, np.zeros(3), g)[1]
+    h[6:] += terms.Ke @ q
     ref = brute_force(X, Ms, Phi, q, zero, zero, np.zeros(3), np.zeros(3), g)
     for r, got in zip(ref, (h[:3], h[3:6], h[6:])):
         assert np.linalg.norm(got - r) <= EOM_RTOL * np.linalg.norm(r)
-
-
-def test_compiled_kernel_equals_reference_implementation():
-    """BodyModel.equations (numba kernel) == mass_matrix + internal_forces (numpy reference)."""
-    from dataclasses import replace
-
-    sid = random_nodal_sid(seed=6)[0]
-    rng = np.random.default_rng(8)
-    nq = sid.nq
-    k0t = rng.normal(size=(3, nq, nq))
-    stiff = {"K0t": k0t + k0t.transpose(0, 2, 1)}
-    sid = replace(sid, Ct=replace(sid.Ct, M1=stiff["K0t"].transpose(1, 2, 0)),
-                  ksigma=replace(sid.ksigma, M0=rng.normal(size=(nq, 1)), M1=rng.normal(size=(nq, nq, 1))),
-                  De=replace(sid.De, M0=np.eye(nq)))
-    body = FlexibleBody(sid)
-    body.configure(set(EFFECTS_ALL) - {"second_order_inertia"}, gravity=True)
-    q, qd, w, g = (rng.normal(size=k) for k in (nq, nq, 3, 3))
-    mk, h = body.model.equations(q, qd, w, g)
-    ref_m = body.model.mass_matrix(q)
-    ref_h = body.model.internal_forces(q, qd, w, g, ref_m)
-    assert np.allclose(mk, ref_m, rtol=1e-13, atol=1e-13)
-    assert np.allclose(h, ref_h, rtol=1e-12, atol=1e-12 * np.max(np.abs(ref_h)))

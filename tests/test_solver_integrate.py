@@ -5,8 +5,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from test_solver_bodies import CARTOP, bar_sid, random_nodal_sid
 
-from sidprep.solver.integrate import genalpha_parameters
-from sidprep.solver.system import FlexibleBody, Revolute, RigidBody, Spherical, System
+from sidprep.solver.integrators.genalpha import genalpha_parameters
+from sidprep.solver import EFFECTS, FlexibleBody, Revolute, RigidBody, Spherical, System
 
 #: free spinning body, exact model, DOP853 at rtol 1e-10: energy / angular momentum drift
 CONSERVATION_TOL = 1e-6
@@ -19,14 +19,17 @@ BALANCE_TOL = 1e-3
 AXIS_Y = np.column_stack([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
 
-def angular_momentum(result, body):
+def angular_momentum(result, body, effects):
     """Angular momentum about the inertial origin from the body's generalised momentum."""
+    from sidprep.solver.equations.layout import body_matrices
+
+    terms = body.terms(effects, gravity=False)
     h = result.bodies[body.name]
     out = []
     for k in range(len(result.t)):
         A = h.rotation[k]
         uk = np.concatenate([A.T @ h.velocity[k], h.omega[k], h.qd[k]])
-        p = body.model.mass_matrix(h.q[k]) @ uk
+        p = body_matrices(terms, h.q[k], h.qd[k], h.omega[k], np.zeros(3))[0] @ uk
         out.append(np.cross(h.position[k], A @ p[:3]) + A @ p[3:6])
     return np.array(out)
 
@@ -46,7 +49,7 @@ def test_free_spinning_flexible_body_conserves_energy_and_angular_momentum():
     r = s.simulate(10.0, method="dop853", rtol=1e-10, atol=1e-12, effects="all", output_dt=0.05)
     e = r.energy["total"]
     assert np.max(np.abs(e - e[0])) <= CONSERVATION_TOL * e[0]
-    H = angular_momentum(r, body)
+    H = angular_momentum(r, body, set(EFFECTS))
     assert np.max(np.linalg.norm(H - H[0], axis=1)) <= CONSERVATION_TOL * np.linalg.norm(H[0])
     assert np.ptp(r.bodies["b"].q[:, 0]) > 1e-3  # the modes really move
 
@@ -147,52 +150,32 @@ def test_explicit_methods_on_constrained_systems():
     assert np.allclose(r.joints["main"].coordinate, 0.5 + 2.0 * r.t, atol=1e-8)
 
 
-#: compiled integration loop vs the Python loop (same algorithm, fixed steps; round-off only);
-#: energy flows relative to the largest kinetic energy (the compiled loop samples the powers at
-#: the converged state, the Python loop at the last Newton iterate)
-COMPILED_LOOP_TOL, COMPILED_LOOP_ENERGY_TOL = 1e-9, 1e-6
+#: energy balance of a driven, damped run: |total - total(0)| relative to the largest kinetic
+#: energy (trapezoidal work integrals, h = 1e-3 s, rho_inf = 1; measured 6.4e-5, second order:
+#: 1.6e-5 at h = 5e-4 s)
+ENERGY_BALANCE_TOL = 1.5e-4
 
 
-@pytest.mark.parametrize("driven", [False, True])
-def test_compiled_loop_equals_python_loop(monkeypatch, driven):
-    """A damped flexible pendulum (modal damping, a node marker, one revolute joint; driven: with
-    a SmoothStart driver on the hinge) integrated by the compiled loop and by the Python loop:
-    same steps, same states, reactions, driver effort and energy flows.  (With step-size control
-    the round-off moves accept / reject decisions; the compiled controller is checked by
-    test_rigid_pendulum_with_step_size_control.)"""
-    import sidprep.solver.integrate as integrate
-    from sidprep.solver.system import Driver, SmoothStart
+def test_driven_damped_flexible_pendulum_balances_its_energy():
+    """Conservation law with every flow: a flexible pendulum with modal damping, driven up to
+    40 rad/s by a SmoothStart motor on its hinge (more than a turn: the angle is unwrapped):
+    kinetic + strain + gravity + dissipated - driver work stays constant (rho_inf = 1: no
+    numerical dissipation outside the balance)."""
+    from sidprep.solver import Driver, SmoothStart
 
     sid = bar_sid(damping=0.02)
 
-    def run():
-        def flexible(s):
-            b = s.add(FlexibleBody(sid, name="bar", q0=np.full(sid.nq, 1e-4)))
-            return b, b.node_marker(0, rotation=AXIS_Y)
+    def flexible(s):
+        b = s.add(FlexibleBody(sid, name="bar"))
+        return b, b.node_marker(0, rotation=AXIS_Y)
 
-        s, _, joint = pendulum(flexible)
-        if driven:
-            s.add(Driver(joint, SmoothStart(speed=40.0, ramp_time=0.1), name="motor"))
-        return s.simulate(0.3, h=1e-3, output_dt=0.01), joint
-
-    fast, joint = run()
-    monkeypatch.setattr(integrate._Kernel, "usable", staticmethod(lambda system: False))
-    slow, _ = run()
-    assert fast.stats.get("compiled_loop") and not slow.stats.get("compiled_loop")
-    assert fast.stats["steps"] == slow.stats["steps"] and np.allclose(fast.t, slow.t, rtol=0, atol=1e-12)
-
-    def close(a, b, floor=1e-6, tol=COMPILED_LOOP_TOL):
-        return np.max(np.abs(a - b)) <= tol * max(np.max(np.abs(b)), floor)
-
-    for key in ("q", "omega", "velocity"):
-        assert close(getattr(fast.bodies["bar"], key), getattr(slow.bodies["bar"], key))
-    assert close(fast.joints[joint.name].force, slow.joints[joint.name].force)
-    scale = np.max(slow.energy["kinetic"])
-    for key in ("total", "external", "dissipated"):
-        assert close(fast.energy[key], slow.energy[key], scale, COMPILED_LOOP_ENERGY_TOL)
-    if driven:
-        assert close(fast.joints["motor"].effort, slow.joints["motor"].effort)
-        assert fast.joints[joint.name].coordinate[-1] > 2 * np.pi   # turned more than once (unwrapping)
+    s, _, joint = pendulum(flexible)
+    s.add(Driver(joint, SmoothStart(speed=40.0, ramp_time=0.1), name="motor"))
+    r = s.simulate(0.3, h=1e-3, output_dt=0.01, rho_inf=1.0)
+    assert r.joints[joint.name].coordinate[-1] > 2 * np.pi
+    assert r.energy["dissipated"][-1] > 0 and r.energy["external"][-1] > 0
+    drift = np.max(np.abs(r.energy["total"] - r.energy["total"][0]))
+    assert drift <= ENERGY_BALANCE_TOL * np.max(r.energy["kinetic"])
 
 
 #: planar vs 3D coordinates of the same planar scene: hinge angle (rad), modal coordinates and
@@ -201,28 +184,31 @@ PLANAR_ANGLE_ATOL, PLANAR_RTOL = 1e-9, 1e-6
 
 
 def test_planar_scene_integrates_the_in_plane_coordinates_only():
-    """The flexible pendulum (hinge about y, gravity -z) is detected as planar: x, z, rotation
-    about y and the in-plane modes are integrated; the result equals the 3D integration."""
+    """A rigid slider-crank pendulum pair (hinge about y, gravity -z) is detected as planar: x,
+    z and the rotation about y are integrated; the result equals the 3D integration (the
+    second formulation).  A flexible body keeps its 3D coordinates and the run says so."""
     from sidprep.errors import InputError
 
-    sid = bar_sid()
-
-    def run(planar, gravity=(0, 0, -9.81)):
+    def run(planar, gravity=(0, 0, -9.81), flexible=False):
         s = System(gravity=gravity, planar=planar)
-        b = s.add(FlexibleBody(sid, name="bar"))
-        joint = s.add(Revolute(s.ground.marker(rotation=AXIS_Y), b.node_marker(0, rotation=AXIS_Y), name="pivot"))
-        return s.simulate(0.3, h=1e-3, output_dt=0.01), joint
+        if flexible:
+            b = s.add(FlexibleBody(bar_sid(), name="bar"))
+            root = b.node_marker(0, rotation=AXIS_Y)
+        else:
+            b = s.add(RigidBody(2.0, (0.5, 0, 0), np.diag([1e-3, 0.02, 0.02]), name="bar"))
+            root = b.marker(rotation=AXIS_Y)
+        s.add(Revolute(s.ground.marker(rotation=AXIS_Y), root, name="pivot"))
+        return s.simulate(0.3, h=1e-3, output_dt=0.01)
 
-    flat, joint = run(None)
-    full, _ = run(False)
+    flat, full = run(None), run(False)
     assert flat.stats["planar"] and not full.stats["planar"]
     assert flat.stats["n_coordinates"] < full.stats["n_coordinates"] and "planar scene" in flat.effects.text()
     assert np.max(np.abs(flat.joints["pivot"].coordinate - full.joints["pivot"].coordinate)) <= PLANAR_ANGLE_ATOL
-    q_flat, q_full = flat.bodies["bar"].q, full.bodies["bar"].q
-    assert np.max(np.abs(q_flat - q_full)) <= PLANAR_RTOL * np.max(np.abs(q_full))
     force_flat, force_full = flat.joints["pivot"].force, full.joints["pivot"].force
     assert np.max(np.abs(force_flat - force_full)) <= PLANAR_RTOL * np.max(np.abs(force_full))
-    assert np.ptp(full.joints["pivot"].coordinate) > 0.5 and np.max(np.abs(q_full)) > 0  # it swings and bends
+    assert np.ptp(full.joints["pivot"].coordinate) > 0.5  # it swings
+    flexible = run(None, flexible=True)
+    assert not flexible.stats["planar"] and "run in 3D" in flexible.effects.text()
     with pytest.raises(InputError, match="not planar"):
         run(True, gravity=(0, -9.81, -9.81))
 
@@ -231,7 +217,7 @@ def test_out_of_plane_load_decides_the_planar_form():
     """A tip force along the hinge axis that starts only at t = 0.2 s (the detection samples times
     up to t_end): on a hinged rigid rod the joint takes it (planar; the recovered reaction is
     the force), on a hinged flexible bar it bends the out-of-plane modes (3D coordinates)."""
-    from sidprep.solver.system import PointForce, Table
+    from sidprep.solver import PointForce, Table
 
     late_force = Table([0.0, 0.2, 0.21, 1.0], [0.0, 0.0, 5.0, 5.0])
 

@@ -283,7 +283,7 @@ def test_stiff_sixteen_mode_body_with_large_step_stays_bounded(tmp_path):
     """16 free-free modes of the steel bar (264 Hz ... kHz), hinged and released horizontally
     without static start (the modes ring), h = 10 ms >> 1/f_max, rho_inf = 0.8: the energy does
     not grow and the modal amplitudes stay at the quasi-static sag."""
-    from sidprep.solver.system import FlexibleBody, Revolute, System
+    from sidprep.solver import FlexibleBody, Revolute, System
 
     sid = reduced_bar(tmp_path, "--modes", "16")
     f_max = float(np.max(sid.frequencies_hz))
@@ -315,8 +315,8 @@ def test_spinning_near_the_first_critical_speed_is_stable_with_stiffening(tmp_pa
     first in-plane (lag) frequency, lag mode displaced by 1e-4: with centrifugal stiffening the
     lag motion stays bounded and oscillates at the Southwell frequency; without it the effects
     report warns with Omega^2 / omega_1^2 ~ 0.9."""
-    from sidprep.solver.joints import ConstantSpeed, Driver
-    from sidprep.solver.system import FlexibleBody, Revolute, System
+    from sidprep.solver.model.joints import ConstantSpeed, Driver
+    from sidprep.solver import FlexibleBody, Revolute, System
 
     sid = reduced_bar(tmp_path, "--modes", "4", "--frame", "fixed_end", "--stiffening")
     lag = int(np.argmax(np.abs(sid.Ct.M0[:, 1])))          # first mode moving along y
@@ -359,7 +359,7 @@ LONG_RUN_CONSTRAINT = 1e-12
 
 
 def test_hundred_seconds_of_a_rigid_pendulum_keep_energy_and_constraints():
-    from sidprep.solver.system import Revolute, RigidBody, System
+    from sidprep.solver import Revolute, RigidBody, System
 
     s = System(gravity=(0, 0, -9.81))
     rod = s.add(RigidBody(2.0, com=(0.5, 0, 0), inertia=(0.001, 0.05, 0.05), name="rod"))

@@ -13,7 +13,7 @@ from sidprep.cli.main import main
 from sidprep.io.obj import write_obj
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver.results import write_results
-from sidprep.solver.system import BodyHistory, Result
+from sidprep.solver import BodyHistory, Result
 from test_view import assert_renders, browser
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -58,6 +58,58 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @jit
+def put(dst: np.ndarray, start: int, src: np.ndarray, scale: float = 1.0) -> None:
+    """dst[start:start+n] = scale * src for vectors, by a loop (an array slice assignment costs
+    seconds of compilation in numba)."""
+    for i in range(src.shape[0]):
+        dst[start + i] = scale * src[i]
+
+
+@jit
+def add(dst: np.ndarray, start: int, src: np.ndarray, scale: float = 1.0) -> None:
+    """dst[start:start+n] += scale * src for vectors, by a loop."""
+    for i in range(src.shape[0]):
+        dst[start + i] += scale * src[i]
+
+
+@jit
+def put2(dst: np.ndarray, r0: int, c0: int, src: np.ndarray) -> None:
+    """dst[r0:r0+p, c0:c0+q] = src for matrices, by loops."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[r0 + i, c0 + j] = src[i, j]
+
+
+@jit
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """a . b for two vectors of equal length, by a loop (any memory layout)."""
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@jit
+def matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """a @ x by loops; (p, r) x (r,) -> (p,)."""
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[i] += a[i, j] * x[j]
+    return out
+
+
+@jit
+def tmatvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """a^T @ x by loops; (r, p) x (r,) -> (p,)."""
+    out = np.zeros(a.shape[1])
+    for j in range(a.shape[0]):
+        for i in range(a.shape[1]):
+            out[i] += a[j, i] * x[j]
+    return out
+
+
+@jit
 def exp_so3(theta: np.ndarray) -> np.ndarray:
     """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
     x, y, z = theta[0], theta[1], theta[2]
@@ -80,9 +132,11 @@ def log_so3(rot: np.ndarray) -> np.ndarray:
     return quaternion_to_vector(matrix_to_quaternion(rot))
 
 
+@jit
 def quaternion_to_matrix(e: np.ndarray) -> np.ndarray:
     """Rotation matrix of the (normalised on the fly) quaternion e = [e0, e1, e2, e3]."""
-    e0, e1, e2, e3 = np.asarray(e, dtype=float) / np.linalg.norm(e)
+    norm = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2] + e[3] * e[3])
+    e0, e1, e2, e3 = e[0] / norm, e[1] / norm, e[2] / norm, e[3] / norm
     return np.array(
         [
             [1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 - e0 * e3), 2 * (e1 * e3 + e0 * e2)],
@@ -120,10 +174,12 @@ def quaternion_to_vector(e: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(s, e[0]) * e[1:] / s
 
 
+@jit
 def quaternion_rate(e: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
-    """de/dt for body-frame angular velocity omega: 0.5 * e (x) [0, omega]."""
-    e0, e1, e2, e3 = e
-    w1, w2, w3 = omega_body
+    """de/dt = 0.5 e (x) [0, omega] for body-frame angular velocity omega (e normalised)."""
+    norm = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2] + e[3] * e[3])
+    e0, e1, e2, e3 = e[0] / norm, e[1] / norm, e[2] / norm, e[3] / norm
+    w1, w2, w3 = omega_body[0], omega_body[1], omega_body[2]
     return 0.5 * np.array(
         [
             -e1 * w1 - e2 * w2 - e3 * w3,

@@ -16,7 +16,10 @@ T2 = -sum lambda_r cR2_r (the equations carry + B^T lambda on the left-hand side
 
 Joint axis convention: the z axis of the markers (revolute / cylindrical / prismatic axis,
 planar normal).  Markers must coincide/align initially up to what the joint constrains;
-``System`` projects the initial state onto the constraints.
+the run assembles the initial state onto the constraints.
+
+This module describes joints, drivers and motion profiles; the rows are evaluated (compiled)
+in ``solver/equations/constraints.py`` and the profiles in ``solver/equations/curves.py``.
 """
 
 from __future__ import annotations
@@ -25,8 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sidprep.solver.bodies import Marker
-from sidprep.solver.kinematics import cross, jit
+from sidprep.solver.model.bodies import Marker
 
 # constraint rows as (kind, axis of marker 1, axis of marker 2); kind "p" = position, "a" = angle
 _ROWS = {
@@ -42,34 +44,9 @@ _ROWS = {
 _COORDINATE = {"revolute": "angle", "cylindrical": "angle", "prismatic": "slide"}
 
 
-@jit
-def _joint_rows(rows, p1, a1, p2, a2):  # pragma: no cover - compiled
-    """Rows (kind, axis 1, axis 2) -> g (m,) and c (4, m, 3) = (cT1, cR1, cT2, cR2), module doc."""
-    m = rows.shape[0]
-    d = p2 - p1
-    g = np.empty(m)
-    c = np.zeros((4, m, 3))
-    for r in range(m):
-        e = a1[:, rows[r, 1]].copy()
-        if rows[r, 0] == 0:
-            g[r] = e @ d
-            c[0, r] = -e
-            c[1, r] = cross(e, d)
-            c[2, r] = e
-        else:
-            b = a2[:, rows[r, 2]].copy()
-            g[r] = e @ b
-            axb = cross(e, b)
-            c[1, r] = axb
-            c[3, r] = -axb
-    return g, c
-
-
 class Joint:
-    """A kinematic joint between ``marker1`` and ``marker2`` (see the module docstring).
-
-    Attributes after a simulation: none (reactions are in the Result).
-    """
+    """A kinematic joint between ``marker1`` and ``marker2`` (see the module docstring);
+    ``rows`` lists its constraint rows (kind, axis of marker 1, axis of marker 2)."""
 
     kind = ""
 
@@ -80,45 +57,16 @@ class Joint:
         self.name = name or f"{self.kind}:{marker1.name}-{marker2.name}"
         self.rows = _ROWS[self.kind]
         self._rows = np.array([[kind == "a", i, -1 if j is None else j] for kind, i, j in self.rows], dtype=np.int64)
-        self._angle_ref = 0.0
 
     @property
     def nrows(self) -> int:
         return len(self.rows)
 
-    def constraint(self, k1, k2):
-        """g (m,), cT1, cR1, cT2, cR2 (m, 3) at the marker kinematics k1, k2 = (p, A, ...)."""
-        g, c = _joint_rows(self._rows, k1[0], k1[1], k2[0], k2[1])
-        return g, c[0], c[1], c[2], c[3]
-
-    # ------------------------------------------------------------ joint coordinate
     @property
     def coordinate_kind(self) -> str | None:
-        """"angle" (rad, about z1), "slide" (m, along z1) or None."""
+        """"angle" (rad, rotation of x2 about z1 from x1, continuous across +-pi) or "slide"
+        (m, z1 . (p2 - p1)) or None."""
         return _COORDINATE.get(self.kind)
-
-    def coordinate(self, k1, k2):
-        """Joint coordinate value and its velocity row (cT1, cR1, cT2, cR2), each (3,).
-
-        angle: rotation of x2 about z1 from x1, continuous across +-pi (unwrapped against the
-        last accepted value); slide: z1 . (p2 - p1).
-        """
-        a1, a2 = k1[1], k2[1]
-        z = a1[:, 2]
-        zero = np.zeros(3)
-        if self.coordinate_kind == "angle":
-            raw = np.arctan2(a1[:, 1] @ a2[:, 0], a1[:, 0] @ a2[:, 0])
-            value = self._angle_ref + (raw - self._angle_ref + np.pi) % (2 * np.pi) - np.pi
-            return value, (zero, -z, zero, z)
-        if self.coordinate_kind == "slide":
-            d = k2[0] - k1[0]
-            return z @ d, (-z, cross(z, d), z, zero)
-        raise ValueError(f"joint '{self.name}' ({self.kind}) has no joint coordinate")
-
-    def accept(self, k1, k2) -> None:
-        """Store the current angle as the unwrapping reference (called after each step)."""
-        if self.coordinate_kind == "angle":
-            self._angle_ref = self.coordinate(k1, k2)[0]
 
 
 class Spherical(Joint):
@@ -168,10 +116,6 @@ class ConstantSpeed:
     speed: float
     start: float = 0.0
 
-    def __call__(self, t: float):
-        """(value, rate, acceleration) at time t."""
-        return self.start + self.speed * t, self.speed, 0.0
-
 
 @dataclass(frozen=True)
 class SmoothStart:
@@ -182,36 +126,25 @@ class SmoothStart:
     ramp_time: float
     start: float = 0.0
 
-    def __call__(self, t: float):
-        w, T = self.speed, self.ramp_time
-        if t <= 0.0:
-            return self.start, 0.0, 0.0
-        if t < T:
-            s = np.pi * t / T
-            return (self.start + 0.5 * w * (t - T / np.pi * np.sin(s)), 0.5 * w * (1 - np.cos(s)),
-                    0.5 * w * np.pi / T * np.sin(s))
-        return self.start + w * (t - 0.5 * T), w, 0.0
-
 
 class TabulatedMotion:
-    """x(t) from a table, interpolated with a C2 cubic spline (scipy CubicSpline)."""
+    """x(t) from a table, interpolated with a C2 cubic spline (scipy CubicSpline, not-a-knot);
+    kept as its piecewise-polynomial coefficients, evaluated compiled (equations/curves.py)."""
 
     def __init__(self, times, values):
         from scipy.interpolate import CubicSpline
 
-        self.spline = CubicSpline(np.asarray(times, float), np.asarray(values, float))
-        self._d1 = self.spline.derivative(1)
-        self._d2 = self.spline.derivative(2)
+        spline = CubicSpline(np.asarray(times, float), np.asarray(values, float))
+        self.x, self.c = spline.x, spline.c  # breakpoints (k+1,), coefficients (4, k)
 
-    def __call__(self, t: float):
-        return float(self.spline(t)), float(self._d1(t)), float(self._d2(t))
+
+MOTIONS = (ConstantSpeed, SmoothStart, TabulatedMotion)
 
 
 class Driver:
     """Prescribed motion of a joint coordinate: coordinate(joint) - motion(t) = 0.
 
-    ``motion`` is any callable t -> (value, rate, acceleration), e.g. ConstantSpeed,
-    SmoothStart, TabulatedMotion.  The driving torque (revolute/cylindrical, N m) or force
+    ``motion`` is a ConstantSpeed, SmoothStart or TabulatedMotion.  The driving torque (revolute/cylindrical, N m) or force
     (prismatic, N) acting on body 2 along z1 is reported as -lambda.
     """
 
@@ -220,16 +153,10 @@ class Driver:
     def __init__(self, joint: Joint, motion, name: str | None = None):
         if joint.coordinate_kind is None:
             raise ValueError(f"driver on joint '{joint.name}': a {joint.kind} joint has no coordinate")
+        if not isinstance(motion, MOTIONS):
+            raise ValueError(f"driver on joint '{joint.name}': the motion must be a ConstantSpeed, SmoothStart or "
+                             f"TabulatedMotion, got {type(motion).__name__}")
         self.joint = joint
         self.motion = motion
         self.name = name or f"driver:{joint.name}"
         self.marker1, self.marker2 = joint.marker1, joint.marker2
-
-    def constraint(self, k1, k2, t: float):
-        value, row = self.joint.coordinate(k1, k2)
-        target = self.motion(t)[0]
-        return np.array([value - target]), *(r[None, :] for r in row)
-
-    def rate_term(self, t: float) -> float:
-        """b_t in g_dot = B u + b_t."""
-        return -self.motion(t)[1]

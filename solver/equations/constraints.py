@@ -1,0 +1,114 @@
+"""Marker kinematics, joint constraint rows and joint coordinates, compiled (model/joints.py
+describes the rows; the module docstring there gives the two primitives).
+
+Marker on body (r, A, q) at c with orientation AP0 and node shapes Phi, Psi (sid-spec 5.2):
+
+    d = c + Phi q,   p = r + A d,   A_m = A R(Psi q) AP0,
+    JT = [E, -A d~, A Phi],   JR = [0, A, A Psi]     (v_m = JT u, omega_m = JR u, inertial)
+
+With load stiffening the force Jacobians use Phi(q) = Phi + K0F q, Psi(q) = Psi + K0M q.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sidprep.solver.equations.rotations import cross, dot, exp_so3, jit, matmul, put, skew
+
+#: joint coordinate kinds (layout.py)
+NO_COORDINATE, ANGLE, SLIDE = 0, 1, 2
+
+
+@jit
+def marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
+    """p (3,), A_m (3, 3), JT (3, 6+nq), JR (3, 6+nq), d (3,) of a marker (module doc)."""
+    nq = q.shape[0]
+    d = position.copy()
+    rv = np.zeros(3)
+    for a in range(3):
+        for k in range(nq):
+            d[a] += phi[a, k] * q[k]
+            rv[a] += psi[a, k] * q[k]
+    rot = matmul(matmul(A, exp_so3(rv)), rotation)
+    jt = np.zeros((3, 6 + nq))
+    jr = np.zeros((3, 6 + nq))
+    ad = -matmul(A, skew(d))
+    for a in range(3):
+        jt[a, a] = 1.0
+        for b in range(3):
+            jt[a, 3 + b] = ad[a, b]
+            jr[a, 3 + b] = A[a, b]
+        for k in range(nq):
+            for b in range(3):
+                jt[a, 6 + k] += A[a, b] * phi[b, k]
+                jr[a, 6 + k] += A[a, b] * psi[b, k]
+    p = r.copy()
+    for a in range(3):
+        for b in range(3):
+            p[a] += A[a, b] * d[b]
+    return p, rot, jt, jr, d
+
+
+@jit
+def stiffened_jacobian(jac, A, q, k0):  # pragma: no cover - compiled
+    """jac with the modal columns of A (K0 q) added: K0 (3, nq, nq) [a, j, k] (phi.M1)."""
+    out = jac.copy()
+    nq = q.shape[0]
+    for a in range(3):
+        for k in range(nq):
+            s = 0.0
+            for b in range(3):
+                for j in range(nq):
+                    s += A[a, b] * k0[b, j, k] * q[j]
+            out[a, 6 + k] += s
+    return out
+
+
+@jit
+def joint_rows(rows, p1, a1, p2, a2):  # pragma: no cover - compiled
+    """Rows (kind, axis 1, axis 2) -> g (m,) and c (m, 4, 3) = (cT1, cR1, cT2, cR2) per row
+    (model/joints.py: position along an axis of marker 1, perpendicularity of two axes)."""
+    m = rows.shape[0]
+    d = p2 - p1
+    g = np.empty(m)
+    c = np.zeros((m, 4, 3))
+    for r in range(m):
+        e = a1[:, rows[r, 1]].copy()
+        if rows[r, 0] == 0:
+            g[r] = dot(e, d)
+            put(c[r, 0], 0, e, -1.0)
+            put(c[r, 1], 0, cross(e, d))
+            put(c[r, 2], 0, e)
+        else:
+            b = a2[:, rows[r, 2]].copy()
+            g[r] = dot(e, b)
+            axb = cross(e, b)
+            put(c[r, 1], 0, axb)
+            put(c[r, 3], 0, axb, -1.0)
+    return g, c
+
+
+@jit
+def unwrap(raw, ref):  # pragma: no cover - compiled
+    """The angle equal to raw modulo 2 pi closest to ref."""
+    return ref + (raw - ref + np.pi) % (2 * np.pi) - np.pi
+
+
+@jit
+def joint_coordinate(kind, p1, a1, p2, a2, ref):  # pragma: no cover - compiled
+    """Joint coordinate value and its velocity row c (4, 3) = (cT1, cR1, cT2, cR2).
+
+    ANGLE: rotation of x2 about z1 from x1, unwrapped against ref; SLIDE: z1 . (p2 - p1).
+    """
+    z = a1[:, 2].copy()
+    c = np.zeros((4, 3))
+    if kind == ANGLE:
+        raw = np.arctan2(dot(a1[:, 1], a2[:, 0]), dot(a1[:, 0], a2[:, 0]))
+        put(c[1], 0, z, -1.0)
+        put(c[3], 0, z)
+        return unwrap(raw, ref), c
+    d = p2 - p1
+    put(c[0], 0, z, -1.0)
+    put(c[1], 0, cross(z, d))
+    put(c[2], 0, z)
+    return dot(z, d), c

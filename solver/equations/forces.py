@@ -1,0 +1,126 @@
+"""Force elements, compiled (model/forces.py describes them): marker loads, power and potential.
+
+Each element adds forces / torques (inertial components) at markers into ``loads`` (nmk, 6)
+and its power into ``flows`` = [power put in by applied loads, power dissipated, spring
+potential energy] (W, W, J).  Loads along a joint coordinate act through the coordinate's
+velocity row c (constraints.joint_coordinate): F1 = Q cT1, T1 = Q cR1, F2 = Q cT2, T2 = Q cR2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sidprep.solver.equations.curves import curve_value
+from sidprep.solver.equations.layout import FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_SPRING, FE_TORQUE
+from sidprep.solver.equations.rotations import add, dot, jit, matvec, put
+
+
+@jit
+def curve_arrays(L, index):  # pragma: no cover - compiled
+    """Breakpoints x (k+1,) and coefficients c (degree+1, k) of the layout's curve ``index``."""
+    meta = L.curve_meta[index]
+    n, rows = meta[1], meta[3]
+    x = L.curve_x[meta[0]:meta[0] + n]
+    c = L.curve_c[meta[2]:meta[2] + rows * (n - 1)].reshape((rows, n - 1))
+    return x, c
+
+
+@jit
+def curve(L, index, at):  # pragma: no cover - compiled
+    """Value of the layout's curve ``index`` at ``at``."""
+    x, c = curve_arrays(L, index)
+    return curve_value(x, c, L.curve_period[index], at, 0)
+
+
+@jit
+def add_joint_load(loads, mk, crow, value):  # pragma: no cover - compiled
+    """A generalised force ``value`` along a joint coordinate with velocity row crow (4, 3)."""
+    for a in range(3):
+        loads[mk[0], a] += value * crow[0, a]
+        loads[mk[0], 3 + a] += value * crow[1, a]
+        loads[mk[1], a] += value * crow[2, a]
+        loads[mk[1], 3 + a] += value * crow[3, a]
+
+
+@jit
+def spring_tension(par, x, rate):  # pragma: no cover - compiled
+    """(tension, its dissipative part, its conservative linear part) of a spring-damper with
+    deflection x (m) and rate (m/s); par = [k, c, length, has_stop, clearance, k_stop,
+    exponent, c_stop]."""
+    damp = par[1] * rate
+    t = par[0] * x + damp
+    if par[3] > 0.0:
+        pen = -(x + par[4])
+        if pen > 0.0:
+            stop_damp = par[7] * rate
+            t += -par[5] * pen ** par[6] + stop_damp
+            damp += stop_damp
+    return t, damp, par[0] * x
+
+
+@jit
+def bump_potential(par, x):  # pragma: no cover - compiled
+    """Elastic energy of an engaged bump stop, J: k_stop pen^(e+1) / (e+1)."""
+    if par[3] <= 0.0:
+        return 0.0
+    pen = -(x + par[4])
+    return par[5] * pen ** (par[6] + 1.0) / (par[6] + 1.0) if pen > 0.0 else 0.0
+
+
+@jit
+def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # pragma: no cover - compiled
+    """Add every force element's marker loads into loads (nmk, 6) and flows (3,).
+
+    P, AM, VEL, OMG: marker positions, orientations, velocities, angular velocities
+    (inertial); coords (nj, 2) joint coordinate and rate, crows (nj, 4, 3) their velocity rows;
+    lam (m_all,) multipliers (friction reads the transverse reactions).
+    """
+    for i in range(L.fe_int.shape[0]):
+        row = L.fe_int[i]
+        kind, mk1, mk2, joint, first, columns = row[0], row[1], row[2], row[3], row[4], row[5]
+        par = L.fe_par[i]
+        if kind == FE_FORCE or kind == FE_TORQUE:
+            x = t if joint < 0 else coords[joint, 0]
+            v = np.zeros(3)
+            if columns == 0:
+                put(v, 0, par[:3])
+            else:
+                for a in range(columns):
+                    v[a] = curve(L, first + a, x)
+            if par[6] > 0.0:
+                v = v[0] * par[3:6]
+            if par[7] > 0.0:
+                v = matvec(AM[mk1], v)
+            if kind == FE_FORCE:
+                add(loads[mk1], 0, v)
+                flows[0] += dot(v, VEL[mk1])
+            else:
+                add(loads[mk1], 3, v)
+                flows[0] += dot(v, OMG[mk1])
+        elif kind == FE_SPRING:
+            d = P[mk2] - P[mk1]
+            length = np.sqrt(dot(d, d))
+            e = d / length
+            rate = dot(e, VEL[mk2] - VEL[mk1])
+            x = length - par[2]
+            tension, damp, linear = spring_tension(par, x, rate)
+            add(loads[mk2], 0, e, -tension)
+            add(loads[mk1], 0, e, tension)
+            flows[1] += damp * rate
+            flows[2] += 0.5 * par[0] * x * x + bump_potential(par, x)
+        elif kind == FE_JOINT_FORCE:
+            x, xd = coords[joint, 0], coords[joint, 1]
+            q = par[3] - par[0] * (x - par[2]) - par[1] * xd
+            if first >= 0:
+                q += curve(L, first, x)
+            add_joint_load(loads, L.joint_mk[joint], crows[joint], q)
+            flows[1] += par[1] * xd * xd
+            flows[2] += 0.5 * par[0] * (x - par[2]) ** 2
+            flows[0] += (q + par[1] * xd + par[0] * (x - par[2])) * xd
+        elif kind == FE_FRICTION:
+            r0 = L.joint_off[joint]
+            normal = np.sqrt(lam[r0] ** 2 + lam[r0 + 1] ** 2) + par[2]
+            xd = coords[joint, 1]
+            q = -par[0] * normal * par[1] * np.tanh(xd / par[3])
+            add_joint_load(loads, L.joint_mk[joint], crows[joint], q)
+            flows[1] -= q * xd

@@ -1,0 +1,271 @@
+"""What every integrator shares: the problem it integrates, its state, the samples it hands
+back, the stepper contract, and the compiled linear algebra and Lie-group update.
+
+The contract follows scipy's ``OdeSolver``: a stepper is made for one run from the problem,
+the consistent initial state and the settings, owns its state from then on, and is driven by
+``advance(t_stop)``, which integrates up to t_stop (or until its sample buffer is full) and
+returns the output samples of that stretch; ``status`` is "running", "finished" or "failed"
+(``message`` says why).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2
+
+#: output samples per call of a compiled integration loop (the stepper resumes it)
+CHUNK = 4096
+
+
+@dataclass
+class Problem:
+    """A run's compiled problem: the layout L (equations/layout.py), the integrated coordinates
+    ``free`` (indices into u; all but the out-of-plane ones of a planar run), the kept
+    constraint rows ``kept`` (indices; redundant rows dropped), per-coordinate length weights
+    (m per unit), the system length (m), the joints' angle references ``refs`` (nj,), updated
+    by the stepper after every accepted step, and t_end (s)."""
+
+    L: tuple
+    free: np.ndarray
+    kept: np.ndarray
+    weights: np.ndarray
+    length: float
+    refs: np.ndarray
+    t_end: float
+
+    @property
+    def n(self) -> int:
+        return int(self.L.uoff[-1])
+
+    @property
+    def m_all(self) -> int:
+        return int(self.L.joint_off[-1] + self.L.drv_joint.shape[0])
+
+
+@dataclass
+class State:
+    """Positions R (nb, 3), A (nb, 3, 3), Q (sum nq,), velocities u (n,), accelerations ud (n,)
+    and multipliers lam (kept rows) at time t."""
+
+    t: float
+    R: np.ndarray
+    A: np.ndarray
+    Q: np.ndarray
+    u: np.ndarray
+    ud: np.ndarray
+    lam: np.ndarray
+
+    def copy(self) -> "State":
+        return State(self.t, self.R.copy(), self.A.copy(), self.Q.copy(), self.u.copy(), self.ud.copy(),
+                     self.lam.copy())
+
+
+@dataclass
+class Samples:
+    """Output samples of one stretch: t (k,), R, A, Q, u, ud, lam (kept rows), refs (k, nj) the
+    angle references, work (k, 3) = [work of applied loads, dissipated energy, work of drivers]
+    since t = 0, J."""
+
+    t: np.ndarray
+    R: np.ndarray
+    A: np.ndarray
+    Q: np.ndarray
+    u: np.ndarray
+    ud: np.ndarray
+    lam: np.ndarray
+    refs: np.ndarray
+    work: np.ndarray
+
+
+class Stepper:
+    """Base of the integrators (module doc).  Subclasses set ``name`` and implement advance."""
+
+    name = ""
+
+    def __init__(self, problem: Problem, state: State, settings):
+        self.problem, self.state, self.settings = problem, state, settings
+        self.status, self.message = "running", ""
+        self.stats = {"steps": 0, "rejected": 0, "rhs_evaluations": 0, "newton_iterations": 0, "jacobians": 0,
+                      "h_min": np.inf, "h_max": 0.0}
+
+    @property
+    def t(self) -> float:
+        return self.state.t
+
+    def advance(self, t_stop: float) -> Samples:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+def full_multipliers(problem: Problem, lam: np.ndarray) -> np.ndarray:
+    """Multipliers of all rows (zero on the dropped ones) from those of the kept rows."""
+    out = np.zeros(problem.m_all)
+    out[problem.kept] = lam
+    return out
+
+
+@jit
+def store_sample(k, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work):  # pragma: no cover
+    """Write one output sample into row k of the sample buffers (by loops: see rotations.put)."""
+    ts[k] = t
+    put2(Rs[k], 0, 0, R)
+    for i in range(R.shape[0]):
+        put2(As[k, i], 0, 0, A[i])
+    put(Qs[k], 0, Q)
+    put(us[k], 0, u)
+    put(uds[k], 0, ud)
+    put(lams[k], 0, lam)
+    put(refss[k], 0, refs)
+    put(works[k], 0, work)
+
+
+@jit
+def expand(lam, kept, m_all):  # pragma: no cover - compiled
+    """full_multipliers, compiled."""
+    out = np.zeros(m_all)
+    for k in range(kept.shape[0]):
+        out[kept[k]] = lam[k]
+    return out
+
+
+@jit
+def advance_pose(L, R, A, Q, dx):  # pragma: no cover - compiled
+    """Positions moved by the increment dx (n,): r + dr, A exp(dtheta), q + dq (Lie group)."""
+    R2, A2, Q2 = R.copy(), np.empty_like(A), Q.copy()
+    for i in range(R.shape[0]):
+        s = L.uoff[i]
+        add(R2[i], 0, dx[s:s + 3])
+        put2(A2[i], 0, 0, matmul(A[i], exp_so3(dx[s + 3:s + 6].copy())))
+        nq = L.qoff[i + 1] - L.qoff[i]
+        add(Q2, L.qoff[i], dx[s + 6:s + 6 + nq])
+    return R2, A2, Q2
+
+
+@jit
+def lu_factor(a):  # pragma: no cover - compiled
+    """LU factors with partial pivoting by loops (for the small Newton matrices a LAPACK call
+    costs more than the arithmetic): (lu, piv)."""
+    k = a.shape[0]
+    lu = a.copy()
+    piv = np.arange(k)
+    for j in range(k):
+        p = j
+        for i in range(j + 1, k):
+            if abs(lu[i, j]) > abs(lu[p, j]):
+                p = i
+        if p != j:
+            for c in range(k):
+                lu[j, c], lu[p, c] = lu[p, c], lu[j, c]
+            piv[j], piv[p] = piv[p], piv[j]
+        pivot = lu[j, j]
+        if pivot == 0.0:
+            continue
+        for i in range(j + 1, k):
+            factor = lu[i, j] / pivot
+            lu[i, j] = factor
+            if factor != 0.0:
+                for c in range(j + 1, k):
+                    lu[i, c] -= factor * lu[j, c]
+    return lu, piv
+
+
+@jit
+def lu_solve(lu, piv, b):  # pragma: no cover - compiled
+    """x with a x = b from lu_factor(a)."""
+    k = b.shape[0]
+    x = np.empty(k)
+    for i in range(k):
+        x[i] = b[piv[i]]
+    for i in range(k):
+        acc = x[i]
+        for c in range(i):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc
+    for i in range(k - 1, -1, -1):
+        acc = x[i]
+        for c in range(i + 1, k):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc / lu[i, i]
+    return x
+
+
+@jit
+def restrict(M, f, B, BF, free, kept):  # pragma: no cover - compiled
+    """M, f, B, B_F restricted to the integrated coordinates and the kept rows."""
+    nf, m = free.shape[0], kept.shape[0]
+    Mf = np.empty((nf, nf))
+    ff = np.empty(nf)
+    Bk = np.empty((m, nf))
+    BFk = np.empty((m, nf))
+    for i in range(nf):
+        ff[i] = f[free[i]]
+        for j in range(nf):
+            Mf[i, j] = M[free[i], free[j]]
+        for k in range(m):
+            Bk[k, i] = B[kept[k], free[i]]
+            BFk[k, i] = BF[kept[k], free[i]]
+    return Mf, ff, Bk, BFk
+
+
+@jit
+def kkt_solve(M, f, B, BF, rhs):  # pragma: no cover - compiled
+    """[M B_F^T; B 0] [x; lambda] = [f; rhs] -> (x, lambda)."""
+    n, m = M.shape[0], B.shape[0]
+    K = np.zeros((n + m, n + m))
+    put2(K, 0, 0, M)
+    put2(K, 0, n, BF.T)
+    put2(K, n, 0, B)
+    b = np.empty(n + m)
+    put(b, 0, f)
+    put(b, n, rhs)
+    lu, piv = lu_factor(K)
+    z = lu_solve(lu, piv, b)
+    return z[:n], z[n:]
+
+
+@jit
+def constraint_velocity(L, R, A, Q, u, t, refs, kept, m_all):  # pragma: no cover - compiled
+    """g_dot = B u + b_t on the kept rows."""
+    out = evaluate(L, R, A, Q, u, t, np.zeros(m_all), refs)
+    gd = matvec(out[3], u) + out[5]
+    return gd[kept]
+
+
+@jit
+def gamma(L, R, A, Q, u, t, refs, kept, m_all):  # pragma: no cover - compiled
+    """d/dt (B u + b_t) at constant u, kept rows: central difference along the motion (step
+    1e-6 s), exact to O(1e-12) relative for the smooth constraint functions."""
+    eps = 1e-6
+    Rp, Ap, Qp = advance_pose(L, R, A, Q, eps * u)
+    Rm, Am, Qm = advance_pose(L, R, A, Q, -eps * u)
+    plus = constraint_velocity(L, Rp, Ap, Qp, u, t + eps, refs, kept, m_all)
+    minus = constraint_velocity(L, Rm, Am, Qm, u, t - eps, refs, kept, m_all)
+    return (plus - minus) / (2 * eps)
+
+
+@jit
+def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess, iterations):  # pragma: no cover
+    """Accelerations ud (n,; zero outside ``free``) and kept multipliers of the index-1 form
+
+        M ud + B_F^T lambda = f,   B ud = -gamma - 2 a g_dot - a^2 g   (a = baumgarte, 1/s)
+
+    iterated ``iterations`` times when forces depend on lambda (friction)."""
+    n = u.shape[0]
+    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+    lam = lam_guess.copy()
+    ud = np.zeros(n)
+    gam = gamma(L, R, A, Q, u, t, refs, kept, m_all) if kept.shape[0] else np.zeros(0)
+    for _ in range(iterations):
+        M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
+        Mf, ff, Bk, BFk = restrict(M, f, B, BF, free, kept)
+        rhs = -gam
+        if baumgarte > 0.0 and kept.shape[0]:
+            gd = (matvec(B, u) + bt)[kept]
+            rhs = rhs - 2.0 * baumgarte * gd - baumgarte * baumgarte * g[kept]
+        x, lam = kkt_solve(Mf, ff, Bk, BFk, rhs)
+        for i in range(free.shape[0]):
+            ud[free[i]] = x[i]
+    return ud, lam

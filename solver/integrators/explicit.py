@@ -1,0 +1,238 @@
+"""Explicit Runge-Kutta methods on the index-1 form of the constrained equations:
+
+    M ud + B_F^T lambda = f,   B ud = -gamma - 2 a g_dot - a^2 g    (Baumgarte, rate a in 1/s)
+
+with the state y = [per body r_O (3), quaternion (4), q (nq); u (n); work (3)] (the work of
+applied loads, the dissipated energy and the work of drivers are integrated with the motion,
+to the method's order).  ``rk4``: classic RK4 at the fixed step h (integrators/runge_kutta.py,
+the project's one RK4), compiled loop.  ``rk45`` / ``dop853``: scipy's error-controlled
+RK45 / DOP853 driven step by step (the right-hand side is compiled).  For non-stiff scenes:
+the step must resolve the highest kept frequency.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
+from sidprep.solver.integrators.base import CHUNK, Samples, Stepper, expand, index1_accelerations, store_sample
+from sidprep.solver.integrators.runge_kutta import rk4_step
+
+#: friction couples the forces to the multipliers: fixed-point iterations per evaluation
+MULTIPLIER_ITERATIONS = 2
+
+
+@jit
+def unpack(L, y):  # pragma: no cover - compiled
+    """R (nb, 3), A (nb, 3, 3), Q, u of the explicit state y."""
+    nb = L.qoff.shape[0] - 1
+    R = np.empty((nb, 3))
+    A = np.empty((nb, 3, 3))
+    Q = np.empty(L.qoff[-1])
+    o = 0
+    for i in range(nb):
+        nq = L.qoff[i + 1] - L.qoff[i]
+        put(R[i], 0, y[o:o + 3])
+        put2(A[i], 0, 0, quaternion_to_matrix(y[o + 3:o + 7]))
+        put(Q, L.qoff[i], y[o + 7:o + 7 + nq])
+        o += 7 + nq
+    n = L.uoff[-1]
+    return R, A, Q, y[o:o + n].copy()
+
+
+def pack(L, R, A, Q, u, work) -> np.ndarray:
+    """The explicit state y of positions, velocities and work integrals (module doc)."""
+    parts = []
+    for i in range(len(R)):
+        parts += [R[i], matrix_to_quaternion(A[i]), Q[L.qoff[i]:L.qoff[i + 1]]]
+    return np.concatenate(parts + [u, work])
+
+
+@jit
+def index1_rhs(t, y, params):  # pragma: no cover - compiled
+    """dy/dt of the explicit state; params = (L, free, kept, refs, baumgarte, lam guess (kept))."""
+    L, free, kept, refs, baumgarte, lam_guess = params
+    R, A, Q, u = unpack(L, y)
+    ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
+                                   MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
+    put(lam_guess, 0, lam)
+    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+    flows = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)[-1]
+    ydot = np.zeros(y.shape[0])
+    o = 0
+    for i in range(R.shape[0]):
+        nq = L.qoff[i + 1] - L.qoff[i]
+        s = L.uoff[i]
+        put(ydot, o, u[s:s + 3])
+        put(ydot, o + 3, quaternion_rate(y[o + 3:o + 7], u[s + 3:s + 6]))
+        put(ydot, o + 7, u[s + 6:s + 6 + nq])
+        o += 7 + nq
+    n = u.shape[0]
+    put(ydot, o, ud)
+    ydot[o + n] = flows[0]
+    ydot[o + n + 1] = flows[1]
+    ydot[o + n + 2] = flows[3]
+    return ydot
+
+
+@jit
+def sample(L, t, y, params, refs):  # pragma: no cover - compiled
+    """(R, A, Q, u, ud, lam, work) at an accepted state, refs updated to its joint angles."""
+    L_, free, kept, _, baumgarte, lam_guess = params
+    R, A, Q, u = unpack(L, y)
+    ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
+                                   MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
+    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+    coords = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)[7]
+    for j in range(refs.shape[0]):
+        refs[j] = coords[j, 0]
+    return R, A, Q, u, ud, lam, y[y.shape[0] - 3:].copy()
+
+
+@jit
+def rk4_loop(t, y, t_end, h, out_dt, next_out, params, capacity, max_steps, steps):  # pragma: no cover
+    """Fixed-step RK4 from t to t_end (the last step shortened to land on it) or until
+    ``capacity`` samples; refs (params[3]) follow the accepted steps."""
+    L, refs = params[0], params[3]
+    nb = L.qoff.shape[0] - 1
+    n = L.uoff[-1]
+    m = params[2].shape[0]
+    ts = np.empty(capacity)
+    Rs = np.empty((capacity, nb, 3))
+    As = np.empty((capacity, nb, 3, 3))
+    Qs = np.empty((capacity, L.qoff[-1]))
+    us = np.empty((capacity, n))
+    uds = np.empty((capacity, n))
+    lams = np.empty((capacity, m))
+    refss = np.empty((capacity, refs.shape[0]))
+    works = np.empty((capacity, 3))
+    ns = 0
+    end_tol = 1e-12 * max(1.0, t_end)
+    while t < t_end - end_tol and steps[0] < max_steps:
+        step = min(h, t_end - t)
+        y = rk4_step(index1_rhs, t, y, step, params)
+        t += step
+        steps[0] += 1
+        final = t >= t_end - end_tol
+        if final or out_dt <= 0.0 or t >= next_out - 1e-12 * max(1.0, abs(t)):
+            R, A, Q, u, ud, lam, work = sample(L, t, y, params, refs)
+            store_sample(ns, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work)
+            ns += 1
+            while out_dt > 0.0 and next_out <= t + 1e-12 * max(1.0, abs(t)):
+                next_out += out_dt
+        else:  # keep the angle references current between samples
+            sample(L, t, y, params, refs)
+        if ns == capacity:
+            break
+    return t, y, next_out, ts[:ns], Rs[:ns], As[:ns], Qs[:ns], us[:ns], uds[:ns], lams[:ns], refss[:ns], works[:ns]
+
+
+class _Explicit(Stepper):
+    """Shared set-up of the explicit steppers: the state vector and the rhs parameters."""
+
+    def __init__(self, problem, state, settings):
+        super().__init__(problem, state, settings)
+        L = problem.L
+        self.y = pack(L, state.R, state.A, state.Q, state.u, np.zeros(3))
+        self.params = (L, problem.free, problem.kept, problem.refs, float(settings.baumgarte), state.lam.copy())
+        self.next_out = settings.output_dt or 0.0
+
+    def _set_state(self, t, sample_):
+        R, A, Q, u, ud, lam, _ = sample_
+        self.state = type(self.state)(t, R, A, Q, u, ud, lam)
+
+
+class RungeKutta4(_Explicit):
+    """Classic RK4 at the fixed step h (compiled loop)."""
+
+    name = "rk4"
+
+    def advance(self, t_stop: float) -> Samples:
+        st = self.settings
+        steps = np.array([self.stats["steps"]], dtype=np.int64)
+        t, self.y, self.next_out, *arrays = rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
+                                                     self.next_out, self.params, CHUNK, st.max_steps, steps)
+        self.stats["steps"] = int(steps[0])
+        self.stats["rhs_evaluations"] = 4 * int(steps[0])
+        self.stats["h_min"] = self.stats["h_max"] = st.h
+        if len(arrays[0]):
+            self.state = type(self.state)(t, arrays[1][-1], arrays[2][-1], arrays[3][-1], arrays[4][-1],
+                                          arrays[5][-1], arrays[6][-1])
+        self.state.t = t
+        if t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
+            self.status = "finished"
+        elif steps[0] >= st.max_steps:
+            self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {t:.6g} s"
+        return Samples(*arrays)
+
+
+class ScipyRungeKutta(_Explicit):
+    """scipy's RK45 / DOP853 (error control), one step at a time, with a compiled rhs."""
+
+    def __init__(self, problem, state, settings):
+        super().__init__(problem, state, settings)
+        from scipy.integrate import DOP853, RK45
+
+        cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
+        self.name = settings.method
+        params = self.params
+
+        def fun(t, y):
+            self.stats["rhs_evaluations"] += 1
+            return index1_rhs(t, y, params)
+
+        self.solver = cls(fun, state.t, self.y, problem.t_end, rtol=settings.tolerance,
+                          atol=settings.atol, first_step=min(settings.h, problem.t_end))
+
+    def advance(self, t_stop: float) -> Samples:
+        st, solver = self.settings, self.solver
+        rows = []
+        dt = st.output_dt
+        while solver.status == "running" and solver.t < t_stop and len(rows) < CHUNK:
+            if self.stats["steps"] >= st.max_steps:
+                self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {solver.t:.6g} s"
+                break
+            t_old = solver.t
+            message = solver.step()
+            if solver.status == "failed":
+                self.status, self.message = "failed", f"{self.name}: {message}; use method = 'genalpha' for stiff scenes"
+                break
+            self.stats["steps"] += 1
+            h = solver.t - t_old
+            self.stats["h_min"] = min(self.stats["h_min"], h)
+            self.stats["h_max"] = max(self.stats["h_max"], h)
+            times = [solver.t] if dt is None else []
+            if dt is not None:
+                while self.next_out <= solver.t + 1e-12 * max(1.0, solver.t):
+                    if self.next_out > t_old:
+                        times.append(self.next_out)
+                    self.next_out += dt
+                if solver.status == "finished" and (not times or times[-1] < solver.t):
+                    times.append(solver.t)
+            dense = solver.dense_output() if any(tk != solver.t for tk in times) else None
+            for tk in times:
+                y = solver.y if tk == solver.t else dense(tk)
+                rows.append((tk, sample(self.problem.L, tk, y, self.params, self.problem.refs),
+                             self.problem.refs.copy()))
+            if not times:  # keep the angle references current between samples
+                sample(self.problem.L, solver.t, solver.y, self.params, self.problem.refs)
+        if rows:
+            self._set_state(rows[-1][0], rows[-1][1])
+        self.state.t = solver.t
+        if solver.status == "finished":
+            self.status = "finished"
+        if not rows:
+            return empty_samples(self.problem, self.state)
+        stack = [np.array([r[1][k] for r in rows]) for k in range(7)]
+        refs = np.array([r[2] for r in rows])
+        return Samples(np.array([r[0] for r in rows]), stack[0], stack[1], stack[2], stack[3], stack[4], stack[5],
+                       refs, stack[6])
+
+
+def empty_samples(problem, state) -> Samples:
+    """Samples with no rows."""
+    z = np.zeros
+    return Samples(z(0), z((0,) + state.R.shape), z((0,) + state.A.shape), z((0, state.Q.size)),
+                   z((0, state.u.size)), z((0, state.u.size)), z((0, state.lam.size)), z((0, problem.refs.size)),
+                   z((0, 3)))

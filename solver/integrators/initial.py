@@ -1,0 +1,206 @@
+"""A consistent start: assembly of the positions onto the constraints, removal of redundant
+rows, velocities onto g_dot = 0, index-1 accelerations and multipliers, and an optional
+quasi-static elastic start.
+
+Assembly is a damped Gauss-Newton (Levenberg-Marquardt) least-squares projection in
+length-weighted coordinates, first over the rigid-body coordinates only, then over all: it
+closes loops whose matrix B is nearly singular (e.g. a planar loop of 3D revolute joints with
+bodies placed a few micrometres out of plane), where a plain Gauss-Newton step diverges.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sidprep.errors import InputError
+from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.integrators.base import State, advance_pose, index1_accelerations, kkt_solve, restrict
+
+#: assembly tolerance: constraint residual, m or rad
+POSITION_TOL = 1e-12
+#: assembly: maximum damped Gauss-Newton iterations
+ASSEMBLY_ITERATIONS = 100
+#: a constraint row is redundant when its component independent of the rows kept before it is
+#: below this fraction of its norm (Gram-Schmidt at the assembled state)
+REDUNDANCY_TOL = 1e-8
+
+
+def length_weights(system, terms, L) -> tuple[np.ndarray, float]:
+    """Per-coordinate factors converting coordinate changes to lengths (m per unit), and the
+    system length L (m).
+
+    Translations 1, rotations L, modal coordinate k: max over SID nodes of |Phi_n[:, k]|, at
+    least the mass-weighted RMS displacement sqrt(Me_kk / m) of the mode (e.g. when the only
+    SID node is a clamped interface where all modes vanish).
+    """
+    radii = [1e-3]
+    for b, t in zip(system.bodies, terms):
+        radii.append(float(np.sqrt(np.trace(t.I0) / (2 * t.mass))))
+        radii += [float(np.linalg.norm(m.position)) for m in b.markers]
+    length = max(radii)
+    w = np.ones(int(L.uoff[-1]))
+    for i, (b, t) in enumerate(zip(system.bodies, terms)):
+        s = int(L.uoff[i])
+        w[s + 3:s + 6] = length
+        if t.nq:
+            rms = np.sqrt(np.abs(np.diag(t.Me)) / t.mass)
+            phi = np.array([np.linalg.norm(n.phi.M0, axis=0) for n in b.sid.nodes] + [rms]).max(axis=0)
+            w[s + 6:s + 6 + t.nq] = np.maximum(phi, 1e-300)
+    return w, length
+
+
+def rigid_columns(L) -> np.ndarray:
+    """Boolean mask of the rigid-body coordinates (6 per body) among the n velocities."""
+    rigid = np.zeros(int(L.uoff[-1]), bool)
+    for s in L.uoff[:-1]:
+        rigid[s:s + 6] = True
+    return rigid
+
+
+def constraints_at(L, R, A, Q, t, refs):
+    """(g, B) of all rows at a pose (zero velocities)."""
+    out = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), refs)
+    return out[2], out[3]
+
+
+def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, rigid_only=True):
+    """(R, A, Q) moved onto g = 0 on the ``kept`` rows (module doc); InputError naming the worst
+    joint when even all coordinates cannot satisfy them."""
+    cols = rigid_columns(L) if rigid_only else np.ones(int(L.uoff[-1]), bool)
+    scale = 1.0 / weights[cols]
+    g, B = constraints_at(L, R, A, Q, t, refs)
+    res = np.linalg.norm(g[kept])
+    mu = 1e-12
+    for _ in range(ASSEMBLY_ITERATIONS):
+        if g[kept].size == 0 or np.max(np.abs(g[kept])) < POSITION_TOL:
+            return R, A, Q
+        J = B[kept][:, cols] * scale
+        JJ = J @ J.T
+        while True:
+            step = -J.T @ np.linalg.solve(JJ + mu * (np.trace(JJ) / len(JJ) + 1e-300) * np.eye(len(JJ)), g[kept])
+            delta = np.zeros(int(L.uoff[-1]))
+            delta[cols] = scale * step
+            R2, A2, Q2 = advance_pose(L, R, A, Q, delta)
+            g2, B2 = constraints_at(L, R2, A2, Q2, t, refs)
+            res2 = np.linalg.norm(g2[kept])
+            if res2 < res or mu > 1e6:
+                break
+            mu *= 10.0
+        if res2 >= res:
+            break
+        R, A, Q, g, B, res = R2, A2, Q2, g2, B2, res2
+        mu = max(mu / 10.0, 1e-12)
+    if rigid_only:
+        return assemble_positions(L, R, A, Q, t, refs, kept, weights, names, rigid_only=False)
+    worst = int(kept[np.argmax(np.abs(g[kept]))])
+    raise InputError(f"joint '{names[worst]}': the initial positions cannot satisfy it (residual "
+                     f"{np.max(np.abs(g[kept])):.3g} m or rad); place its markers so that they coincide and their "
+                     "z axes align as the joint requires")
+
+
+def independent_rows(B: np.ndarray, tol: float = REDUNDANCY_TOL) -> np.ndarray:
+    """Boolean mask of the rows of B kept by Gram-Schmidt in order (earlier rows win)."""
+    kept = np.zeros(B.shape[0], bool)
+    basis: list[np.ndarray] = []
+    for i, row in enumerate(B):
+        norm = np.linalg.norm(row)
+        if norm == 0.0:
+            continue
+        v = row.copy()
+        for _ in range(2):  # second pass for orthogonality
+            for e in basis:
+                v -= (e @ v) * e
+        rn = np.linalg.norm(v)
+        if rn > tol * norm:
+            basis.append(v / rn)
+            kept[i] = True
+    return kept
+
+
+def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
+    """u corrected onto B u + b_t = 0, changing the rigid-body velocities only where possible.
+
+    Minimum-norm correction over the rigid-body columns (length-weighted), so that the given
+    modal velocities stay (a body driven at speed starts spinning undeformed); when the rigid
+    columns cannot satisfy the constraints, the mass-weighted projection over all coordinates.
+    """
+    if kept.size == 0:
+        return u
+    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+
+    def error(v):
+        out = evaluate(L, R, A, Q, v, t, np.zeros(m_all), refs)
+        return (out[3] @ v + out[5])[kept], out
+
+    err, out = error(u)
+    B = out[3][kept]
+    rigid = rigid_columns(L)
+    scale = 1.0 / weights[rigid]
+    du = np.zeros_like(u)
+    du[rigid] = scale * np.linalg.lstsq(B[:, rigid] * scale, -err, rcond=None)[0]
+    if np.max(np.abs(error(u + du)[0]), initial=0.0) <= POSITION_TOL * (1.0 + np.max(np.abs(u))):
+        return u + du
+    M = out[0]
+    everything = np.arange(u.size)
+    Mf, _, Bk, BFk = restrict(M, out[1], out[3], out[4], everything, kept)
+    return u + kkt_solve(Mf, np.zeros(u.size), Bk, Bk, -err)[0]
+
+
+def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
+    """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte)."""
+    guess = np.zeros(kept.size) if lam is None else lam
+    return index1_accelerations(L, R, A, Q, u, t, refs, free, kept, 0.0, guess, 3 if kept.size else 1)
+
+
+def quasi_static_elastic(L, R, A, Q, u, t, refs, free, kept, weights, length, names, iterations=10):
+    """Modal coordinates with q_ddot = 0 under the initial loads and rigid-body accelerations.
+
+    Gauss-Newton on F(q) = q_ddot(q) (index-1 accelerations; for every q the rigid coordinates
+    are re-assembled onto the constraints).  Where joints at nodes pin combinations of q, the
+    perturbations are projected too: the columns D of actually reachable changes give the
+    reduced system (D^T dF) c = -D^T F, solved in the least-squares sense.
+    """
+    modal = ~rigid_columns(L)
+    if not modal.any():
+        return R, A, Q
+    qcols = np.flatnonzero(modal)
+
+    def qdd(R_, A_, Q_):
+        return accelerations(L, R_, A_, Q_, u, t, refs, free, kept)[0][qcols]
+
+    def with_q(qvec):
+        return assemble_positions(L, R, A, qvec, t, refs, kept, weights, names)
+
+    scale = length / weights[qcols]  # q moving nodes by L
+    for _ in range(iterations):
+        f0 = qdd(R, A, Q)
+        dmat = np.empty((Q.size, Q.size))
+        dfun = np.empty((Q.size, Q.size))
+        for k in range(Q.size):
+            trial = Q.copy()
+            trial[k] += 1e-6 * max(scale[k], abs(Q[k]))
+            Rk, Ak, Qk = with_q(trial)
+            dmat[:, k] = Qk - Q
+            dfun[:, k] = qdd(Rk, Ak, Qk) - f0
+        c = np.linalg.lstsq(dmat.T @ dfun, -dmat.T @ f0, rcond=1e-10)[0]
+        step = dmat @ c
+        R, A, Q = with_q(Q + step)
+        if np.max(np.abs(step) / np.maximum(np.abs(Q), scale * 1e-9)) < 1e-8:
+            break
+    return R, A, Q
+
+
+def consistent_state(L, R, A, Q, u, refs, free, kept_all, weights, length, names, static_start):
+    """(State, kept rows) satisfying the constraints at position, velocity and acceleration
+    level at t = 0; ``kept_all`` the rows to assemble on (indices)."""
+    R, A, Q = assemble_positions(L, R, A, Q, 0.0, refs, kept_all, weights, names)
+    _, B = constraints_at(L, R, A, Q, 0.0, refs)
+    mask = np.zeros(B.shape[0], bool)
+    mask[kept_all] = independent_rows(B[kept_all])
+    kept = np.flatnonzero(mask)
+    if static_start:
+        v = project_velocities(L, R, A, Q, u, 0.0, refs, kept, weights)
+        R, A, Q = quasi_static_elastic(L, R, A, Q, v, 0.0, refs, free, kept, weights, length, names)
+    u = project_velocities(L, R, A, Q, u, 0.0, refs, kept, weights)
+    ud, lam = accelerations(L, R, A, Q, u, 0.0, refs, free, kept)
+    return State(0.0, R, A, Q, u, ud, lam), kept

@@ -1,0 +1,94 @@
+"""A multibody system (a description): bodies, joints, drivers, force elements.
+
+Usage::
+
+    from sidprep.solver import System, FlexibleBody, Revolute
+    sys = System(gravity=(0, 0, -9.81))
+    bar = sys.add(FlexibleBody("bar.sid.h5", name="bar"))
+    pivot = sys.add(Revolute(sys.ground.marker(rotation=...), bar.node_marker(node_id=1)))
+    res = sys.simulate(1.0, h=1e-3, effects="auto")
+    res.bodies["bar"].q, res.joints[pivot.name].force, res.energy["total"], res.effects.text()
+
+A System holds no per-run state: ``simulate`` builds a ``solver.run.Run`` that owns the
+compiled layout, the kept constraint rows, the angle references and the recorder, so that
+simulating the same System twice gives identical results.  Equations: docs/solver.md and
+``solver/equations``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sidprep.solver.model.bodies import FlexibleBody, Ground, RigidBody, _MassBody
+from sidprep.solver.model.forces import FORCE_ELEMENTS
+from sidprep.solver.model.joints import Driver, Joint
+
+
+class System:
+    """A multibody system.  Build it with ``add``; integrate with ``simulate``.
+
+    Parameters
+    ----------
+    gravity : (3,) m/s^2, inertial components (used when the gravity effect is on)
+    effects : "auto" (default), "all", or a list of effect names (solver/effects.py), used by
+        every flexible body that does not name its own
+    planar : None (default: detect a planar scene and integrate its in-plane coordinates only),
+        True (require it) or False (always the 3D coordinates); see integrate.planar_coordinates
+    """
+
+    def __init__(self, gravity=(0.0, 0.0, -9.81), effects="auto", planar=None):
+        self.gravity = np.asarray(gravity, float)
+        self.effects = effects
+        self.planar = planar
+        self.ground = Ground()
+        self.bodies: list[_MassBody] = []
+        self.joints: list[Joint] = []
+        self.drivers: list[Driver] = []
+        self.forces: list = []
+
+    # ------------------------------------------------------------------ building
+    def add(self, item):
+        """Add a body, joint, driver or force element; returns it."""
+        if isinstance(item, (RigidBody, FlexibleBody)):
+            if any(b.name == item.name for b in self.bodies):
+                raise ValueError(f"duplicate body name '{item.name}'")
+            self.bodies.append(item)
+        elif isinstance(item, Joint):
+            self.joints.append(item)
+        elif isinstance(item, Driver):
+            self.drivers.append(item)
+        elif isinstance(item, FORCE_ELEMENTS):
+            self.forces.append(item)
+        else:
+            raise TypeError(f"cannot add {type(item).__name__} to a System")
+        return item
+
+    def markers(self) -> list:
+        """Every marker of the ground and the bodies, in a fixed order."""
+        return [m for b in [self.ground] + self.bodies for m in b.markers]
+
+    def check(self) -> None:
+        """ValueError when a joint, driver or force uses a body that was not added."""
+        known = {id(b) for b in self.bodies} | {id(self.ground)}
+        for item in self.joints + self.drivers + self.forces:
+            for name in ("marker", "marker1", "marker2"):
+                mk = getattr(item, name, None)
+                if mk is not None and id(mk.body) not in known:
+                    raise ValueError(f"'{item.name}': marker '{mk.name}' is on a body not added to the system")
+            joint = getattr(item, "joint", None) or getattr(item, "argument", None)
+            if joint is not None and joint not in self.joints:
+                raise ValueError(f"'{item.name}': joint '{joint.name}' is not added to the system")
+
+    def simulate(self, t_end: float, settings=None, **overrides):
+        """Integrate from t = 0 to t_end and return the Result (solver/results.py).
+
+        settings : a solver.integrators.settings.SolverSettings (defaults when None);
+        overrides : any of its fields by name, e.g. ``h=1e-3, method="rk4", rtol=1e-6``.
+        """
+        from dataclasses import replace
+
+        from sidprep.solver.integrators.settings import SolverSettings
+        from sidprep.solver.run import Run
+
+        settings = replace(settings or SolverSettings(), **overrides)
+        return Run(self, t_end, settings).execute()

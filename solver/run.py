@@ -1,0 +1,182 @@
+"""A run: one simulation of a System, owning everything that belongs to it.
+
+The System stays a description.  The run chooses the effects and builds each body's terms,
+the compiled layout (with the spring lengths resolved at the assembled start), the kept
+constraint rows and integrated coordinates, the angle references, the stepper and the
+recorded samples; ``execute`` returns the Result.  Running the same System twice gives the
+same Result.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+import numpy as np
+
+from sidprep.errors import InputError
+from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
+from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
+from sidprep.solver.integrators.base import Problem, Samples, State
+from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
+from sidprep.solver.integrators.genalpha import GeneralizedAlpha
+from sidprep.solver.integrators.initial import (accelerations, assemble_positions, independent_rows,
+                                                length_weights, project_velocities, quasi_static_elastic)
+from sidprep.solver.integrators.planar import planar_coordinates
+from sidprep.solver.model.bodies import RigidBody
+
+STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
+#: seconds of silent compilation after which the run says what it is doing
+COMPILE_NOTICE_S = 2.0
+
+
+def choose_terms(system, spec):
+    """Per body: the BodyTerms of its effects and whether its node markers are load-stiffened;
+    and {flexible body name: (body, chosen effects, reasons)} for the effects report."""
+    parsed = parse_effects(spec)
+    gravity_on = parsed == "auto" or "gravity" in parsed
+    terms, stiffened, choices = [], [], {}
+    for b in system.bodies:
+        if isinstance(b, RigidBody):
+            terms.append(b.terms(set(EFFECTS), gravity=gravity_on and bool(np.any(system.gravity))))
+            stiffened.append(False)
+            continue
+        own = parse_effects(b.effects) if b.effects is not None else parsed
+        chosen, reasons = choose_effects(system, b, own)
+        terms.append(b.terms(chosen, gravity="gravity" in chosen))
+        stiffened.append("load_stiffening" in chosen)
+        choices[b.name] = (b, chosen, reasons)
+    return terms, stiffened, choices
+
+
+def row_names(system) -> list[str]:
+    """The joint or driver name of every constraint row."""
+    return [c.name for c in system.joints for _ in c.rows] + [d.name for d in system.drivers]
+
+
+class _CompileNotice:
+    """Prints once to stderr when the first evaluation is still compiling after a few seconds
+    (numba compiles the kernels on the first run after install and caches them)."""
+
+    def __init__(self):
+        self.timer = threading.Timer(COMPILE_NOTICE_S, lambda: print(
+            "sidprep: compiling the solver kernels (first run after install; cached afterwards) ...",
+            file=sys.stderr, flush=True))
+        self.timer.daemon = True
+
+    def __enter__(self):
+        self.timer.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.timer.cancel()
+
+
+class Run:
+    """One simulation of ``system`` to ``t_end`` (s) with ``settings`` (SolverSettings)."""
+
+    def __init__(self, system, t_end: float, settings):
+        if not t_end > 0:
+            raise InputError(f"simulate: t_end = {t_end} s must be > 0; fix the [solver] value")
+        try:
+            system.check()
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        self.system, self.t_end, self.settings = system, float(t_end), settings
+        spec = settings.effects if settings.effects is not None else system.effects
+        self.terms, stiffened, self.choices = choose_terms(system, spec)
+        self.L = build_layout(system, self.terms, stiffened)
+        self.weights, self.length = length_weights(system, self.terms, self.L)
+        self.refs = np.zeros(len(system.joints))
+        self.names = row_names(system)
+        self.notes: list[str] = []
+        self.free = np.arange(int(self.L.uoff[-1]))
+        self.kept = np.arange(constraint_count(system))
+        self.kept_3d = self.kept
+
+    # ------------------------------------------------------------------ start
+    def initial_positions(self):
+        """R (nb, 3), A (nb, 3, 3), Q, u from the bodies' initial values (not yet consistent)."""
+        b = self.system.bodies
+        R = np.array([x.position0 for x in b], float).reshape(-1, 3)
+        A = np.array([x.rotation0 for x in b], float).reshape(-1, 3, 3)
+        Q = np.concatenate([x.initial_q()[0] for x in b] + [np.zeros(0)])
+        u = np.concatenate([np.concatenate([x.velocity0, x.omega0, x.initial_q()[1]]) for x in b] + [np.zeros(0)])
+        return R, A, Q, u
+
+    def resolve_spring_lengths(self, R, A, Q) -> None:
+        """Springs without a length take the marker distance at the assembled start (this
+        run's layout; the System is not changed)."""
+        from sidprep.solver.equations.assemble import markers
+
+        rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
+        if rows.size:
+            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])))[0]
+            for r in rows:
+                self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
+
+    def consistent_start(self) -> State:
+        """Assembly, redundant rows, planar reduction, velocities, accelerations at t = 0."""
+        from sidprep.solver.equations.assemble import evaluate
+
+        L, w, st = self.L, self.weights, self.settings
+        R, A, Q, u = self.initial_positions()
+        R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names)
+        self.resolve_spring_lengths(R, A, Q)
+        self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+        B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[3]
+        self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
+        if st.static_start:
+            v = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
+            R, A, Q = quasi_static_elastic(L, R, A, Q, v, 0.0, self.refs, self.free, self.kept, w, self.length,
+                                           self.names)
+        u = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
+        state = State(0.0, R, A, Q, u, np.zeros_like(u), np.zeros(self.kept.size))
+        if self.system.planar is not False:
+            free, rows, note = planar_coordinates(self.system, L, state, self.refs, self.kept, w, self.length,
+                                                  self.t_end)
+            if note:
+                self.notes.append(note)
+            if free is not None:
+                B = evaluate(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs)[3]
+                self.free = free
+                self.kept = rows[independent_rows(B[rows][:, free])]
+            elif self.system.planar:
+                raise InputError("simulate: planar = true but the scene is not planar (rigid bodies only, joint axes "
+                                 "parallel to a coordinate axis, gravity and initial velocities in the plane, no "
+                                 "out-of-plane load); remove it")
+        state.ud, state.lam = accelerations(L, R, A, Q, u, 0.0, self.refs, self.free, self.kept)
+        return state
+
+    # ------------------------------------------------------------------ run
+    def execute(self):
+        """Integrate and return the Result (solver/results.py)."""
+        from sidprep.solver.postprocess import postprocess
+
+        cpu0 = time.process_time()
+        with _CompileNotice():
+            state = self.consistent_start()
+        problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end)
+        first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None], state.ud[None],
+                        state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
+        stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
+        cpu_setup = time.process_time() - cpu0
+        chunks = [first]
+        with _CompileNotice():
+            while stepper.status == "running":
+                chunks.append(stepper.advance(self.t_end))
+        if stepper.status == "failed":
+            raise InputError(f"{stepper.name}: {stepper.message}")
+        cpu_integration = time.process_time() - cpu0 - cpu_setup
+        samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
+        result = postprocess(self, samples)
+        dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
+                   np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
+        result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,
+                            rho_inf=self.settings.rho_inf if stepper.name == "genalpha" else None,
+                            rtol=self.settings.tolerance, cpu_time=time.process_time() - cpu0, cpu_setup=cpu_setup,
+                            cpu_integration=cpu_integration, dropped_constraint_rows=dropped,
+                            n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
+                            n_constraints=int(self.kept.size))
+        return result
