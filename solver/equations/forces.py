@@ -100,7 +100,7 @@ def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # 
         elif kind == FE_SPRING:
             d = P[mk2] - P[mk1]
             length = np.sqrt(dot(d, d))
-            e = d / length
+            e = d / length if length > 0.0 else np.zeros(3)  # coincident markers: no direction
             rate = dot(e, VEL[mk2] - VEL[mk1])
             x = length - par[2]
             tension, damp, linear = spring_tension(par, x, rate)

@@ -19,6 +19,8 @@ from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
+#: time step of the central difference giving gamma = d/dt (B u + b_t), s
+GAMMA_STEP = 1e-6
 
 
 @dataclass
@@ -227,37 +229,27 @@ def kkt_solve(M, f, B, BF, rhs):  # pragma: no cover - compiled
 
 
 @jit
-def constraint_velocity(L, R, A, Q, u, t, refs, kept, m_all):  # pragma: no cover - compiled
-    """g_dot = B u + b_t on the kept rows."""
-    out = evaluate(L, R, A, Q, u, t, np.zeros(m_all), refs)
-    gd = matvec(out[3], u) + out[5]
-    return gd[kept]
-
-
-@jit
-def gamma(L, R, A, Q, u, t, refs, kept, m_all):  # pragma: no cover - compiled
-    """d/dt (B u + b_t) at constant u, kept rows: central difference along the motion (step
-    1e-6 s), exact to O(1e-12) relative for the smooth constraint functions."""
-    eps = 1e-6
-    Rp, Ap, Qp = advance_pose(L, R, A, Q, eps * u)
-    Rm, Am, Qm = advance_pose(L, R, A, Q, -eps * u)
-    plus = constraint_velocity(L, Rp, Ap, Qp, u, t + eps, refs, kept, m_all)
-    minus = constraint_velocity(L, Rm, Am, Qm, u, t - eps, refs, kept, m_all)
-    return (plus - minus) / (2 * eps)
-
-
-@jit
 def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess, iterations):  # pragma: no cover
     """Accelerations ud (n,; zero outside ``free``) and kept multipliers of the index-1 form
 
         M ud + B_F^T lambda = f,   B ud = -gamma - 2 a g_dot - a^2 g   (a = baumgarte, 1/s)
 
-    iterated ``iterations`` times when forces depend on lambda (friction)."""
+    iterated ``iterations`` times when forces depend on lambda (friction).  gamma = d/dt (B u +
+    b_t) at constant u is a central difference along the motion (step GAMMA_STEP s), exact to
+    O(1e-12) relative for the smooth constraint functions.  (evaluate is called directly, not
+    through helpers: every compiled function that calls it costs seconds of compilation.)"""
     n = u.shape[0]
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     lam = lam_guess.copy()
     ud = np.zeros(n)
-    gam = gamma(L, R, A, Q, u, t, refs, kept, m_all) if kept.shape[0] else np.zeros(0)
+    gam = np.zeros(kept.shape[0])
+    if kept.shape[0]:
+        for sign in (1.0, -1.0):
+            Rs, As, Qs = advance_pose(L, R, A, Q, sign * GAMMA_STEP * u)
+            out = evaluate(L, Rs, As, Qs, u, t + sign * GAMMA_STEP, np.zeros(m_all), refs)
+            gd = matvec(out[3], u) + out[5]
+            for k in range(kept.shape[0]):
+                gam[k] += sign * gd[kept[k]] / (2 * GAMMA_STEP)
     for _ in range(iterations):
         M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
         Mf, ff, Bk, BFk = restrict(M, f, B, BF, free, kept)

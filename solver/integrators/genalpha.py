@@ -86,25 +86,6 @@ def ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept):  
 
 
 @jit
-def ga_tangent(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept):  # pragma: no cover - compiled
-    """D = d r1 / d ud - M by forward differences: the damping and stiffness part of the
-    iteration matrix, h gamma' C_t + h^2 beta' K_t."""
-    nf = free.shape[0]
-    r0, Mf, _, _, _, _ = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept)
-    d = np.empty((nf, nf))
-    eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
-    for col in range(nf):
-        i = free[col]
-        e = max(1e-7 * abs(udn[i]), eps_pos)
-        x = udn.copy()
-        x[i] += e
-        r1 = ga_residual(L, x, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept)[0]
-        for row in range(nf):
-            d[row, col] = (r1[row] - r0[row]) / e
-    return d - Mf
-
-
-@jit
 def iteration_matrix(Mf, D, Bk, BFk):  # pragma: no cover - compiled
     """[M + D, B_F^T; B, 0]."""
     nf, m = Mf.shape[0], Bk.shape[0]
@@ -156,6 +137,8 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
     end_tol = 1e-12 * max(1.0, t_end)
     D = np.zeros((nf, nf))
     D_h = 0.0
+    lu = np.zeros((nf + m, nf + m))
+    piv = np.zeros(nf + m, dtype=np.int64)
     have_d = False
     ud_prev = ud.copy()
     lam_prev = lam.copy()
@@ -173,21 +156,30 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
             udn, lamn = 2.0 * ud - ud_prev, 2.0 * lam - lam_prev
         else:
             udn, lamn = ud.copy(), lam.copy()
-        fresh_d = False
-        if not have_d:
-            D = ga_tangent(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
-            D_h, have_d, fresh_d = h, True, True
-            stats[3] += 1
-        if D_h != h:  # the stiffness part scales with h^2; a poor fit is caught by the monitor
+        if have_d and D_h != h:  # the stiffness part scales with h^2; a poor fit is caught by the monitor
             D = D * (h / D_h) ** 2
             D_h = h
-        refactored = False
+        want_d, fresh_d, refactored, factor_now = not have_d, False, False, True
         last = np.inf
         it = 0
         converged = False
         r, Mf, Bk, BFk, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
-        lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))  # M, B of this step; D re-used
         while True:
+            if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
+                eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
+                D = np.empty((nf, nf))
+                for col in range(nf):
+                    e = max(1e-7 * abs(udn[free[col]]), eps_pos)
+                    x = udn.copy()
+                    x[free[col]] += e
+                    r1 = ga_residual(L, x, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)[0]
+                    for row in range(nf):
+                        D[row, col] = (r1[row] - r[row]) / e - Mf[row, col]
+                D_h, have_d, fresh_d, want_d, factor_now = h, True, True, False, True
+                stats[3] += 1
+            if factor_now:  # M, B of this iterate; D re-used over steps
+                lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
+                factor_now = False
             dz = lu_solve(lu, piv, r)
             for i in range(nf):
                 udn[free[i]] -= dz[i]
@@ -213,15 +205,10 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                 break
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
-                    lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
-                    refactored, it, last = True, 0, np.inf
+                    refactored, factor_now, it, last = True, True, 0, np.inf
                     continue
                 if not fresh_d:  # then: a new D
-                    D = ga_tangent(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
-                    D_h, fresh_d = h, True
-                    stats[3] += 1
-                    lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
-                    it, last = 0, np.inf
+                    want_d, it, last = True, 0, np.inf
                     continue
                 break
             last = err
