@@ -24,44 +24,12 @@ from sidprep.solver.equations.rotations import add, dot, jit, matmul, matvec, pu
 
 
 @jit
-def body_state(L, i, Q, u):  # pragma: no cover - compiled
-    """(q, qd, omega) of body i."""
-    q = Q[L.qoff[i]:L.qoff[i + 1]].copy()
-    s = L.uoff[i]
-    return q, u[s + 6:L.uoff[i + 1]].copy(), u[s + 3:s + 6].copy()
-
-
-@jit
-def marker_state(L, k, R, A, Q):  # pragma: no cover - compiled
-    """p (3,), A_m (3, 3), JT, JR (3, 6+nq) of marker k (empty Jacobians on the ground)."""
-    b = L.mk_body[k]
-    if b < 0:
-        e = np.zeros((3, 0))
-        return L.mk_pos[k].copy(), L.mk_rot[k].copy(), e, e
-    nq = L.qoff[b + 1] - L.qoff[b]
-    o = L.mk_shape[k]
-    phi = L.shapes[o:o + 3 * nq].reshape((3, nq))
-    psi = L.shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq))
-    p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], Q[L.qoff[b]:L.qoff[b + 1]].copy(), L.mk_pos[k],
-                                          L.mk_rot[k], phi, psi)
-    return p, rot, jt, jr
-
-
-@jit
-def force_jacobians(L, k, A, Q, jt, jr):  # pragma: no cover - compiled
-    """The marker Jacobians for loads: with the K0F / K0M parts when the body is stiffened."""
-    b = L.mk_body[k]
-    if b < 0 or (L.mk_k0[k, 0] < 0 and L.mk_k0[k, 1] < 0):
-        return jt, jr
-    nq = L.qoff[b + 1] - L.qoff[b]
-    q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
-    if L.mk_k0[k, 0] >= 0:
-        o = L.mk_k0[k, 0]
-        jt = stiffened_jacobian(jt, A[b], q, L.shapes[o:o + 3 * nq * nq].reshape((3, nq, nq)))
-    if L.mk_k0[k, 1] >= 0:
-        o = L.mk_k0[k, 1]
-        jr = stiffened_jacobian(jr, A[b], q, L.shapes[o:o + 3 * nq * nq].reshape((3, nq, nq)))
-    return jt, jr
+def stiffen(jac, A, q, shapes, o):  # pragma: no cover - compiled
+    """jac with the load-stiffening part K0 stored in shapes from offset o (o < 0: none)."""
+    if o < 0:
+        return jac
+    nq = q.shape[0]
+    return stiffened_jacobian(jac, A, q, shapes[o:o + 3 * nq * nq].reshape((3, nq, nq)))
 
 
 @jit
@@ -74,19 +42,17 @@ def add_rows(B, r, col, c, jt, jr, which, w):  # pragma: no cover - compiled
 
 
 @jit
-def width(L, b):  # pragma: no cover - compiled
-    """Number of velocity coordinates of body b (0 for the ground, b < 0)."""
-    return 0 if b < 0 else L.uoff[b + 1] - L.uoff[b]
-
-
-@jit
 def markers(L, R, A, Q, u):  # pragma: no cover - compiled
     """Kinematics of every marker: P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial, and
-    the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max), zero-padded."""
+    the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max), zero-padded.
+
+    (The layout L is not passed to helpers inside loops: every call with the 27-array tuple
+    costs about a microsecond of reference counting.)"""
     nmk = L.mk_body.shape[0]
+    uoff, qoff = L.uoff, L.qoff
     wmax = 0
     for b in range(R.shape[0]):
-        wmax = max(wmax, width(L, b))
+        wmax = max(wmax, uoff[b + 1] - uoff[b])
     P = np.zeros((nmk, 3))
     AM = np.zeros((nmk, 3, 3))
     VEL = np.zeros((nmk, 3))
@@ -95,21 +61,28 @@ def markers(L, R, A, Q, u):  # pragma: no cover - compiled
     JR = np.zeros((nmk, 3, wmax))
     JTF = np.zeros((nmk, 3, wmax))
     JRF = np.zeros((nmk, 3, wmax))
+    shapes = L.shapes
     for k in range(nmk):
-        p, rot, jt, jr = marker_state(L, k, R, A, Q)
-        put(P[k], 0, p)
-        put2(AM[k], 0, 0, rot)
         b = L.mk_body[k]
         if b < 0:
+            put(P[k], 0, L.mk_pos[k])
+            put2(AM[k], 0, 0, L.mk_rot[k])
             continue
-        ub = u[L.uoff[b]:L.uoff[b + 1]]
+        nq = qoff[b + 1] - qoff[b]
+        o = L.mk_shape[k]
+        q = Q[qoff[b]:qoff[b + 1]].copy()
+        p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
+                                              shapes[o:o + 3 * nq].reshape((3, nq)),
+                                              shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq)))
+        put(P[k], 0, p)
+        put2(AM[k], 0, 0, rot)
+        ub = u[uoff[b]:uoff[b + 1]]
         put(VEL[k], 0, matvec(jt, ub))
         put(OMG[k], 0, matvec(jr, ub))
-        jtf, jrf = force_jacobians(L, k, A, Q, jt, jr)
         put2(JT[k], 0, 0, jt)
         put2(JR[k], 0, 0, jr)
-        put2(JTF[k], 0, 0, jtf)
-        put2(JRF[k], 0, 0, jrf)
+        put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
+        put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
     return P, AM, VEL, OMG, JT, JR, JTF, JRF
 
 
@@ -128,8 +101,11 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     n = u.shape[0]
     M = np.zeros((n, n))
     f = np.zeros(n)
+    uoff, qoff = L.uoff, L.qoff
     for i in range(nb):
-        q, qd, w = body_state(L, i, Q, u)
+        q = Q[qoff[i]:qoff[i + 1]].copy()
+        qd = u[uoff[i] + 6:uoff[i + 1]].copy()
+        w = u[uoff[i] + 3:uoff[i] + 6].copy()
         gk = tmatvec(A[i], L.gravity)
         mk, h = body_equations(L.body_F, L.body_off[i], L.body_flags[i], L.body_mass[i], q, qd, w, gk)
         s = L.uoff[i]
@@ -156,14 +132,14 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows)
     for i in range(nb):
         if L.body_flags[i, F_DAMPING]:  # modal damping dissipates qd^T De qd
-            q, qd, w = body_state(L, i, Q, u)
+            qd = u[uoff[i] + 6:uoff[i + 1]]
             nq = qd.shape[0]
             o = L.body_off[i, DE]
             flows[1] += dot(qd, matvec(L.body_F[o:o + nq * nq].reshape((nq, nq)), qd))
     for k in range(nmk):
         b = L.mk_body[k]
         if b >= 0:
-            w = width(L, b)
+            w = uoff[b + 1] - uoff[b]
             add(f, L.uoff[b], tmatvec(JTF[k, :, :w], loads[k, 0:3]))
             add(f, L.uoff[b], tmatvec(JRF[k, :, :w], loads[k, 3:6]))
     nrj = L.joint_off[-1]
@@ -183,7 +159,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     for d in range(L.drv_joint.shape[0]):
         j = L.drv_joint[d]
         if L.drv_curve[d] >= 0:
-            cx, cc = curve_arrays(L, L.drv_curve[d])
+            cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.drv_curve[d])
         else:
             cx, cc = np.zeros(2), np.zeros((1, 1))
         value, rate, _ = motion_state(L.drv_kind[d], L.drv_par[d], cx, cc, t)
@@ -191,25 +167,21 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         bt[nrj + d] = -rate
         put2(C[nrj + d], 0, 0, crows[j])
         flows[3] -= lam[nrj + d] * coords[j, 1]
+    j = 0
     for r in range(m_all):
-        j = L.drv_joint[r - nrj] if r >= nrj else row_joint(L, r)
+        if r >= nrj:
+            j = L.drv_joint[r - nrj]
+        else:
+            while L.joint_off[j + 1] <= r:
+                j += 1
         for which in range(2):
             k = L.joint_mk[j, which]
             b = L.mk_body[k]
             if b >= 0:
-                w = width(L, b)
+                w = uoff[b + 1] - uoff[b]
                 add_rows(B, r, L.uoff[b], C[r], JT[k], JR[k], which, w)
                 add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
     return M, f, g, B, BF, bt, C, coords, loads, flows
-
-
-@jit
-def row_joint(L, r):  # pragma: no cover - compiled
-    """The joint owning joint row r."""
-    j = 0
-    while L.joint_off[j + 1] <= r:
-        j += 1
-    return j
 
 
 @jit

@@ -16,20 +16,20 @@ from sidprep.solver.equations.rotations import add, dot, jit, matvec, put
 
 
 @jit
-def curve_arrays(L, index):  # pragma: no cover - compiled
+def curve_arrays(curve_x, curve_c, curve_meta, index):  # pragma: no cover - compiled
     """Breakpoints x (k+1,) and coefficients c (degree+1, k) of the layout's curve ``index``."""
-    meta = L.curve_meta[index]
+    meta = curve_meta[index]
     n, rows = meta[1], meta[3]
-    x = L.curve_x[meta[0]:meta[0] + n]
-    c = L.curve_c[meta[2]:meta[2] + rows * (n - 1)].reshape((rows, n - 1))
+    x = curve_x[meta[0]:meta[0] + n]
+    c = curve_c[meta[2]:meta[2] + rows * (n - 1)].reshape((rows, n - 1))
     return x, c
 
 
 @jit
-def curve(L, index, at):  # pragma: no cover - compiled
+def curve(curve_x, curve_c, curve_meta, curve_period, index, at):  # pragma: no cover - compiled
     """Value of the layout's curve ``index`` at ``at``."""
-    x, c = curve_arrays(L, index)
-    return curve_value(x, c, L.curve_period[index], at, 0)
+    x, c = curve_arrays(curve_x, curve_c, curve_meta, index)
+    return curve_value(x, c, curve_period[index], at, 0)
 
 
 @jit
@@ -86,7 +86,7 @@ def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # 
                 put(v, 0, par[:3])
             else:
                 for a in range(columns):
-                    v[a] = curve(L, first + a, x)
+                    v[a] = curve(L.curve_x, L.curve_c, L.curve_meta, L.curve_period, first + a, x)
             if par[6] > 0.0:
                 v = v[0] * par[3:6]
             if par[7] > 0.0:
@@ -112,7 +112,7 @@ def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # 
             x, xd = coords[joint, 0], coords[joint, 1]
             q = par[3] - par[0] * (x - par[2]) - par[1] * xd
             if first >= 0:
-                q += curve(L, first, x)
+                q += curve(L.curve_x, L.curve_c, L.curve_meta, L.curve_period, first, x)
             add_joint_load(loads, L.joint_mk[joint], crows[joint], q)
             flows[1] += par[1] * xd * xd
             flows[2] += 0.5 * par[0] * (x - par[2]) ** 2

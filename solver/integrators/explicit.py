@@ -12,6 +12,7 @@ the step must resolve the highest kept frequency.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from sidprep.solver.equations.assemble import evaluate
@@ -90,7 +91,9 @@ def sample(L, t, y, params, refs):  # pragma: no cover - compiled
     return R, A, Q, u, ud, lam, y[y.shape[0] - 3:].copy()
 
 
-@jit
+# not cached: it passes the compiled rhs to rk4_step as a first-class function, which numba
+# cannot cache (about 20 s of compilation per process on first use of method = "rk4")
+@numba.njit(cache=False)
 def rk4_loop(t, y, t_end, h, out_dt, next_out, params, capacity, max_steps, steps):  # pragma: no cover
     """Fixed-step RK4 from t to t_end (the last step shortened to land on it) or until
     ``capacity`` samples; refs (params[3]) follow the accepted steps."""
@@ -208,7 +211,7 @@ class ScipyRungeKutta(_Explicit):
                     if self.next_out > t_old:
                         times.append(self.next_out)
                     self.next_out += dt
-                if solver.status == "finished" and (not times or times[-1] < solver.t):
+                if solver.status == "finished" and (not times or times[-1] < solver.t - 1e-9 * max(1.0, solver.t)):
                     times.append(solver.t)
             dense = solver.dense_output() if any(tk != solver.t for tk in times) else None
             for tk in times:

@@ -10,7 +10,11 @@ Arnold 2012), on R^3 x SO(3) x R^nq per body:
 constraint rows so that the iteration matrix is O(1)).  Unknowns ud_{n+1}, lambda; modified
 Newton: the iteration matrix [M + D, B_F^T; B, 0] is factorised once per step at the
 predictor (M, B exact there) and re-used over the step's iterations; D = h gamma' C_t +
-h^2 beta' K_t (finite differences) is re-used over steps until convergence slows.  Constraints hold at position level exactly (no drift).
+h^2 beta' K_t (finite differences) is re-used over steps until convergence slows.  Converged
+when the position correction is below newton_tol L and the constraint residual before it
+below newton_tol L (the correction shrinks it further); the state is then not evaluated once
+more: the power flows and joint angles of the step come from the last evaluation, within the
+Newton tolerance.  Constraints hold at position level exactly (no drift).
 
 Error control (rtol given): the local error of the step against the third-order Taylor
 expansion written with the true accelerations ud (not the alpha-lagged a),
@@ -36,9 +40,6 @@ from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, advance_po
 MAX_NEWTON = 6
 #: contraction factor above which the iteration matrix is renewed
 SLOW_CONTRACTION = 0.3
-#: Newton also iterates until the constraint residual is below this fraction of newton_tol L
-#: (the re-used iteration matrix converges linearly; positions must not drift)
-CONSTRAINT_TOL = 1e-2
 #: fixed-step mode: successful steps after a step cut before the step is doubled again
 RECOVER_STEPS = 4
 #: step-size factor limits and safety factor of the error control
@@ -180,6 +181,10 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
             if factor_now:  # M, B of this iterate; D re-used over steps
                 lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
                 factor_now = False
+            drift = 0.0  # constraint residual before this update, m or rad
+            for k in range(m):
+                drift = max(drift, abs(r[nf + k]))
+            drift *= h * h * prm[4]
             dz = lu_solve(lu, piv, r)
             for i in range(nf):
                 udn[free[i]] -= dz[i]
@@ -193,16 +198,13 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                 elif i < nf:
                     err = max(err, abs(dz[i]) * w[free[i]])
             err *= h * h * prm[4] / length
-            r, Mf, Bk, BFk, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
-                                                        kept)
             if not np.isfinite(err):
                 break
-            drift = 0.0
-            for k in range(m):
-                drift = max(drift, abs(r[nf + k]))
-            if err <= tol and drift * h * h * prm[4] <= CONSTRAINT_TOL * tol * length:
+            if err <= tol and drift <= tol * length:  # the update shrinks the drift further
                 converged = True
                 break
+            r, Mf, Bk, BFk, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
+                                                        kept)
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
                     refactored, factor_now, it, last = True, True, 0, np.inf
@@ -236,6 +238,11 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         stats[0] += 1
         stats[4] = min(stats[4], h)
         stats[5] = max(stats[5], h)
+        nrj = L.joint_off[-1]
+        flows[3] = 0.0  # driver power with the converged multipliers (the last evaluation predates them)
+        for k in range(m):
+            if kept[k] >= nrj:
+                flows[3] -= lamn[k] * coords[L.drv_joint[kept[k] - nrj], 1]
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
