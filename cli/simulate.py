@@ -80,6 +80,7 @@ def run(args) -> int:
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results
     from sidprep.solver.scene import load_scene, simulate
+    from sidprep.errors import InputError, SimulationFailed
 
     require_toml(args.scene, "scene file", "write a scene (docs/scenes.md); a mesh is reduced first: "
                  f"sidprep reduce {args.scene}")
@@ -100,7 +101,11 @@ def run(args) -> int:
 
     kw = scene.simulate_kwargs
     with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
-        result = simulate(scene)
+        try:
+            result = simulate(scene)
+        except SimulationFailed as exc:  # keep what was computed: the motion up to the failure
+            kept = write_results(exc.result, out, scene=scene.provenance(), bodies=scene.sources)
+            raise InputError(f"{exc} in {kept}") from None
     outputs = {}
     with phases("write", str(out)):
         outputs["results"] = str(write_results(result, out, scene=scene.provenance(), bodies=scene.sources))

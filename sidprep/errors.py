@@ -9,3 +9,13 @@ class InputError(Exception):
     """
 
     exit_code = 2
+
+
+class SimulationFailed(InputError):
+    """A simulation stopped before t_end (Newton failure, divergence, max_steps); ``result``
+    holds everything computed up to the last accepted step (``result.stats["failed"]`` says
+    why), so that it can be written and inspected."""
+
+    def __init__(self, message: str, result=None):
+        super().__init__(message)
+        self.result = result

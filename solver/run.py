@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from sidprep.errors import InputError
+from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
 from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
 from sidprep.solver.integrators.base import Problem, Samples, State
@@ -166,8 +166,6 @@ class Run:
         with _CompileNotice():
             while stepper.status == "running":
                 chunks.append(stepper.advance(self.t_end))
-        if stepper.status == "failed":
-            raise InputError(f"{stepper.name}: {stepper.message}")
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
         result = postprocess(self, samples)
@@ -179,4 +177,8 @@ class Run:
                             cpu_integration=cpu_integration, dropped_constraint_rows=dropped,
                             n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
                             n_constraints=int(self.kept.size))
+        if stepper.status == "failed":
+            message = f"{stepper.name}: {stepper.message}"
+            result.stats["failed"] = message
+            raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         return result

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.errors import InputError
+from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.integrators.settings import METHODS
 from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
                                    load_absolute_nodal_scene, simulate_absolute_nodal)
@@ -632,5 +632,7 @@ def simulate(scene: Scene):
         if isinstance(scene.system, AbsoluteNodalModel):
             return simulate_absolute_nodal(scene.system, scene.simulate_kwargs["settings"])
         return scene.system.simulate(**scene.simulate_kwargs)
+    except SimulationFailed as exc:
+        raise SimulationFailed(f"{scene.path}: {exc}", exc.result) from None
     except InputError as exc:
         raise InputError(f"{scene.path}: {exc}") from None

@@ -45,7 +45,9 @@ RECOVER_STEPS = 4
 #: step-size factor limits and safety factor of the error control
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
 #: run status codes of the compiled loop
-RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED = 0, 1, 2, 3
+RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, DIVERGED = 0, 1, 2, 3, 4
+#: divergence: a modal coordinate moving a node by more than this many system lengths
+DIVERGENCE_LENGTHS = 10.0
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -232,6 +234,14 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                 stats[1] += 1
                 h *= max(H_SHRINK, factor)
                 continue
+        diverged = False  # elastic deflections beyond DIVERGENCE_LENGTHS L (rigid motion may go anywhere)
+        for b in range(L.qoff.shape[0] - 1):
+            for k in range(L.qoff[b + 1] - L.qoff[b]):
+                if abs(Q2[L.qoff[b] + k]) * w[L.uoff[b] + 6 + k] > DIVERGENCE_LENGTHS * length:
+                    diverged = True
+        if diverged:
+            stats[6] = DIVERGED
+            break
         ud_prev, lam_prev, h_prev = ud, lam, h
         t += h
         R, A, Q, u, ud, a, lam = R2, A2, Q2, un, udn, an, lamn
@@ -296,6 +306,10 @@ class GeneralizedAlpha(Stepper):
         if status == MAX_STEPS:
             self.status, self.message = "failed", (f"max_steps = {st.max_steps} reached at t = {s.t:.6g} s; raise "
                                                    "max_steps or the step size h")
+        elif status == DIVERGED:
+            self.status, self.message = "failed", (
+                f"the elastic deflections diverged after t = {s.t:.6g} s (beyond {DIVERGENCE_LENGTHS:g} system lengths); "
+                "check the effects (e.g. leave out acceleration_stiffening), the loads and the step size")
         elif status == NEWTON_FAILED:
             self.status, self.message = "failed", (f"Newton did not converge at t = {s.t:.6g} s even with tiny steps; "
                                                    "check the scene (joint axes, loads, units) or raise newton_tol")
