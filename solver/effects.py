@@ -304,6 +304,57 @@ def estimate_sizes(body, samples: dict, gravity: np.ndarray) -> dict[str, tuple[
     return out
 
 
+#: effects whose terms are part of the body equations (load stiffening acts through the node
+#: Jacobians and keeps its load-based estimate)
+BODY_EFFECTS = tuple(e for e in EFFECTS if e != "load_stiffening")
+#: output samples (evenly spread) at which the left-out generalised forces are evaluated
+RUN_ESTIMATE_SAMPLES = 200
+
+
+def run_estimates(body, chosen: set, samples: dict) -> dict[str, tuple[float, str]]:
+    """Each left-out effect measured on the run itself: the modal generalised force it would
+    have added, Delta(h) - Delta(M) u_dot of the body equations with and without it, at up to
+    RUN_ESTIMATE_SAMPLES output samples, max over them, relative to the largest kept modal
+    elastic force |Ke q| of the run (the deflection the left-out force would add, relative to
+    the run's; the inertial modal force |(M u_dot)_e| when nothing deforms).
+
+    samples: q, qd, omega, rotation, acceleration (nt, ...) of the body and gravity (3,).
+    """
+    from sidprep.solver.equations.body import body_equations
+    from sidprep.solver.equations.layout import pack_terms
+
+    avail = body.available()
+    left_out = [e for e in BODY_EFFECTS if avail[e] and e not in chosen]
+    q, qd, w, rot, acc = (samples[k] for k in ("q", "qd", "omega", "rotation", "acceleration"))
+    if not left_out or len(q) == 0:
+        return {}
+    idx = np.unique(np.linspace(0, len(q) - 1, min(len(q), RUN_ESTIMATE_SAMPLES)).astype(int))
+
+    def packed(effects):
+        terms = body.terms(effects, gravity="gravity" in effects)
+        return pack_terms(terms) + (float(terms.mass),)
+
+    def evaluated(pack, k):
+        F, off, flags, mass = pack
+        gk = rot[k].T @ samples["gravity"]
+        mk, h = body_equations(F, off, flags, mass, q[k].copy(), qd[k].copy(), w[k].copy(), gk)
+        ud = np.concatenate([rot[k].T @ acc[k, :3], acc[k, 3:]])
+        return mk @ ud - h, mk, h, ud
+
+    base = packed(set(chosen))
+    kept = [evaluated(base, k) for k in idx]
+    ke = body.terms(set(), gravity=False).Ke
+    ref = max(np.linalg.norm(ke @ q[k]) for k in idx)
+    if ref == 0.0:  # no deformation: against the inertial modal force
+        ref = max(np.linalg.norm((mk @ ud)[6:]) for _, mk, _, ud in kept)
+    out = {}
+    for effect in left_out:
+        pack = packed(set(chosen) | {effect})
+        size = max(np.linalg.norm((evaluated(pack, k)[0] - r[0])[6:]) for k, r in zip(idx, kept))
+        out[effect] = (_ratio(float(size), float(ref)), "max |modal force left out| / max |Ke q| (sampled on the run)")
+    return out
+
+
 def build_report(choices: dict, estimates: dict, notes=()) -> EffectsReport:
     """EffectsReport from {body: (body, chosen, reasons)} and {body: estimate_sizes(...)}."""
     bodies = {}

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.effects import build_report, estimate_sizes
+from sidprep.solver.effects import build_report, estimate_sizes, run_estimates
 from sidprep.solver.equations.assemble import energies, evaluate, markers
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
@@ -81,11 +81,10 @@ def postprocess(run, s) -> Result:
     energy["total"] = (energy["kinetic"] + energy["strain"] + energy["gravity"] + energy["spring"]
                        + energy["dissipated"] - energy["external"])
     estimates = {}
-    for name, (b, _, _) in run.choices.items():
+    for name, (b, chosen, _) in run.choices.items():
         h = bodies[name]
-        estimates[name] = estimate_sizes(b, {"q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation,
-                                             "acceleration": h.acceleration,
-                                             "node_loads": [v for v in node_loads.values() if v[0].body is b]},
-                                         system.gravity)
+        history = {"q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation, "acceleration": h.acceleration,
+                   "node_loads": [v for v in node_loads.values() if v[0].body is b], "gravity": system.gravity}
+        estimates[name] = {**estimate_sizes(b, history, system.gravity), **run_estimates(b, chosen, history)}
     report = build_report(run.choices, estimates, run.notes)
     return Result(s.t.copy(), bodies, joints, positions, energy, cerr, report, {})

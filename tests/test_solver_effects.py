@@ -46,17 +46,35 @@ def test_parse_effects():
         parse_effects(["centrifugal_stifening"])
 
 
-def test_report_warns_when_spinning_body_leaves_out_centrifugal_stiffening():
-    sid = with_k0omega(bar_sid(freqs=FREQS, damping=0.02))
+#: run-based size estimate of a left-out effect against its actual effect (a second run with it),
+#: quasi-static spin-up: measured 0.0113 against 0.0124
+RUN_ESTIMATE_RTOL = 0.25
+
+
+def test_report_estimates_a_left_out_effect_from_the_run():
+    """A damped bar spun up smoothly to SPIN without centrifugal stiffening: the report's size of
+    the left-out effect (its modal force sampled on the run, relative to |Ke q|) matches the
+    relative change of the modal coordinates when a second run includes it, and warns."""
+    from sidprep.solver import SmoothStart
+
+    def scene(effects):
+        s = System(gravity=(0, 0, 0), effects=effects)
+        bar = s.add(FlexibleBody(bar_sid(freqs=FREQS, damping=0.3), name="rotor"))
+        hub = s.add(Revolute(s.ground.marker(), bar.node_marker(0), name="hub"))
+        s.add(Driver(hub, SmoothStart(SPIN, 1.0)))
+        return s
+
     named = ["coupling", "coriolis", "centrifugal", "inertia_change", "damping"]
-    r = spinning_scene(sid, named).simulate(0.2, h=2e-3)
-    e = entry(r.effects, "centrifugal_stiffening")
-    assert not e.included and e.available
-    ratio = SPIN**2 / (2 * np.pi * FREQS[0]) ** 2
-    assert e.estimate == pytest.approx(ratio, rel=1e-3)
-    assert e.warning and any("centrifugal_stiffening" in w for w in r.effects.warnings)
-    assert "WARNING" in r.effects.text()
-    json.dumps(r.effects.as_dict())  # serialisable for the results file
+    without = scene(named).simulate(2.0, h=2e-3, output_dt=0.01)
+    with_it = scene(named + ["centrifugal_stiffening"]).simulate(2.0, h=2e-3, output_dt=0.01)
+    q0, q1 = without.bodies["rotor"].q, with_it.bodies["rotor"].q
+    actual = np.max(np.abs(q1 - q0)) / np.max(np.abs(q0))
+    e = entry(without.effects, "centrifugal_stiffening")
+    assert not e.included and e.available and "sampled on the run" in e.measure
+    assert e.estimate == pytest.approx(actual, rel=RUN_ESTIMATE_RTOL)
+    assert e.warning and any("centrifugal_stiffening" in w for w in without.effects.warnings)
+    assert "WARNING" in without.effects.text()
+    json.dumps(without.effects.as_dict())  # serialisable for the results file
 
 
 def test_auto_includes_centrifugal_stiffening_when_complete():
