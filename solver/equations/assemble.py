@@ -42,9 +42,11 @@ def add_rows(B, r, col, c, jt, jr, which, w):  # pragma: no cover - compiled
 
 
 @jit
-def markers(L, R, A, Q, u):  # pragma: no cover - compiled
-    """Kinematics of every marker: P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial, and
-    the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max), zero-padded.
+def markers(L, R, A, Q, u, every):  # pragma: no cover - compiled
+    """Kinematics of the markers that joints and forces use (``every``: of all markers):
+    P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial, and the Jacobians JT, JR and the load
+    Jacobians JTF, JRF (nmk, 3, w_max), zero-padded (JTF, JRF are JT, JR when no marker is
+    load-stiffened).
 
     (The layout L is not passed to helpers inside loops: every call with the 27-array tuple
     costs about a microsecond of reference counting.)"""
@@ -53,16 +55,21 @@ def markers(L, R, A, Q, u):  # pragma: no cover - compiled
     wmax = 0
     for b in range(R.shape[0]):
         wmax = max(wmax, uoff[b + 1] - uoff[b])
+    stiffened = False
+    for k in range(nmk):
+        stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
     P = np.zeros((nmk, 3))
     AM = np.zeros((nmk, 3, 3))
     VEL = np.zeros((nmk, 3))
     OMG = np.zeros((nmk, 3))
     JT = np.zeros((nmk, 3, wmax))
     JR = np.zeros((nmk, 3, wmax))
-    JTF = np.zeros((nmk, 3, wmax))
-    JRF = np.zeros((nmk, 3, wmax))
+    JTF = np.zeros((nmk, 3, wmax)) if stiffened else JT
+    JRF = np.zeros((nmk, 3, wmax)) if stiffened else JR
     shapes = L.shapes
     for k in range(nmk):
+        if not (every or L.mk_active[k]):
+            continue
         b = L.mk_body[k]
         if b < 0:
             put(P[k], 0, L.mk_pos[k])
@@ -81,8 +88,9 @@ def markers(L, R, A, Q, u):  # pragma: no cover - compiled
         put(OMG[k], 0, matvec(jr, ub))
         put2(JT[k], 0, 0, jt)
         put2(JR[k], 0, 0, jr)
-        put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
-        put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
+        if stiffened:
+            put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
+            put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
     return P, AM, VEL, OMG, JT, JR, JTF, JRF
 
 
@@ -115,7 +123,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u)
+    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u, False)
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]
     coords = np.zeros((nj, 2))
@@ -138,7 +146,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
             flows[1] += dot(qd, matvec(L.body_F[o:o + nq * nq].reshape((nq, nq)), qd))
     for k in range(nmk):
         b = L.mk_body[k]
-        if b >= 0:
+        if b >= 0 and L.mk_active[k]:
             w = uoff[b + 1] - uoff[b]
             add(f, L.uoff[b], tmatvec(JTF[k, :, :w], loads[k, 0:3]))
             add(f, L.uoff[b], tmatvec(JRF[k, :, :w], loads[k, 3:6]))

@@ -28,7 +28,7 @@ FE_INT_COLUMNS, FE_PAR_COLUMNS = 6, 10
 Layout = namedtuple("Layout", [
     "qoff", "uoff", "gravity",
     "body_F", "body_off", "body_flags", "body_mass",
-    "mk_body", "mk_pos", "mk_rot", "mk_shape", "mk_k0",
+    "mk_body", "mk_pos", "mk_rot", "mk_shape", "mk_k0", "mk_active",
     "shapes",
     "jrows", "joint_off", "joint_mk", "joint_kind",
     "drv_joint", "drv_kind", "drv_par", "drv_curve",
@@ -165,6 +165,10 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
                 mk_k0[k, 0] = store(m.k0f)
             if m.k0m is not None:
                 mk_k0[k, 1] = store(m.k0m)
+    used = {id(m) for c in system.joints for m in (c.marker1, c.marker2)}
+    used |= {id(getattr(fe, name)) for fe in system.forces for name in ("marker", "marker1", "marker2")
+             if hasattr(fe, name)}
+    mk_active = np.array([id(m) in used for m in markers], dtype=np.int64)
     mk_pos = np.array([m.position for m in markers], dtype=float).reshape(-1, 3)
     mk_rot = np.array([m.rotation for m in markers], dtype=float).reshape(-1, 3, 3)
 
@@ -223,7 +227,7 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
             par[:4] = fe.mu, 1.0 if fe.joint.kind == "prismatic" else fe.radius, fe.preload, fe.regularisation
     cx, cc, cmeta, cper = curves.arrays()
     return Layout(qoff, uoff, np.asarray(system.gravity, float), body_F, body_off, body_flags, body_mass,
-                  mk_body, mk_pos, mk_rot, mk_shape, mk_k0, np.concatenate(shapes + [np.zeros(0)]),
+                  mk_body, mk_pos, mk_rot, mk_shape, mk_k0, mk_active, np.concatenate(shapes + [np.zeros(0)]),
                   jrows, joint_off, joint_mk, joint_kind, drv_joint, drv_kind, drv_par, drv_curve,
                   cx, cc, cmeta, cper, fe_int, fe_par)
 
