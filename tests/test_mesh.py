@@ -1,6 +1,5 @@
 """Mesh import: node order per format, groups by name, the input checks, surface topology."""
 
-from pathlib import Path
 
 import meshio
 import numpy as np
@@ -286,14 +285,10 @@ def test_abaqus_numbers_and_sets_from_a_hand_written_deck(tmp_path):
     assert any("1 of 2 elements had negative volume (worst: element 9)" in n for n in mesh.notes)
 
 
-VALIDATION = Path(__file__).resolve().parents[1] / ".." / "shared" / "validation"
-
-
-@pytest.mark.skipif(not VALIDATION.is_dir(), reason="needs ../shared/validation beside the clone")
-def test_calculix_deck_with_include(tmp_path):
+def test_calculix_deck_with_include(tmp_path, validation_dir):
     """The validation deck (written by its own gmsh -> C3D10 converter) *INCLUDEs its mesh."""
-    deck = read_mesh(VALIDATION / "decks" / "cantilever_bar_h0.02.inp")
-    mesh = read_mesh(VALIDATION / "meshes" / "bar_h0.02_mesh.inp")
+    deck = read_mesh(validation_dir / "decks" / "cantilever_bar_h0.02.inp")
+    mesh = read_mesh(validation_dir / "meshes" / "bar_h0.02_mesh.inp")
     assert np.array_equal(deck.points, mesh.points) and np.array_equal(deck.cells, mesh.cells)
     assert deck.n_dof == 17058 and _midpoint_error(deck) < MIDPOINT_RTOL
     assert len(deck.node_sets["NX0"]) == 79 and np.allclose(deck.points[deck.node_sets["NX0"], 0], 0)

@@ -1,7 +1,6 @@
 """``sidprep modes``: JSON contract, units, clamping, rigid-mode count, errors."""
 
 import json
-from pathlib import Path
 
 import meshio
 import numpy as np
@@ -9,8 +8,12 @@ import pytest
 
 from sidprep.cli.main import main
 
-BAR = Path(__file__).resolve().parents[1] / ".." / "shared" / "validation" / "meshes" / "bar_h0.02_mesh.inp"
-needs_bar = pytest.mark.skipif(not BAR.exists(), reason="../shared/validation not present")
+
+
+@pytest.fixture(scope="module")
+def bar_mesh(validation_dir):
+    """The validation bar mesh (tests/data/validation)."""
+    return validation_dir / "meshes" / "bar_h0.02_mesh.inp"
 
 #: the same model given in mm-t-s and in SI gives the same frequencies up to round-off
 UNITS_RTOL = 1e-9
@@ -25,9 +28,8 @@ def run_json(argv, capsys):
     return json.loads(capsys.readouterr().out)
 
 
-@needs_bar
-def test_json_summary_of_a_clamped_bar(capsys):
-    out = run_json([str(BAR), "--material", "steel", "--clamp", "NX0", "--count", "4"], capsys)
+def test_json_summary_of_a_clamped_bar(capsys, bar_mesh):
+    out = run_json([str(bar_mesh), "--material", "steel", "--clamp", "NX0", "--count", "4"], capsys)
     assert out["n_dof"] == 17058 and out["n_free_dof"] == 17058 - 3 * 79
     assert abs(out["mass_kg"] / BAR_MASS_KG - 1) < 1e-12
     assert out["rigid_modes"] == 0 and len(out["frequencies_hz"]) == 4 == len(out["residuals"])
@@ -36,12 +38,11 @@ def test_json_summary_of_a_clamped_bar(capsys):
     assert out["units"]["input"] == "si" and out["material"]["name"] == "steel" and out["notes"] == []
 
 
-@needs_bar
-def test_mm_t_s_input_gives_the_si_result(tmp_path, capsys):
-    m = meshio.read(BAR)
+def test_mm_t_s_input_gives_the_si_result(tmp_path, capsys, bar_mesh):
+    m = meshio.read(bar_mesh)
     mm = tmp_path / "bar_mm.vtu"
     meshio.write(mm, meshio.Mesh(m.points * 1000.0, [("tetra10", m.cells_dict["tetra10"])]))
-    si = run_json([str(BAR), "--E", "210e9", "--nu", "0.3", "--rho", "7850", "--count", "3"], capsys)
+    si = run_json([str(bar_mesh), "--E", "210e9", "--nu", "0.3", "--rho", "7850", "--count", "3"], capsys)
     mts = run_json([str(mm), "--units", "mm-t-s", "--E", "210000", "--nu", "0.3", "--rho", "7.85e-9",
                     "--count", "3"], capsys)
     assert mts["rigid_modes"] == si["rigid_modes"] == 6
@@ -58,21 +59,19 @@ def test_two_disjoint_boxes_have_twelve_rigid_modes_and_default_material_note(tm
     assert any("steel" in note for note in out["notes"])
 
 
-@needs_bar
-def test_table_output_lists_rigid_and_elastic_modes(capsys):
-    assert main(["modes", str(BAR), "--material", "aluminium", "--fmax", "500", "-q"]) == 0
+def test_table_output_lists_rigid_and_elastic_modes(capsys, bar_mesh):
+    assert main(["modes", str(bar_mesh), "--material", "aluminium", "--fmax", "500", "-q"]) == 0
     text = capsys.readouterr().out
     assert text.count(" rigid ") == 6 and text.count(" elastic ") >= 1 and "aluminium" in text
 
 
-@needs_bar
 @pytest.mark.parametrize("argv, fragment", [
     (["--clamp", "nope"], "available: NBOTEDG, NX0, NXL, NY0, NYL"),
     (["--E", "210e9"], "missing"),
     (["--count", "0"], "--count"),
 ])
-def test_bad_input_exits_2_with_one_line(argv, fragment, capsys):
-    assert main(["modes", str(BAR), "-q", *argv]) == 2
+def test_bad_input_exits_2_with_one_line(argv, fragment, capsys, bar_mesh):
+    assert main(["modes", str(bar_mesh), "-q", *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("sidprep: error:") and fragment in err and "\n" not in err
 
