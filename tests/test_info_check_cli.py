@@ -28,7 +28,7 @@ def run(capsys, *argv):
 
 def test_info_json_of_real_file(capsys):
     if not CARTOP.exists():
-        pytest.skip("../shared not beside the clone")
+        pytest.skip("needs the third-party file cartopPragV32.SID_FEM (licensed, ../shared/reference/sid_fem)")
     code, out, _ = run(capsys, "info", CARTOP, "--json")
     assert code == 0
     info = json.loads(out)

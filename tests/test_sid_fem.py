@@ -31,7 +31,7 @@ REAL = {  # file: (mass kg, node count, label frequencies Hz, dialect, Gr layout
 def real(name):
     path = REF / f"{name}.SID_FEM"
     if not path.exists():
-        pytest.skip(f"{path} not available (../shared beside the clone)")
+        pytest.skip(f"needs the third-party file {path.name} (licensed, ../shared/reference/sid_fem)")
     return read_sid_fem(path)
 
 

@@ -127,7 +127,7 @@ def test_effect_switches_drop_terms():
     assert not np.allclose(mass(q), mass(0 * q))
 
 
-@pytest.mark.skipif(not CARTOP.is_file(), reason="reference SID files not beside the clone")
+@pytest.mark.skipif(not CARTOP.is_file(), reason="needs the third-party file cartopPragV32.SID_FEM (licensed, ../shared/reference/sid_fem)")
 def test_cartop_reads_as_flexible_body():
     body = FlexibleBody(CARTOP, name="cartop")
     assert body.nq == 3 and abs(body.sid.mass - 9.0824) < 1e-12
