@@ -9,6 +9,7 @@ same Result.
 
 from __future__ import annotations
 
+import copy
 import sys
 import threading
 import time
@@ -17,6 +18,7 @@ import numpy as np
 
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
+from sidprep.solver.equations.assemble import evaluate
 from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
@@ -85,8 +87,8 @@ class Run:
             raise InputError(str(exc)) from None
         self.system, self.t_end, self.settings = system, float(t_end), settings
         spec = settings.effects if settings.effects is not None else system.effects
-        self.terms, stiffened, self.choices = choose_terms(system, spec)
-        self.L = build_layout(system, self.terms, stiffened)
+        self.terms, self.stiffened, self.choices = choose_terms(system, spec)
+        self.L = build_layout(system, self.terms, self.stiffened)
         self.weights, self.length = length_weights(system, self.terms, self.L)
         self.refs = np.zeros(len(system.joints))
         self.names = row_names(system)
@@ -118,13 +120,12 @@ class Run:
 
     def consistent_start(self) -> State:
         """Assembly, redundant rows, planar reduction, velocities, accelerations at t = 0."""
-        from sidprep.solver.equations.assemble import evaluate
-
         L, w, st = self.L, self.weights, self.settings
         R, A, Q, u = self.initial_positions()
         R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names)
-        self.resolve_spring_lengths(R, A, Q)
         self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+        R, A, Q, u = self.start_from_joints(R, A, Q, u)
+        self.resolve_spring_lengths(R, A, Q)
         B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[3]
         self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
         if st.static_start:
@@ -148,6 +149,38 @@ class Run:
                                  "out-of-plane load); remove it")
         state.ud, state.lam = accelerations(L, R, A, Q, u, 0.0, self.refs, self.free, self.kept)
         return state
+
+    def start_layout(self, which: str):
+        """(layout, all its rows, row names) of the system plus a temporary driver per joint with
+        an ``initial`` coordinate (which = "initial": held at it) or ``initial_rate`` (moving at
+        it from its current value); None when no joint asks for one."""
+        from sidprep.solver.model.joints import ConstantSpeed, Driver
+
+        jindex = {id(j): i for i, j in enumerate(self.system.joints)}
+        extra = [Driver(j, ConstantSpeed(j.initial_rate or 0.0 if which == "initial_rate" else 0.0,
+                                         j.initial if which == "initial" else self.refs[jindex[id(j)]]),
+                        name=f"{j.name} ({which})")
+                 for j in self.system.joints if getattr(j, which) is not None]
+        if not extra:
+            return None
+        start = copy.copy(self.system)
+        start.drivers = list(self.system.drivers) + extra
+        names = row_names(start)
+        return build_layout(start, self.terms, self.stiffened), np.arange(len(names)), names
+
+    def start_from_joints(self, R, A, Q, u):
+        """Positions and velocities moved to the joints' initial coordinates and rates (their
+        other velocities by the minimum-norm projection of the consistent start)."""
+        layout = self.start_layout("initial")
+        if layout is not None:
+            R, A, Q = assemble_positions(layout[0], R, A, Q, 0.0, self.refs, layout[1], self.weights, layout[2])
+            self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+        layout = self.start_layout("initial_rate")
+        if layout is not None:
+            L0, rows, _ = layout
+            B = evaluate(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs)[3]
+            u = project_velocities(L0, R, A, Q, u, 0.0, self.refs, rows[independent_rows(B)], self.weights)
+        return R, A, Q, u
 
     # ------------------------------------------------------------------ run
     def execute(self):

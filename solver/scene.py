@@ -422,8 +422,12 @@ def _joints(file: Path, root: dict, system, markers: dict) -> dict:
         m1, m2 = _marker_pair(t, markers)
         if m1.body is m2.body:
             t.fail("markers", f"both markers are on body {m1.body.name!r}", "join markers on two different bodies")
+        initial, rate = t.number("initial", None), t.number("initial_rate", None)
+        if (initial is not None or rate is not None) and cls.kind not in ("revolute", "cylindrical", "prismatic"):
+            t.fail("initial", f"a {cls.kind} joint has no coordinate to start from",
+                   "give initial / initial_rate on a revolute, cylindrical or prismatic joint")
         t.finish()
-        joints[name] = system.add(cls(m1, m2, name=name))
+        joints[name] = system.add(cls(m1, m2, name=name, initial=initial, initial_rate=rate))
     return joints
 
 

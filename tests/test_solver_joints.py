@@ -189,3 +189,20 @@ def test_a_loop_placed_micrometres_out_of_plane_assembles():
     assert np.max(b.constraint_error) < DRIFT_TOL
     assert np.allclose(b.joints["slide"].coordinate, a.joints["slide"].coordinate, atol=1e-9)
     assert np.allclose(b.joints["motor"].effort, a.joints["motor"].effort, rtol=1e-6, atol=1e-9)
+
+
+def test_a_mechanism_starts_from_a_crank_angle_and_a_crank_speed():
+    """The slider crank (built at 0.5 rad, no motor) started at crank angle 1.2 rad and 10 rad/s:
+    the assembly turns it there, the piston starts at the closed-form position and velocity
+    x = r cos(theta) + sqrt(l^2 - r^2 sin^2(theta)), x_dot = dx/dtheta * omega."""
+    s, main, slide = slider_crank()
+    s.drivers.clear()
+    main.initial, main.initial_rate = 1.2, 10.0
+    r = s.simulate(0.01, h=1e-3)
+    crank, rod = 0.1, 0.3
+    assert r.joints["main"].coordinate[0] == pytest.approx(1.2, abs=1e-10)
+    assert r.joints["main"].rate[0] == pytest.approx(10.0, rel=1e-10)
+    x = r.bodies["piston"].position[0, 0]
+    assert x == pytest.approx(crank * np.cos(1.2) + np.sqrt(rod**2 - crank**2 * np.sin(1.2) ** 2), abs=1e-10)
+    assert r.bodies["piston"].velocity[0, 0] == pytest.approx(piston_rate(1.2, crank, rod) * 10.0, rel=1e-9)
+    assert main.initial == 1.2 and s.simulate(0.01, h=1e-3).joints["main"].coordinate[0] == pytest.approx(1.2)

@@ -50,11 +50,19 @@ class Joint:
 
     kind = ""
 
-    def __init__(self, marker1: Marker, marker2: Marker, name: str | None = None):
+    def __init__(self, marker1: Marker, marker2: Marker, name: str | None = None, *, initial: float | None = None,
+                 initial_rate: float | None = None):
+        """``initial`` / ``initial_rate``: the joint coordinate (rad or m) and its rate (rad/s or
+        m/s) the run starts from (revolute, cylindrical, prismatic): the start assembles the
+        mechanism to them, e.g. a crank angle and a crank speed."""
         if marker1.body is marker2.body:
             raise ValueError(f"joint {name}: both markers are on body '{marker1.body.name}'")
         self.marker1, self.marker2 = marker1, marker2
         self.name = name or f"{self.kind}:{marker1.name}-{marker2.name}"
+        if (initial is not None or initial_rate is not None) and self.coordinate_kind is None:
+            raise ValueError(f"joint {self.name}: a {self.kind} joint has no coordinate to start from")
+        self.initial = None if initial is None else float(initial)
+        self.initial_rate = None if initial_rate is None else float(initial_rate)
         self.rows = _ROWS[self.kind]
         self._rows = np.array([[kind == "a", i, -1 if j is None else j] for kind, i, j in self.rows], dtype=np.int64)
 
