@@ -232,11 +232,6 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
                   cx, cc, cmeta, cper, fe_int, fe_par)
 
 
-def marker_index(system) -> dict:
-    """{id(marker): row of the layout's marker tables}."""
-    return {id(m): k for k, m in enumerate(system.markers())}
-
-
 def constraint_count(system) -> int:
     """Number of constraint rows (joints, then drivers)."""
     return sum(len(j.rows) for j in system.joints) + len(system.drivers)

@@ -1,4 +1,5 @@
-"""Rotation kinematics: skew matrices, the SO(3) exponential map, quaternions.
+"""Rotation kinematics (skew matrices, the SO(3) exponential map, quaternions) and the small
+loop helpers of the compiled kernels, and ``jit``, the one decorator of all of them.
 
 Rotation matrices A map body components to inertial components (sid-spec 5.1); angular
 velocities are body components, so the Lie-group update is A_{n+1} = A_n exp(skew(dtheta)).
@@ -8,28 +9,17 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 #: below this rotation angle (rad) the Rodrigues coefficients use their Taylor series
 SMALL_ANGLE = 1e-6
 
 
-def _numba_njit():
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - numba is a soft dependency
-        return None
-    return None if numba.config.DISABLE_JIT else numba.njit(cache=True)
-
-
-_NJIT = _numba_njit()
-#: True when the numerical kernels are compiled (else the numpy reference paths are used)
-COMPILED = _NJIT is not None
-
-
 def jit(fn):
-    """numba.njit(cache=True) when numba is available, else the plain Python function."""
-    return fn if _NJIT is None else _NJIT(fn)
+    """numba.njit(cache=True): compiled once per install, cached on disk (with
+    NUMBA_DISABLE_JIT=1 the same code runs as plain Python, for debugging)."""
+    return numba.njit(cache=True)(fn)
 
 
 @jit
@@ -127,11 +117,6 @@ def exp_so3(theta: np.ndarray) -> np.ndarray:
     ])
 
 
-def log_so3(rot: np.ndarray) -> np.ndarray:
-    """Rotation vector of a rotation matrix (inverse of ``exp_so3`` for angles < pi); (3,)."""
-    return quaternion_to_vector(matrix_to_quaternion(rot))
-
-
 @jit
 def quaternion_to_matrix(e: np.ndarray) -> np.ndarray:
     """Rotation matrix of the (normalised on the fly) quaternion e = [e0, e1, e2, e3]."""
@@ -164,14 +149,6 @@ def matrix_to_quaternion(rot: np.ndarray) -> np.ndarray:
         e[1 + b] = (rot[a, b] + rot[b, a]) / (4 * ea)
         e[1 + c] = (rot[a, c] + rot[c, a]) / (4 * ea)
     return e if e[0] >= 0 else -e
-
-
-def quaternion_to_vector(e: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis * angle) of a unit quaternion."""
-    s = np.linalg.norm(e[1:])
-    if s < SMALL_ANGLE:
-        return 2.0 * e[1:] / e[0]
-    return 2.0 * np.arctan2(s, e[0]) * e[1:] / s
 
 
 @jit

@@ -102,13 +102,6 @@ class Stepper:
         raise NotImplementedError
 
 
-def full_multipliers(problem: Problem, lam: np.ndarray) -> np.ndarray:
-    """Multipliers of all rows (zero on the dropped ones) from those of the kept rows."""
-    out = np.zeros(problem.m_all)
-    out[problem.kept] = lam
-    return out
-
-
 @jit
 def store_sample(k, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work):  # pragma: no cover
     """Write one output sample into row k of the sample buffers (by loops: see rotations.put)."""
@@ -126,7 +119,7 @@ def store_sample(k, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, 
 
 @jit
 def expand(lam, kept, m_all):  # pragma: no cover - compiled
-    """full_multipliers, compiled."""
+    """Multipliers of all m_all rows (zero on the dropped ones) from those of the kept rows."""
     out = np.zeros(m_all)
     for k in range(kept.shape[0]):
         out[kept[k]] = lam[k]
