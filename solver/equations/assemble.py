@@ -111,9 +111,9 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     f = np.zeros(n)
     uoff, qoff = L.uoff, L.qoff
     for i in range(nb):
-        q = Q[qoff[i]:qoff[i + 1]].copy()
-        qd = u[uoff[i] + 6:uoff[i + 1]].copy()
-        w = u[uoff[i] + 3:uoff[i] + 6].copy()
+        q = Q[qoff[i]:qoff[i + 1]]
+        qd = u[uoff[i] + 6:uoff[i + 1]]
+        w = u[uoff[i] + 3:uoff[i] + 6]
         gk = tmatvec(A[i], L.gravity)
         mk, h = body_equations(L.body_F, L.body_off[i], L.body_flags[i], L.body_mass[i], q, qd, w, gk)
         s = L.uoff[i]
@@ -160,10 +160,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     for j in range(nj):
         k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
         r0, r1 = L.joint_off[j], L.joint_off[j + 1]
-        gj, cj = joint_rows(L.jrows[r0:r1], P[k1], AM[k1], P[k2], AM[k2])
-        put(g, r0, gj)
-        for r in range(r1 - r0):
-            put2(C[r0 + r], 0, 0, cj[r])
+        joint_rows(L.jrows[r0:r1], P[k1], AM[k1], P[k2], AM[k2], g, C, r0)
     for d in range(L.drv_joint.shape[0]):
         j = L.drv_joint[d]
         if L.drv_curve[d] >= 0:

@@ -65,27 +65,27 @@ def stiffened_jacobian(jac, A, q, k0):  # pragma: no cover - compiled
 
 
 @jit
-def joint_rows(rows, p1, a1, p2, a2):  # pragma: no cover - compiled
-    """Rows (kind, axis 1, axis 2) -> g (m,) and c (m, 4, 3) = (cT1, cR1, cT2, cR2) per row
-    (model/joints.py: position along an axis of marker 1, perpendicularity of two axes)."""
-    m = rows.shape[0]
-    d = p2 - p1
-    g = np.empty(m)
-    c = np.zeros((m, 4, 3))
-    for r in range(m):
-        e = a1[:, rows[r, 1]].copy()
+def joint_rows(rows, p1, a1, p2, a2, g, c, r0):  # pragma: no cover - compiled
+    """Rows (kind, axis 1, axis 2) -> g[r0 + r] and c[r0 + r] (4, 3) = (cT1, cR1, cT2, cR2)
+    (model/joints.py: position along an axis of marker 1, perpendicularity of two axes);
+    written in place, in scalars (no temporaries: this runs at every evaluation)."""
+    d0, d1, d2 = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
+    for r in range(rows.shape[0]):
+        k = rows[r, 1]
+        e0, e1, e2 = a1[0, k], a1[1, k], a1[2, k]
+        cr = c[r0 + r]
         if rows[r, 0] == 0:
-            g[r] = dot(e, d)
-            put(c[r, 0], 0, e, -1.0)
-            put(c[r, 1], 0, cross(e, d))
-            put(c[r, 2], 0, e)
+            g[r0 + r] = e0 * d0 + e1 * d1 + e2 * d2
+            cr[0, 0], cr[0, 1], cr[0, 2] = -e0, -e1, -e2
+            cr[1, 0], cr[1, 1], cr[1, 2] = e1 * d2 - e2 * d1, e2 * d0 - e0 * d2, e0 * d1 - e1 * d0
+            cr[2, 0], cr[2, 1], cr[2, 2] = e0, e1, e2
         else:
-            b = a2[:, rows[r, 2]].copy()
-            g[r] = dot(e, b)
-            axb = cross(e, b)
-            put(c[r, 1], 0, axb)
-            put(c[r, 3], 0, axb, -1.0)
-    return g, c
+            kb = rows[r, 2]
+            b0, b1, b2 = a2[0, kb], a2[1, kb], a2[2, kb]
+            g[r0 + r] = e0 * b0 + e1 * b1 + e2 * b2
+            x0, x1, x2 = e1 * b2 - e2 * b1, e2 * b0 - e0 * b2, e0 * b1 - e1 * b0
+            cr[1, 0], cr[1, 1], cr[1, 2] = x0, x1, x2
+            cr[3, 0], cr[3, 1], cr[3, 2] = -x0, -x1, -x2
 
 
 @jit
