@@ -25,13 +25,17 @@ def jit(fn):
 @jit
 def skew(a: np.ndarray) -> np.ndarray:
     """The tilde operator, skew(a) @ b == cross(a, b); (3,) -> (3, 3)."""
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    out = np.zeros((3, 3))  # element stores: np.array of nested lists costs 10 allocations in numba
+    out[0, 1], out[0, 2], out[1, 0], out[1, 2], out[2, 0], out[2, 1] = -a[2], a[1], a[2], -a[0], -a[1], a[0]
+    return out
 
 
 @jit
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for two 3-vectors (np.cross has ~20 us of overhead per call)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    out = np.empty(3)
+    out[0], out[1], out[2] = a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+    return out
 
 
 @jit
@@ -110,11 +114,11 @@ def exp_so3(theta: np.ndarray) -> np.ndarray:
         angle = math.sqrt(angle2)
         a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle2
     # E + a t + b t t with t = skew(theta); t t = theta theta^T - angle2 E
-    return np.array([
-        [1.0 + b * (x * x - angle2), -a * z + b * x * y, a * y + b * x * z],
-        [a * z + b * x * y, 1.0 + b * (y * y - angle2), -a * x + b * y * z],
-        [-a * y + b * x * z, a * x + b * y * z, 1.0 + b * (z * z - angle2)],
-    ])
+    out = np.empty((3, 3))
+    out[0, 0], out[0, 1], out[0, 2] = 1.0 + b * (x * x - angle2), -a * z + b * x * y, a * y + b * x * z
+    out[1, 0], out[1, 1], out[1, 2] = a * z + b * x * y, 1.0 + b * (y * y - angle2), -a * x + b * y * z
+    out[2, 0], out[2, 1], out[2, 2] = -a * y + b * x * z, a * x + b * y * z, 1.0 + b * (z * z - angle2)
+    return out
 
 
 @jit
