@@ -109,7 +109,7 @@ def test_rigid_pendulum_with_step_size_control():
     assert np.allclose(force_on_rod + m * np.array([0, 0, -9.81]), m * a_cm, atol=1e-6 * m * 9.81)
 
 
-@pytest.mark.skipif(not CARTOP.is_file(), reason="reference SID files not beside the clone")
+@pytest.mark.skipif(not CARTOP.is_file(), reason="needs the third-party file cartopPragV32.SID_FEM (licensed, ../shared/reference/sid_fem)")
 def test_cartop_energy_decays_only_through_damping():
     """cartopPragV32 hung at a corner by a spherical joint, released under gravity.
 
