@@ -40,10 +40,6 @@ class Problem:
     t_end: float
 
     @property
-    def n(self) -> int:
-        return int(self.L.uoff[-1])
-
-    @property
     def m_all(self) -> int:
         return int(self.L.joint_off[-1] + self.L.drv_joint.shape[0])
 
