@@ -23,7 +23,7 @@ from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
-from sidprep.solver.integrators.initial import (accelerations, assemble_positions, independent_rows,
+from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, independent_rows,
                                                 length_weights, project_velocities, quasi_static_elastic)
 from sidprep.solver.integrators.planar import planar_coordinates
 from sidprep.solver.model.bodies import RigidBody
@@ -122,12 +122,13 @@ class Run:
         """Assembly, redundant rows, planar reduction, velocities, accelerations at t = 0."""
         L, w, st = self.L, self.weights, self.settings
         R, A, Q, u = self.initial_positions()
-        R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names)
+        R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names, self.length)
         self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
         R, A, Q, u = self.start_from_joints(R, A, Q, u)
         self.resolve_spring_lengths(R, A, Q)
-        B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[3]
+        g, B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[2:4]
         self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
+        self.note_inconsistent_rows(g)
         if st.static_start:
             v = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
             R, A, Q = quasi_static_elastic(L, R, A, Q, v, 0.0, self.refs, self.free, self.kept, w, self.length,
@@ -149,6 +150,18 @@ class Run:
                                  "out-of-plane load); remove it")
         state.ud, state.lam = accelerations(L, R, A, Q, u, 0.0, self.refs, self.free, self.kept)
         return state
+
+    def note_inconsistent_rows(self, g) -> None:
+        """A note for redundant rows that the assembled positions do not satisfy (dropped rows
+        of a loop whose redundant constraints contradict each other by a little)."""
+        dropped = np.setdiff1d(np.arange(g.size), self.kept)
+        bad = dropped[np.abs(g[dropped]) > 10 * POSITION_TOL]
+        if bad.size:
+            worst = int(bad[np.argmax(np.abs(g[bad]))])
+            joints = ", ".join(sorted({f"'{self.names[r]}'" for r in bad}))
+            self.notes.append(f"redundant constraint rows of {joints} contradict the others by up to "
+                              f"{abs(g[worst]):.3g} m or rad at the assembled start (e.g. the pins of a rigid loop "
+                              "not exactly coplanar); they are dropped and the other rows hold")
 
     def start_layout(self, which: str):
         """(layout, all its rows, row names) of the system plus a temporary driver per joint with
@@ -173,7 +186,8 @@ class Run:
         other velocities by the minimum-norm projection of the consistent start)."""
         layout = self.start_layout("initial")
         if layout is not None:
-            R, A, Q = assemble_positions(layout[0], R, A, Q, 0.0, self.refs, layout[1], self.weights, layout[2])
+            R, A, Q = assemble_positions(layout[0], R, A, Q, 0.0, self.refs, layout[1], self.weights, layout[2],
+                                         self.length)
             self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
         layout = self.start_layout("initial_rate")
         if layout is not None:

@@ -14,10 +14,13 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.integrators.base import State, advance_pose, index1_accelerations, kkt_solve, restrict
+from sidprep.solver.integrators.base import advance_pose, index1_accelerations, kkt_solve, restrict
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
+#: redundant rows may contradict the others by at most this fraction of the system length (m/m
+#: or rad) and be dropped at assembly (e.g. the pins of a rigid loop micrometres out of plane)
+REDUNDANT_MISMATCH = 1e-4
 #: assembly: maximum damped Gauss-Newton iterations
 ASSEMBLY_ITERATIONS = 100
 #: a constraint row is redundant when its component independent of the rows kept before it is
@@ -63,9 +66,29 @@ def constraints_at(L, R, A, Q, t, refs):
     return out[2], out[3]
 
 
-def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, rigid_only=True):
-    """(R, A, Q) moved onto g = 0 on the ``kept`` rows (module doc); InputError naming the worst
-    joint when even all coordinates cannot satisfy them."""
+def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, length):
+    """(R, A, Q) moved onto g = 0 on the ``kept`` rows (module doc).  When they cannot all hold,
+    on their subset independent at the placed pose, provided the dropped redundant rows then miss
+    by less than REDUNDANT_MISMATCH ``length`` (m, the system length; e.g. the pins of a rigid
+    loop micrometres out of plane); otherwise InputError naming the worst joint."""
+    try:
+        return damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names)
+    except InputError as failure:
+        independent = kept[independent_rows(constraints_at(L, R, A, Q, t, refs)[1][kept])]
+        if independent.size == kept.size:
+            raise
+        try:
+            R2, A2, Q2 = damped_gauss_newton(L, R, A, Q, t, refs, independent, weights, names)
+        except InputError:
+            raise failure from None
+        if np.max(np.abs(constraints_at(L, R2, A2, Q2, t, refs)[0][kept])) >= REDUNDANT_MISMATCH * length:
+            raise failure from None
+        return R2, A2, Q2
+
+
+def damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=True):
+    """(R, A, Q) with g = 0 on the ``kept`` rows: Levenberg-Marquardt over the rigid-body
+    coordinates, then over all (module doc); InputError naming the worst joint."""
     cols = rigid_columns(L) if rigid_only else np.ones(int(L.uoff[-1]), bool)
     scale = 1.0 / weights[cols]
     g, B = constraints_at(L, R, A, Q, t, refs)
@@ -91,7 +114,7 @@ def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, rigid_only=Tru
         R, A, Q, g, B, res = R2, A2, Q2, g2, B2, res2
         mu = max(mu / 10.0, 1e-12)
     if rigid_only:
-        return assemble_positions(L, R, A, Q, t, refs, kept, weights, names, rigid_only=False)
+        return damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=False)
     worst = int(kept[np.argmax(np.abs(g[kept]))])
     raise InputError(f"joint '{names[worst]}': the initial positions cannot satisfy it (residual "
                      f"{np.max(np.abs(g[kept])):.3g} m or rad); place its markers so that they coincide and their "
@@ -169,7 +192,7 @@ def quasi_static_elastic(L, R, A, Q, u, t, refs, free, kept, weights, length, na
         return accelerations(L, R_, A_, Q_, u, t, refs, free, kept)[0][qcols]
 
     def with_q(qvec):
-        return assemble_positions(L, R, A, qvec, t, refs, kept, weights, names)
+        return assemble_positions(L, R, A, qvec, t, refs, kept, weights, names, length)
 
     scale = length / weights[qcols]  # q moving nodes by L
     for _ in range(iterations):
@@ -189,18 +212,3 @@ def quasi_static_elastic(L, R, A, Q, u, t, refs, free, kept, weights, length, na
             break
     return R, A, Q
 
-
-def consistent_state(L, R, A, Q, u, refs, free, kept_all, weights, length, names, static_start):
-    """(State, kept rows) satisfying the constraints at position, velocity and acceleration
-    level at t = 0; ``kept_all`` the rows to assemble on (indices)."""
-    R, A, Q = assemble_positions(L, R, A, Q, 0.0, refs, kept_all, weights, names)
-    _, B = constraints_at(L, R, A, Q, 0.0, refs)
-    mask = np.zeros(B.shape[0], bool)
-    mask[kept_all] = independent_rows(B[kept_all])
-    kept = np.flatnonzero(mask)
-    if static_start:
-        v = project_velocities(L, R, A, Q, u, 0.0, refs, kept, weights)
-        R, A, Q = quasi_static_elastic(L, R, A, Q, v, 0.0, refs, free, kept, weights, length, names)
-    u = project_velocities(L, R, A, Q, u, 0.0, refs, kept, weights)
-    ud, lam = accelerations(L, R, A, Q, u, 0.0, refs, free, kept)
-    return State(0.0, R, A, Q, u, ud, lam), kept
