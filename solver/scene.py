@@ -339,14 +339,16 @@ def _bodies(file: Path, root: dict, system) -> dict:
 
 
 def _z_axis_rotation(t: _Table) -> np.ndarray:
-    """A rotation whose third column is the unit vector ``z_axis`` (the joint axis)."""
+    """A rotation whose third column is the unit vector ``z_axis`` (the joint axis) and whose x
+    axis is the first body axis (x, else y) not near z, made normal to z: z = [0, 0, 1] keeps
+    the body axes, so a joint angle is measured from the body's x axis."""
     z = t.vector("z_axis")
     norm = np.linalg.norm(z)
     if norm < ROTATION_TOL:
         t.fail("z_axis", "is the zero vector", "give the joint axis direction, e.g. [0, 1, 0]")
     z = z / norm
-    helper = np.eye(3)[int(np.argmin(np.abs(z)))]
-    x = np.cross(helper, z)
+    helper = np.eye(3)[0] if abs(z[0]) < 0.9 else np.eye(3)[1]
+    x = helper - (helper @ z) * z
     x /= np.linalg.norm(x)
     return np.column_stack([x, np.cross(z, x), z])
 
