@@ -23,8 +23,8 @@ from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
-from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, independent_rows,
-                                                length_weights, project_velocities, quasi_static_elastic)
+from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
+                                                independent_rows, length_weights, project_velocities, quasi_static_elastic)
 from sidprep.solver.integrators.planar import planar_coordinates
 from sidprep.solver.model.bodies import RigidBody
 
@@ -196,6 +196,22 @@ class Run:
             u = project_velocities(L0, R, A, Q, u, 0.0, self.refs, rows[independent_rows(B)], self.weights)
         return R, A, Q, u
 
+    def failure_cause(self, stepper, sizes) -> str:
+        """The stepper's failure in words: for a body that left its small-deformation range, its
+        name, the time, the deflection against its size and the likely causes."""
+        if stepper.large_deformation is None:
+            return stepper.message
+        b, deflection, t = stepper.large_deformation
+        body = self.system.bodies[b]
+        stiffening = [e for e in ("centrifugal_stiffening", "acceleration_stiffening", "load_stiffening")
+                      if e in self.choices.get(body.name, (None, ()))[1]]
+        cause = (f"buckling or a stiffening instability (included: {', '.join(stiffening)}), a resonance"
+                 if stiffening else "a resonance or an unstable load path")
+        return (f"body '{body.name}' left the small-deformation range of the floating frame at t = {t:.6g} s: "
+                f"elastic deflection {deflection:.3g} m = {100 * deflection / sizes[b]:.0f} % of its size "
+                f"{sizes[b]:.3g} m (deformation_limit {self.settings.deformation_limit:g}); likely {cause}, "
+                "a too large step or a stiff contact")
+
     # ------------------------------------------------------------------ run
     def execute(self):
         """Integrate and return the Result (solver/results.py)."""
@@ -204,7 +220,8 @@ class Run:
         cpu0 = time.process_time()
         with _CompileNotice():
             state = self.consistent_start()
-        problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end)
+        problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
+                          body_sizes(self.system, self.terms))
         first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None], state.ud[None],
                         state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
         stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
@@ -225,7 +242,7 @@ class Run:
                             n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
                             n_constraints=int(self.kept.size))
         if stepper.status == "failed":
-            message = f"{stepper.name}: {stepper.message}"
+            message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}"
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         return result

@@ -3,7 +3,7 @@
 The format is documented with a complete example in ``docs/scenes.md``.  Tables::
 
     [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names]), planar
-    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol
+    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol, deformation_limit
     [output]           rate (samples/s), signals, plot, csv, animate
     [bodies.<name>]    type = "flexible" (sid, make, q0, qd0, effects) | "rigid" (mass, com,
                        inertia, obj); position, rotation, velocity, omega
@@ -64,7 +64,8 @@ class Scene:
 
     path : the scene file; text, sha256 : its content (provenance); title : [scene] title;
     system : the built System; simulate_kwargs : keyword arguments of ``System.simulate``
-    (t_end, h, method, rho_inf, rtol, output_dt, static_start; atol, newton_tol if given);
+    (t_end, h, method, rho_inf, rtol, output_dt, static_start; atol, newton_tol,
+    deformation_limit if given);
     output : OutputSettings; sources : {body name: {"kind", "source"}} (results provenance);
     """
 
@@ -243,7 +244,7 @@ def _solver_settings(file: Path, root: dict, t_end_override: float | None) -> di
         "rtol": t.number("rtol", None, positive=True),
         "static_start": t.boolean("static_start", False),
     }
-    for key in ("atol", "newton_tol"):             # the solver's own defaults unless given
+    for key in ("atol", "newton_tol", "deformation_limit"):   # the solver's own defaults unless given
         if t.has(key):
             kw[key] = t.number(key, positive=True)
     if t_end_override is not None:

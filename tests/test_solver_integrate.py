@@ -243,15 +243,17 @@ def test_out_of_plane_load_decides_the_planar_form():
 
 
 #: energy of a 3D loop of flexible bodies under gravity (first-order consistent effects, no
-#: friction): |total - total(0)| relative to the energy exchanged with gravity, h = 2 ms
-#: (measured 2.7e-6; 6.6e-7 at h = 1 ms: second order)
-GRAVITY_LOOP_ENERGY_RTOL = 1e-5
+#: friction): max |total - total(0)| over 3 s relative to the energy exchanged with gravity, at
+#: h = 1 ms (the issue's 1e-6), and its fall from h = 2 ms (second order: 4x)
+GRAVITY_LOOP_ENERGY_RTOL = 1e-6
+GRAVITY_LOOP_CONVERGENCE = 2.5
 
 
 def test_flexible_loop_under_gravity_conserves_energy():
     """The seed slider crank of two Beams (examples/beam_slider_crank) turned into a vertical
     plane (gravity in the plane), friction removed: kinetic + strain + gravity + damping loss -
-    driver work stays constant (issue: 0.41 relative drift before the rebuild)."""
+    driver work stays constant, converging with the step (issue: 0.41 relative drift before the
+    rebuild, the same at every step)."""
     from pathlib import Path
 
     from sidprep.solver.scene import load_scene
@@ -260,16 +262,21 @@ def test_flexible_loop_under_gravity_conserves_energy():
     s = scene.system
     s.forces.clear()
     s.gravity = np.array([0.0, -9.81, 0.0])
-    r = s.simulate(1.5, h=2e-3, rho_inf=1.0, output_dt=0.01,
-                   effects=["coupling", "coriolis", "centrifugal", "inertia_change", "damping", "gravity"])
-    exchanged = np.ptp(r.energy["gravity"])
-    assert exchanged > 10.0 and not r.stats["planar"]
-    assert np.max(np.abs(r.energy["total"] - r.energy["total"][0])) < GRAVITY_LOOP_ENERGY_RTOL * exchanged
+    drift = {}
+    for h in (2e-3, 1e-3):
+        r = s.simulate(3.0, h=h, rho_inf=1.0, output_dt=0.01, deformation_limit=1.0,   # the 1 Hz conrod sags
+                       effects=["coupling", "coriolis", "centrifugal", "inertia_change", "damping", "gravity"])
+        exchanged = np.ptp(r.energy["gravity"])
+        assert exchanged > 10.0 and not r.stats["planar"]
+        drift[h] = np.max(np.abs(r.energy["total"] - r.energy["total"][0])) / exchanged
+    assert drift[1e-3] < GRAVITY_LOOP_ENERGY_RTOL, drift
+    assert drift[2e-3] > GRAVITY_LOOP_CONVERGENCE * drift[1e-3], drift
 
 
 def test_a_diverging_body_stops_early_and_keeps_its_results():
     """A body with negative modal stiffness (unstable) diverges: the run stops when the elastic
-    deflection passes 10 system lengths, not after minutes, and the Result up to there is kept."""
+    deflection passes 20 % of the body's size, not after minutes, with a one-line message naming
+    the body, and the Result up to there is kept."""
     from dataclasses import replace
 
     from sidprep.errors import SimulationFailed
@@ -278,10 +285,11 @@ def test_a_diverging_body_stops_early_and_keeps_its_results():
     sid = replace(sid, Ke=replace(sid.Ke, M0=-sid.Ke.M0))
     s = System(gravity=(0, 0, 0))
     s.add(FlexibleBody(sid, name="bar", q0=np.full(sid.nq, 1e-6)))
-    with pytest.raises(SimulationFailed, match="diverged") as failure:
+    with pytest.raises(SimulationFailed, match="body 'bar' left the small-deformation range") as failure:
         s.simulate(1.0, h=1e-4)
     result = failure.value.result
-    assert 0.0 < result.t[-1] < 0.1 and "diverged" in result.stats["failed"]
+    assert 0.0 < result.t[-1] < 0.1 and "small-deformation" in result.stats["failed"]
+    assert "\n" not in str(failure.value)
     assert np.all(np.isfinite(result.bodies["bar"].q))
 
 

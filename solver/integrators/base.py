@@ -29,7 +29,8 @@ class Problem:
     ``free`` (indices into u; all but the out-of-plane ones of a planar run), the kept
     constraint rows ``kept`` (indices; redundant rows dropped), per-coordinate length weights
     (m per unit), the system length (m), the joints' angle references ``refs`` (nj,), updated
-    by the stepper after every accepted step, and t_end (s)."""
+    by the stepper after every accepted step, t_end (s), and the bodies' sizes (nb,), m (the
+    scale of their small-deformation range)."""
 
     L: tuple
     free: np.ndarray
@@ -38,6 +39,7 @@ class Problem:
     length: float
     refs: np.ndarray
     t_end: float
+    sizes: np.ndarray
 
     @property
     def m_all(self) -> int:
@@ -87,6 +89,8 @@ class Stepper:
     def __init__(self, problem: Problem, state: State, settings):
         self.problem, self.state, self.settings = problem, state, settings
         self.status, self.message = "running", ""
+        #: (body index, deflection m, time s) when a body left its small-deformation range
+        self.large_deformation = None
         self.stats = {"steps": 0, "rejected": 0, "rhs_evaluations": 0, "newton_iterations": 0, "jacobians": 0,
                       "h_min": np.inf, "h_max": 0.0}
 

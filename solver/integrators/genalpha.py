@@ -45,9 +45,8 @@ RECOVER_STEPS = 4
 #: step-size factor limits and safety factor of the error control
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
 #: run status codes of the compiled loop
-RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, DIVERGED = 0, 1, 2, 3, 4
-#: divergence: a modal coordinate moving a node by more than this many system lengths
-DIVERGENCE_LENGTHS = 10.0
+RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, LARGE_DEFORMATION = 0, 1, 2, 3, 4
+
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -115,15 +114,16 @@ def local_error(udn, ud, an, a, h, prm, w, free, atol, rtol, length):  # pragma:
 
 
 @jit
-def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, w, length, tol, rtol, atol, out_dt,
-            next_out, refs, work, flows0, stats, capacity):  # pragma: no cover - compiled
+def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, w, length, limits, tol, rtol, atol,
+            out_dt, next_out, refs, work, flows0, stats, capacity):  # pragma: no cover - compiled
     """Generalised-alpha steps from t until t_end or until ``capacity`` output samples.
 
     rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  work (3,)
     the work integrals [applied loads, dissipated, drivers] and flows0 (4,) the power flows at
     the current state are updated in place, as refs (angle references) and stats [steps,
-    rejected, newton iterations, jacobians, h_min, h_max, status, max_steps].  Returns the new
-    state, step size, next output time and the samples.
+    rejected, newton iterations, jacobians, h_min, h_max, status, max_steps, body, deflection]
+    (the last two: the body that left its small-deformation range, ``limits`` (nb,) m, and its
+    deflection, m).  Returns the new state, step size, next output time and the samples.
     """
     nf, m, n = free.shape[0], kept.shape[0], u.shape[0]
     nj = refs.shape[0]
@@ -234,13 +234,13 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                 stats[1] += 1
                 h *= max(H_SHRINK, factor)
                 continue
-        diverged = False  # elastic deflections beyond DIVERGENCE_LENGTHS L (rigid motion may go anywhere)
-        for b in range(L.qoff.shape[0] - 1):
+        for b in range(L.qoff.shape[0] - 1):  # elastic deflections within the small-deformation range
+            d2 = 0.0
             for k in range(L.qoff[b + 1] - L.qoff[b]):
-                if abs(Q2[L.qoff[b] + k]) * w[L.uoff[b] + 6 + k] > DIVERGENCE_LENGTHS * length:
-                    diverged = True
-        if diverged:
-            stats[6] = DIVERGED
+                d2 += (Q2[L.qoff[b] + k] * w[L.uoff[b] + 6 + k]) ** 2
+            if not np.sqrt(d2) <= limits[b]:
+                stats[6], stats[8], stats[9] = LARGE_DEFORMATION, b, np.sqrt(d2)
+        if stats[6] == LARGE_DEFORMATION:
             break
         ud_prev, lam_prev, h_prev = ud, lam, h
         t += h
@@ -293,23 +293,25 @@ class GeneralizedAlpha(Stepper):
         lam_full = np.zeros(problem.m_all)
         lam_full[problem.kept] = state.lam
         self.flows = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)[-1]
-        self.raw = np.zeros(8)
+        self.raw = np.zeros(10)
         self.raw[4], self.raw[7] = np.inf, settings.max_steps
 
     def advance(self, t_stop: float) -> Samples:
         p, s, st = self.problem, self.state, self.settings
         out = ga_loop(p.L, s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam, s.t, t_stop, self.h, st.h, self.prm, p.free, p.kept,
-                      p.weights, p.length, st.newton_tol, st.tolerance or 0.0, st.atol, st.output_dt or 0.0,
+                      p.weights, p.length, st.deformation_limit * p.sizes, st.newton_tol, st.tolerance or 0.0, st.atol,
+                      st.output_dt or 0.0,
                       self.next_out, p.refs, self.work, self.flows, self.raw, CHUNK)
         (s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam, s.t, self.h, self.next_out) = out[:10]
         status = int(self.raw[6])
         if status == MAX_STEPS:
             self.status, self.message = "failed", (f"max_steps = {st.max_steps} reached at t = {s.t:.6g} s; raise "
                                                    "max_steps or the step size h")
-        elif status == DIVERGED:
-            self.status, self.message = "failed", (
-                f"the elastic deflections diverged after t = {s.t:.6g} s (beyond {DIVERGENCE_LENGTHS:g} system lengths); "
-                "check the effects (e.g. leave out acceleration_stiffening), the loads and the step size")
+        elif status == LARGE_DEFORMATION:
+            body, deflection = int(self.raw[8]), float(self.raw[9])
+            self.status, self.large_deformation = "failed", (body, deflection, s.t + self.h)
+            self.message = (f"body {body} left its small-deformation range at t = {s.t + self.h:.6g} s "
+                            f"(deflection {deflection:.3g} m)")
         elif status == NEWTON_FAILED:
             self.status, self.message = "failed", (f"Newton did not converge at t = {s.t:.6g} s even with tiny steps; "
                                                    "check the scene (joint axes, loads, units) or raise newton_tol")

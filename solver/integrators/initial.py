@@ -33,8 +33,9 @@ def length_weights(system, terms, L) -> tuple[np.ndarray, float]:
     system length L (m).
 
     Translations 1, rotations L, modal coordinate k: max over SID nodes of |Phi_n[:, k]|, at
-    least the mass-weighted RMS displacement sqrt(Me_kk / m) of the mode (e.g. when the only
-    SID node is a clamped interface where all modes vanish).
+    least sqrt(2) times the mass-weighted RMS displacement sqrt(Me_kk / m) of the mode (the peak
+    of a sine-shaped form; e.g. when the SID nodes sit where the modes vanish, at clamped or
+    pinned ends).
     """
     radii = [1e-3]
     for b, t in zip(system.bodies, terms):
@@ -46,10 +47,26 @@ def length_weights(system, terms, L) -> tuple[np.ndarray, float]:
         s = int(L.uoff[i])
         w[s + 3:s + 6] = length
         if t.nq:
-            rms = np.sqrt(np.abs(np.diag(t.Me)) / t.mass)
+            rms = np.sqrt(2.0 * np.abs(np.diag(t.Me)) / t.mass)
             phi = np.array([np.linalg.norm(n.phi.M0, axis=0) for n in b.sid.nodes] + [rms]).max(axis=0)
             w[s + 6:s + 6 + t.nq] = np.maximum(phi, 1e-300)
     return w, length
+
+
+def body_sizes(system, terms) -> np.ndarray:
+    """Size of every body (nb,), m: the largest distance between its SID nodes, at least twice
+    its radius of gyration about its centre of mass (the scale of its small-deformation range)."""
+    sizes = []
+    for b, t in zip(system.bodies, terms):
+        c = t.md0 / t.mass
+        i_cm = t.I0 - t.mass * (c @ c * np.eye(3) - np.outer(c, c))
+        size = 2.0 * float(np.sqrt(max(np.trace(i_cm), 0.0) / (2 * t.mass)))
+        if t.nq:
+            nodes = np.array([n.origin.M0.ravel() for n in b.sid.nodes]).reshape(-1, 3)
+            span = np.linalg.norm(nodes[:, None] - nodes[None], axis=2).max() if len(nodes) else 0.0
+            size = max(size, float(span))
+        sizes.append(size)
+    return np.array(sizes)
 
 
 def rigid_columns(L) -> np.ndarray:

@@ -29,6 +29,8 @@ class SolverSettings:
     static_start : start with the elastic coordinates in quasi-static equilibrium with the
         initial rigid-body accelerations (no start-up vibration)
     newton_tol : Newton tolerance of generalised-alpha: position correction / system length
+    deformation_limit : generalised-alpha stops when a body's elastic deflection exceeds this
+        fraction of its size (the floating frame's small-deformation range; docs/solver.md)
     max_steps : the run stops with an error after this many steps
     baumgarte : constraint stabilisation rate of the explicit methods, 1/s
     effects : None (the System's choice), "auto", "all" or a list of effect names
@@ -42,6 +44,7 @@ class SolverSettings:
     output_dt: float | None = None
     static_start: bool = False
     newton_tol: float = 1e-8
+    deformation_limit: float = 0.2
     max_steps: int = 10_000_000
     baumgarte: float = 20.0
     effects: object = None
@@ -57,8 +60,9 @@ class SolverSettings:
             value = getattr(self, name)
             if value is not None and not value > 0:
                 raise InputError(f"{name} must be > 0 (or not given), got {value}")
-        if not (self.atol > 0 and self.newton_tol > 0 and self.baumgarte >= 0 and self.max_steps > 0):
-            raise InputError("atol, newton_tol and max_steps must be > 0 and baumgarte >= 0")
+        if not (self.atol > 0 and self.newton_tol > 0 and self.deformation_limit > 0 and self.baumgarte >= 0
+                and self.max_steps > 0):
+            raise InputError("atol, newton_tol, deformation_limit and max_steps must be > 0 and baumgarte >= 0")
 
     @property
     def tolerance(self) -> float | None:
