@@ -102,3 +102,33 @@ def test_engine_placed_roughly_assembles(engine_dir):
     gas = load(EXAMPLE / "gas_force.py")
     # the rod's eye nodes sit 0.4200598 m apart; elastic shortening under gravity only: < 1 um
     assert r.markers["piston_pin"][0, 1] == pytest.approx(gas.piston_height(-np.pi / 2, l=0.4200598), abs=1e-6)
+
+
+#: planar against 3D coordinates of the same scene: every joint signal, relative to its peak
+PLANAR_RTOL = 1e-6
+
+
+def test_engine_planar_runs_give_the_3d_answer(engine_dir):
+    """The issue's item 1: the rigid engine integrated in its in-plane coordinates agrees with the
+    3D run in every joint coordinate, rate and force; the flexible engine is never reduced (its
+    rod's modes mix in- and out-of-plane motion): it runs in 3D and says so.  (The reaction
+    torques about the in-plane axes are not compared: in the over-constrained rigid loop they are
+    statically indeterminate, 0.03 N m either way, and split by whichever redundant rows a run
+    drops.)"""
+    from sidprep.solver.scene import load_scene
+
+    runs = {}
+    for planar in (None, False):
+        scene = load_scene(engine_dir / "scene_rigid.toml")
+        scene.system.planar = planar
+        runs[planar] = scene.system.simulate(**{**scene.simulate_kwargs, "t_end": 0.2})
+    assert runs[None].stats["planar"] and not runs[False].stats["planar"]
+    for name, joint in runs[False].joints.items():
+        for field in ("coordinate", "rate", "force"):
+            ref, got = getattr(joint, field), getattr(runs[None].joints[name], field)
+            if np.all(np.isnan(ref)):
+                continue
+            assert np.max(np.abs(got - ref)) <= PLANAR_RTOL * max(np.max(np.abs(ref)), 1e-9), (name, field)
+    flexible = load_scene(engine_dir / "scene.toml")
+    r = flexible.system.simulate(**{**flexible.simulate_kwargs, "t_end": 0.01})
+    assert not r.stats["planar"] and any("run in 3D" in n and "rod" in n for n in r.effects.notes)
