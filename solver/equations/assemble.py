@@ -155,7 +155,10 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     g = np.zeros(m_all)
     bt = np.zeros(m_all)
     B = np.zeros((m_all, n))
-    BF = np.zeros((m_all, n))
+    stiffened = False
+    for k in range(nmk):
+        stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
+    BF = np.zeros((m_all, n)) if stiffened else B  # the load Jacobians differ from JT, JR only when stiffened
     C = np.zeros((m_all, 4, 3))
     for j in range(nj):
         k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
@@ -185,7 +188,8 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
             if b >= 0:
                 w = uoff[b + 1] - uoff[b]
                 add_rows(B, r, L.uoff[b], C[r], JT[k], JR[k], which, w)
-                add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
+                if stiffened:
+                    add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
     return M, f, g, B, BF, bt, C, coords, loads, flows
 
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.rotations import add, jit, matvec, put, put2, tmatvec
+from sidprep.solver.equations.rotations import jit, matvec, put, put2
 from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, advance_pose, expand, lu_factor, lu_solve,
                                              restrict, store_sample)
 
@@ -71,20 +71,22 @@ def ga_state(L, udn, R, A, Q, u, ud, a, h, prm):  # pragma: no cover - compiled
 @jit
 def ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept):  # pragma: no cover - compiled
     """r = [M ud - f + B_F^T lambda; g / (h^2 beta')] on the free coordinates and kept rows,
-    the restricted M, B, B_F, the joint coordinates and the power flows at the updated state."""
+    and M, f, B, B_F (all coordinates and rows), the joint coordinates and the power flows at the
+    updated state."""
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     _, R2, A2, Q2, un = ga_state(L, udn, R, A, Q, u, ud, a, h, prm)
     M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R2, A2, Q2, un, t, expand(lamn, kept, m_all), refs)
-    Mf, ff, Bk, BFk = restrict(M, f, B, BF, free, kept)
     nf, m = free.shape[0], kept.shape[0]
     r = np.empty(nf + m)
     full = matvec(M, udn)
     for i in range(nf):
-        r[i] = full[free[i]] - ff[i]
-    add(r, 0, tmatvec(BFk, lamn))
+        acc = full[free[i]] - f[free[i]]
+        for k in range(m):
+            acc += BF[kept[k], free[i]] * lamn[k]
+        r[i] = acc
     for k in range(m):
         r[nf + k] = g[kept[k]] / (h * h * prm[4])
-    return r, Mf, Bk, BFk, coords, flows
+    return r, M, f, B, BF, coords, flows
 
 
 @jit
@@ -141,7 +143,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
     D = np.zeros((nf, nf))
     D_h = 0.0
     lu = np.zeros((nf + m, nf + m))
-    piv = np.zeros(nf + m, dtype=np.int64)
+    piv = np.zeros(nf + m, dtype=np.int32)
     have_d = False
     ud_prev = ud.copy()
     lam_prev = lam.copy()
@@ -166,7 +168,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         last = np.inf
         it = 0
         converged = False
-        r, Mf, Bk, BFk, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
+        r, M, f, B, BF, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
         while True:
             if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
                 eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
@@ -177,10 +179,11 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                     x[free[col]] += e
                     r1 = ga_residual(L, x, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)[0]
                     for row in range(nf):
-                        D[row, col] = (r1[row] - r[row]) / e - Mf[row, col]
+                        D[row, col] = (r1[row] - r[row]) / e - M[free[row], free[col]]
                 D_h, have_d, fresh_d, want_d, factor_now = h, True, True, False, True
                 stats[3] += 1
             if factor_now:  # M, B of this iterate; D re-used over steps
+                Mf, _, Bk, BFk = restrict(M, f, B, BF, free, kept)
                 lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
                 factor_now = False
             drift = 0.0  # constraint residual before this update, m or rad
@@ -205,7 +208,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
             if err <= tol and drift <= tol * length:  # the update shrinks the drift further
                 converged = True
                 break
-            r, Mf, Bk, BFk, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
+            r, M, f, B, BF, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
                                                         kept)
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
