@@ -29,6 +29,8 @@ from sidprep.solver.integrators.planar import planar_coordinates
 from sidprep.solver.model.bodies import RigidBody
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
+#: the start reports bodies moved by more than this (m or rad) from their placed positions
+MOVED_TOL = 1e-9
 #: seconds of silent compilation after which the run says what it is doing
 COMPILE_NOTICE_S = 2.0
 
@@ -125,6 +127,7 @@ class Run:
         R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names, self.length)
         self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
         R, A, Q, u = self.start_from_joints(R, A, Q, u)
+        self.note_moved_bodies(R, A)
         self.resolve_spring_lengths(R, A, Q)
         g, B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[2:4]
         self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
@@ -150,6 +153,18 @@ class Run:
                                  "out-of-plane load); remove it")
         state.ud, state.lam = accelerations(L, R, A, Q, u, 0.0, self.refs, self.free, self.kept)
         return state
+
+    def note_moved_bodies(self, R, A) -> None:
+        """A note of how far the consistent start moved each body from where the scene placed it
+        (assembly onto the constraints and the joints' initial values)."""
+        R0, A0 = self.initial_positions()[:2]
+        shift = np.linalg.norm(R - R0, axis=1)
+        turn = np.array([np.arccos(np.clip((np.trace(a0.T @ a) - 1) / 2, -1.0, 1.0)) for a0, a in zip(A0, A)])
+        moved = [i for i in np.argsort(-shift) if shift[i] > MOVED_TOL or turn[i] > MOVED_TOL]
+        if moved:
+            self.notes.append("the consistent start moved " + ", ".join(
+                f"'{self.system.bodies[i].name}' by {shift[i]:.3g} m and {np.degrees(turn[i]):.3g} deg" for i in moved)
+                + " from where the scene placed them (assembly onto the joints and their initial values)")
 
     def note_inconsistent_rows(self, g) -> None:
         """A note for redundant rows that the assembled positions do not satisfy (dropped rows

@@ -97,6 +97,7 @@ def test_engine_placed_roughly_assembles(engine_dir):
         body.rotation0 = Rotation.from_rotvec(np.radians([1.0, -1.0, 1.0])).as_matrix() @ body.rotation0
     r = scene.system.simulate(1e-3, h=2e-4)
     assert np.max(r.constraint_error) < ASSEMBLY_RESIDUAL
+    assert any("consistent start moved 'rod'" in n for n in r.effects.notes)     # and says what it moved
     assert r.joints["crank_joint"].coordinate[0] == pytest.approx(-np.pi / 2, abs=1e-10)
     assert r.joints["crank_joint"].rate[0] == pytest.approx(60.0, rel=1e-10)
     gas = load(EXAMPLE / "gas_force.py")
