@@ -27,7 +27,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.material import Material, builtin_material, material_from_options
-from sidprep.sid import SID, eigen_label, sid_invariants
+from sidprep.sid import SID, BodyPath, eigen_label, sid_invariants
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "pinned-pinned", "pinned-free",
                        "clamped-pinned", "clamped-clamped")
@@ -40,6 +40,9 @@ GAUSS_POINTS = 12
 #: segments per radian of the largest wave number times L (keeps each segment below ~1 rad)
 SEGMENTS_PER_RAD = 1.0
 MIN_SEGMENTS = 16
+#: samples of the axis path (SID.paths["axis"]) per half-wave of the shortest kept form: the
+#: solver's cubic spline through them is exact to ~1e-7 of the form's amplitude
+PATH_POINTS_PER_WAVE, PATH_MIN_POINTS = 32, 101
 
 
 # ------------------------------------------------------------------------------------------------
@@ -383,9 +386,20 @@ def beam_sid(options: BeamOptions) -> SID:
                         "A_m2": A, "Iy_m4": Iy, "Iz_m4": Iz, "J_m4": J},
             "material": m.as_dict(), "beam_modes": [f"{f.kind}:{f.ordinal}" for f in forms],
             "frames_xsi": list(xsi), "damping": zeta.tolist()}
-    return sid_invariants(X, Ms, U.reshape(-1, nq), nodes, labels=labels, frequencies_hz=f_hz,
-                          mode_kinds=("eigen",) * nq, Ke=np.diag(omega ** 2),
-                          De=np.diag(2 * zeta * omega), stiffening=stiff, metadata=meta)
+    sid = sid_invariants(X, Ms, U.reshape(-1, nq), nodes, labels=labels, frequencies_hz=f_hz,
+                         mode_kinds=("eigen",) * nq, Ke=np.diag(omega ** 2),
+                         De=np.diag(2 * zeta * omega), stiffening=stiff, metadata=meta)
+    return replace(sid, paths={"axis": axis_path(forms, L)})
+
+
+def axis_path(forms, L: float) -> BodyPath:
+    """The Beam's axis x = 0 .. L as a BodyPath: the exact eigenforms at PATH_POINTS_PER_WAVE
+    points per half-wave of the shortest form (at least PATH_MIN_POINTS)."""
+    half_waves = max(f.curvature_wave for f in forms) * L / math.pi
+    s = np.linspace(0.0, L, max(PATH_MIN_POINTS, int(math.ceil(PATH_POINTS_PER_WAVE * half_waves)) + 1))
+    shapes = [_node_shapes(forms, x) for x in s]
+    points = np.stack([s, np.zeros_like(s), np.zeros_like(s)], axis=1)
+    return BodyPath(s, points, np.array([p for p, _ in shapes]), np.array([q for _, q in shapes]))
 
 
 # ------------------------------------------------------------------------------------------------

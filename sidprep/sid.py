@@ -82,6 +82,22 @@ class SIDNode:
 
 
 @dataclass(frozen=True)
+class BodyPath:
+    """A curve on or in a flexible body along which loads and bodies can move (issue: moving
+    loads, seed 003): the undeformed points and the mode shapes sampled along its arc length.
+
+    s : (n,) arc length, m, increasing; points : (n, 3) undeformed positions in K, m;
+    phi : (n, 3, nq) displacement per unit q_k; psi : (n, 3, nq) small rotation per unit q_k.
+    Sampled densely enough for cubic interpolation in s (the solver's).
+    """
+
+    s: np.ndarray
+    points: np.ndarray
+    phi: np.ndarray
+    psi: np.ndarray
+
+
+@dataclass(frozen=True)
 class SurfaceModes:
     """Mode shapes on the outer surface, for animation.
 
@@ -124,6 +140,8 @@ class SID:
         Provenance, options, checks, library versions (JSON-serialisable values).
     surface : SurfaceModes or None
         Mode shapes on the outer surface (HDF5 files only), for animation.
+    paths : mapping name -> BodyPath
+        Curves along which loads move (HDF5 files only), e.g. "axis" of an analytical Beam.
     """
 
     mass: float
@@ -146,6 +164,7 @@ class SID:
     stiffening: Mapping[str, np.ndarray] = field(default_factory=dict)
     metadata: Mapping[str, object] = field(default_factory=dict)
     surface: SurfaceModes | None = None
+    paths: Mapping[str, BodyPath] = field(default_factory=dict)
 
     @property
     def nq(self) -> int:

@@ -46,7 +46,7 @@ def postprocess(run, s) -> Result:
         if planar:
             lam = out_of_plane_reactions(L, R, A, Q, u, ud, t, lam, refs, run.free, run.kept, run.kept_3d)
         M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, u, t, lam, refs)
-        P, AM = markers(L, R, A, Q, u, True)[:2]
+        P, AM = markers(L, R, A, Q, u, t, True)[:2]
         cerr[k] = np.max(np.abs(g[run.kept_3d]), initial=0.0)
         for mk, m in enumerate(all_markers):
             positions[m.name][k] = P[mk]

@@ -116,7 +116,7 @@ class Run:
 
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), True)[0]
+            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True)[0]
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 

@@ -7,7 +7,7 @@ The format is documented with a complete example in ``docs/scenes.md``.  Tables:
     [output]           rate (samples/s), signals, plot, csv, animate
     [bodies.<name>]    type = "flexible" (sid, make, q0, qd0, effects) | "rigid" (mass, com,
                        inertia, obj); position, rotation, velocity, omega
-    [markers.<name>]   body, position | node | node_index, rotation | z_axis
+    [markers.<name>]   body, position | node | node_index | path + motion keys, rotation | z_axis
     [joints.<name>]    type = spherical | revolute | cylindrical | prismatic | planar | fixed; markers
     [drivers.<name>]   joint, motion = constant_speed | smooth_start | table
     [forces.<name>]    type = point_force | point_torque | spring_damper | joint_force | joint_friction
@@ -368,7 +368,16 @@ def _markers(file: Path, root: dict, system) -> dict:
             t.fail("z_axis", "given together with `rotation`", "give only one of them")
         rotation = _z_axis_rotation(t) if t.has("z_axis") else t.rotation()
         on_node = t.has("node") or t.has("node_index")
-        if on_node:
+        if t.has("path"):
+            if not isinstance(body, FlexibleBody):
+                t.fail("path", f"body {body_name!r} is not flexible", "put moving markers on a flexible body or Beam")
+            if on_node or t.has("position"):
+                t.fail("path", "given together with a node or position", "a path marker's position is s(t) on the path")
+            try:
+                m = body.path_marker(t.string("path"), _motion(t), rotation=rotation, name=name)
+            except ValueError as exc:
+                t.fail("path", str(exc).split("; ")[0], str(exc).split("; ")[-1])
+        elif on_node:
             if not isinstance(body, FlexibleBody):
                 t.fail("node", f"body {body_name!r} is not flexible", "use `position` on rigid bodies and ground")
             if t.has("position"):

@@ -73,7 +73,7 @@ def test_real_file_round_trip_and_schema(tmp_path):
     path = write_sid_hdf5(sid, tmp_path / "cartop.sid.h5")
     assert_same_sid(sid, read_sid_hdf5(path))
     with h5py.File(path) as f:
-        assert f.attrs["format"] == "sidprep-sid" and f.attrs["version"] == 1
+        assert f.attrs["format"] == "sidprep-sid" and f.attrs["version"] == 2
         assert f["units"].attrs["length"] == "m" and f["modal/J"].attrs["unit"] == "kg m^2"
         assert f["modal/J"].attrs["component_order"] == "xx,yy,zz,xy,xz,yz"
         assert f["modal/Oe"].attrs["omega_hat_order"] == "xx,yy,zz,xy,yz,xz"

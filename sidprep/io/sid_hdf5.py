@@ -12,6 +12,7 @@ The schema (sid-spec.md section 8, documented in docs/sid-hdf5.md):
   canonical ``Ge`` (3, nq, nq) [+ ``Ge1`` (3, nq, nq, nq)].
 * ``/geometric_stiffness/<key>``: the raw parts of ``SID.stiffening``.
 * ``/fe/surface``: points, triangles, shapes, node_ids of ``SID.surface``.
+* ``/paths/<name>`` (version 2): s, points, phi, psi of ``SID.paths[name]`` (moving loads).
 * ``/provenance`` attrs: ``metadata`` (JSON of ``SID.metadata``), writer and library versions;
   ``/checks`` attr ``json``: the model checks at write time (not part of the SID read back).
 """
@@ -26,12 +27,15 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.io.atomic import atomic_path
-from sidprep.sid import (J_ORDER, OMEGA_HAT_ORDER, SID, SIDNode, SurfaceModes, Taylor,
+from sidprep.sid import (J_ORDER, OMEGA_HAT_ORDER, SID, BodyPath, SIDNode, SurfaceModes, Taylor,
                          ge_tensor, gr_tensor)
 
 FORMAT = "sidprep-sid"
-VERSION = 1
+#: 2: adds the optional /paths group (version-1 files read as before)
+VERSION = 2
 NODE_MEMBERS = ("origin", "phi", "psi", "AP", "sigma")
+#: BodyPath members (in its field order) and their units
+PATH_MEMBERS = {"s": "m", "points": "m", "phi": "m/[q]", "psi": "rad/[q]"}
 MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 SI_UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "angle": "rad",
             "frequency": "Hz", "modal_coordinate": "[q] (phi in m per unit q)"}
@@ -150,6 +154,12 @@ def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
                 s.create_dataset(name, data=getattr(sid.surface, name))
             s.attrs["shapes_axes"] = "shapes[s, c, k]: displacement component c of surface node s per unit q_k"
 
+        for name, path_ in sid.paths.items():
+            g = f.create_group(f"paths/{name}")
+            for member, unit in PATH_MEMBERS.items():
+                g.create_dataset(member, data=np.asarray(getattr(path_, member), dtype=float)).attrs["unit"] = unit
+            g.attrs["axes"] = "phi[i, c, k], psi[i, c, k]: component c at s[i] per unit q_k"
+
         prov = f.create_group("provenance")
         prov.attrs.update(metadata=to_json(dict(sid.metadata)), libraries=to_json(_library_versions()))
         f.create_group("checks").attrs["json"] = to_json(checks)
@@ -203,12 +213,13 @@ def _read(f: h5py.File) -> SID:
     if "fe/surface" in f:
         s = f["fe/surface"]
         surface = SurfaceModes(*(s[name][()] for name in ("points", "triangles", "shapes", "node_ids")))
+    paths = {name: BodyPath(*(g[member][()] for member in PATH_MEMBERS)) for name, g in f.get("paths", {}).items()}
     return SID(
         mass=float(f["refmod"].attrs["mass"]), labels=_strings(f["refmod/ielastq"]),
         nodes=tuple(nodes), **members, frequencies_hz=f["refmod/freq_hz"][()],
         mode_kinds=_strings(f["refmod/mode_kind"]), units=str(f.attrs["units"]),
         stiffening=stiffening, metadata=json.loads(f["provenance"].attrs["metadata"]),
-        surface=surface)
+        surface=surface, paths=paths)
 
 
 def read_sid_hdf5(path) -> SID:

@@ -18,7 +18,7 @@ import numpy as np
 from sidprep.solver.equations.body import DE, F_DAMPING, body_equations, body_potentials
 from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_kinematics,
                                                   stiffened_jacobian)
-from sidprep.solver.equations.curves import motion_state
+from sidprep.solver.equations.curves import motion_state, path_shapes
 from sidprep.solver.equations.forces import curve_arrays, force_elements
 from sidprep.solver.equations.rotations import add, dot, jit, matmul, matvec, put, put2, tmatvec
 
@@ -42,8 +42,9 @@ def add_rows(B, r, col, c, jt, jr, which, w):  # pragma: no cover - compiled
 
 
 @jit
-def markers(L, R, A, Q, u, every):  # pragma: no cover - compiled
-    """Kinematics of the markers that joints and forces use (``every``: of all markers):
+def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
+    """Kinematics at time t (s; path markers move) of the markers that joints and forces use
+    (``every``: of all markers):
     P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial, and the Jacobians JT, JR and the load
     Jacobians JTF, JRF (nmk, 3, w_max), zero-padded (JTF, JRF are JT, JR when no marker is
     load-stiffened).
@@ -78,9 +79,21 @@ def markers(L, R, A, Q, u, every):  # pragma: no cover - compiled
         nq = qoff[b + 1] - qoff[b]
         o = L.mk_shape[k]
         q = Q[qoff[b]:qoff[b + 1]].copy()
-        p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
-                                              shapes[o:o + 3 * nq].reshape((3, nq)),
-                                              shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq)))
+        on = True
+        if L.mk_path[k, 0] >= 0:  # moving along a path: its point and shapes at s(t)
+            if L.mk_path[k, 1] >= 0:
+                cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
+            else:
+                cx, cc = np.zeros(2), np.zeros((1, 1))
+            s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
+            point, phi, psi, on = path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], nq, s)
+            p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)
+        else:
+            p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
+                                                  shapes[o:o + 3 * nq].reshape((3, nq)),
+                                                  shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq)))
+        if not on:  # off its path: carries no load
+            jt, jr = np.zeros_like(jt), np.zeros_like(jr)
         put(P[k], 0, p)
         put2(AM[k], 0, 0, rot)
         ub = u[uoff[b]:uoff[b + 1]]
@@ -123,7 +136,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u, False)
+    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u, t, False)
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]
     coords = np.zeros((nj, 2))

@@ -18,6 +18,7 @@ from sidprep.solver.equations.body import (CR0, CR1, CT0, CT1, DE, F_CORIOLIS, F
 from sidprep.solver.equations.constraints import ANGLE, NO_COORDINATE, SLIDE
 from sidprep.solver.equations.curves import CONSTANT_SPEED, SMOOTH_START, TABULATED
 from sidprep.solver.model.forces import JointForce, JointFriction, PointTorque, SpringDamper, Table, _MarkerLoad
+from sidprep.solver.model.bodies import PathMarker
 from sidprep.solver.model.joints import ConstantSpeed, SmoothStart
 
 #: force element kinds (equations/forces.py)
@@ -28,7 +29,7 @@ FE_INT_COLUMNS, FE_PAR_COLUMNS = 6, 10
 Layout = namedtuple("Layout", [
     "qoff", "uoff", "gravity",
     "body_F", "body_off", "body_flags", "body_mass",
-    "mk_body", "mk_pos", "mk_rot", "mk_shape", "mk_k0", "mk_active",
+    "mk_body", "mk_pos", "mk_rot", "mk_shape", "mk_k0", "mk_active", "mk_path", "mk_motion",
     "shapes",
     "jrows", "joint_off", "joint_mk", "joint_kind",
     "drv_joint", "drv_kind", "drv_par", "drv_curve",
@@ -124,6 +125,30 @@ class _Curves:
                 np.array(self.period, dtype=float))
 
 
+def motion_row(motion, curves: _Curves) -> tuple[int, np.ndarray, int]:
+    """(kind, params [start, speed, ramp_time], curve index or -1) of a motion profile
+    (ConstantSpeed, SmoothStart, TabulatedMotion; equations/curves.py motion_state)."""
+    if isinstance(motion, ConstantSpeed):
+        return CONSTANT_SPEED, np.array([motion.start, motion.speed, 0.0]), -1
+    if isinstance(motion, SmoothStart):
+        return SMOOTH_START, np.array([motion.start, motion.speed, motion.ramp_time]), -1
+    return TABULATED, np.zeros(3), curves.add(motion.x, motion.c)
+
+
+def add_path(path, curves: _Curves) -> int:
+    """A BodyPath as consecutive cubic-spline curves over s: points (3), phi (3 nq, row a,
+    column k at 3 + a nq + k), psi (3 nq, after phi); returns the first curve's index."""
+    from scipy.interpolate import CubicSpline
+
+    n = path.s.size
+    values = np.concatenate([path.points.reshape(n, 3), path.phi.reshape(n, -1), path.psi.reshape(n, -1)], axis=1)
+    spline = CubicSpline(path.s, values, axis=0)
+    first = len(curves.meta)
+    for k in range(values.shape[1]):
+        curves.add(spline.x, spline.c[:, :, k])
+    return first
+
+
 def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
     """The Layout of ``system`` with the BodyTerms ``terms`` (one per body) and, per body,
     whether its node markers use the load-stiffening parts K0F / K0M."""
@@ -171,6 +196,14 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
     mk_active = np.array([id(m) in used for m in markers], dtype=np.int64)
     mk_pos = np.array([m.position for m in markers], dtype=float).reshape(-1, 3)
     mk_rot = np.array([m.rotation for m in markers], dtype=float).reshape(-1, 3, 3)
+    curves = _Curves()
+    mk_path = np.full((len(markers), 2), -1, dtype=np.int64)     # [first path curve, motion curve]
+    mk_motion = np.zeros((len(markers), 4))                       # [kind, start, speed, ramp_time]
+    for k, m in enumerate(markers):
+        if isinstance(m, PathMarker):
+            kind, par, mk_path[k, 1] = motion_row(m.motion, curves)
+            mk_motion[k, 0], mk_motion[k, 1:] = kind, par
+            mk_path[k, 0] = add_path(m.path, curves)
 
     joints = system.joints
     jindex = {id(j): i for i, j in enumerate(joints)}
@@ -181,20 +214,13 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
                         dtype=np.int64).reshape(-1, 2)
     joint_kind = np.array([kinds[j.coordinate_kind] for j in joints], dtype=np.int64)
 
-    curves = _Curves()
     drivers = system.drivers
     drv_joint = np.array([jindex[id(d.joint)] for d in drivers], dtype=np.int64)
     drv_kind = np.zeros(len(drivers), dtype=np.int64)
     drv_par = np.zeros((len(drivers), 3))
     drv_curve = np.full(len(drivers), -1, dtype=np.int64)
     for i, d in enumerate(drivers):
-        mo = d.motion
-        if isinstance(mo, ConstantSpeed):
-            drv_kind[i], drv_par[i, :2] = CONSTANT_SPEED, (mo.start, mo.speed)
-        elif isinstance(mo, SmoothStart):
-            drv_kind[i], drv_par[i] = SMOOTH_START, (mo.start, mo.speed, mo.ramp_time)
-        else:
-            drv_kind[i], drv_curve[i] = TABULATED, curves.add(mo.x, mo.c)
+        drv_kind[i], drv_par[i], drv_curve[i] = motion_row(d.motion, curves)
 
     fe_int = np.full((len(system.forces), FE_INT_COLUMNS), -1, dtype=np.int64)
     fe_par = np.zeros((len(system.forces), FE_PAR_COLUMNS))
@@ -227,7 +253,8 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
             par[:4] = fe.mu, 1.0 if fe.joint.kind == "prismatic" else fe.radius, fe.preload, fe.regularisation
     cx, cc, cmeta, cper = curves.arrays()
     return Layout(qoff, uoff, np.asarray(system.gravity, float), body_F, body_off, body_flags, body_mass,
-                  mk_body, mk_pos, mk_rot, mk_shape, mk_k0, mk_active, np.concatenate(shapes + [np.zeros(0)]),
+                  mk_body, mk_pos, mk_rot, mk_shape, mk_k0, mk_active, mk_path, mk_motion,
+                  np.concatenate(shapes + [np.zeros(0)]),
                   jrows, joint_off, joint_mk, joint_kind, drv_joint, drv_kind, drv_par, drv_curve,
                   cx, cc, cmeta, cper, fe_int, fe_par)
 

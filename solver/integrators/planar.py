@@ -39,7 +39,7 @@ def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
     from sidprep.solver.equations.assemble import markers
 
-    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), True)[1]
+    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, True)[1]
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):

@@ -323,6 +323,20 @@ class FlexibleBody(_MassBody):
         self.markers.append(m)
         return m
 
+    def path_marker(self, path: str, motion, *, rotation=None, name: str | None = None) -> "PathMarker":
+        """A marker moving along the SID path ``path`` (SID.paths, e.g. "axis" of a Beam) at arc
+        length s(t) given by ``motion`` (ConstantSpeed, SmoothStart or TabulatedMotion, s in m):
+        position p(s) + Phi(s) q, orientation A R(Psi(s) q) R_m (``rotation``, default E).
+        Off the path (s outside its range) it carries no load."""
+        if path not in self.sid.paths:
+            have = ", ".join(self.sid.paths) or "none (an analytical Beam has the path 'axis')"
+            raise ValueError(f"body '{self.name}' has no path {path!r}; its SID has: {have}")
+        p = self.sid.paths[path]
+        m = PathMarker(self, name or f"{self.name}.{path}{len(self.markers)}", p.points[0].copy(),
+                       as_rotation(rotation), path=p, motion=motion)
+        self.markers.append(m)
+        return m
+
     def initial_q(self) -> tuple[np.ndarray, np.ndarray]:
         return self.q0, self.qd0
 
@@ -355,3 +369,12 @@ class Marker:
     k0f: np.ndarray | None = None
     k0m: np.ndarray | None = None
 
+
+
+@dataclass(eq=False)
+class PathMarker(Marker):
+    """A marker moving along a BodyPath of its flexible body (FlexibleBody.path_marker): at arc
+    length s(t) of ``motion`` (m), with the path's interpolated point and mode shapes."""
+
+    path: object = None
+    motion: object = None

@@ -1,0 +1,120 @@
+"""Moving loads (issue 10, seed 003): a force travelling along a path on a flexible body, against
+the closed-form modal series of the simply supported Euler-Bernoulli beam (Fryba 1972, ch. 1)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sidprep.beam import beam_options_from_table, beam_sid
+from sidprep.solver import ConstantSpeed, Fixed, FlexibleBody, PointForce, System
+
+ROOT = Path(__file__).resolve().parents[1]
+#: examples/moving_force: steel beam 15 m, 0.1 x 0.1 m, force 981 N (issue 10)
+L, B, E, RHO, P = 15.0, 0.1, 2.1e11, 7850.0, 981.0
+EI, MU = E * B**4 / 12, RHO * B * B
+#: critical speed c_cr = omega_1 L / pi = 31.3 m/s
+CRITICAL_SPEED = np.pi / L * np.sqrt(EI / MU)
+#: midspan deflection against the 201-mode series, fraction of its peak (issue: 1e-3; the 10
+#: kept modes miss 1.1e-4 of the series, generalised-alpha at h = 1 ms adds < 1e-4)
+FRYBA_RTOL = 1e-3
+#: energy: the force's work = kinetic + strain (no damping), fraction of the largest work
+MOVING_LOAD_ENERGY_RTOL = 1e-4
+
+
+def series_midspan(t, speed, modes=201):
+    """w(L/2, t) while the force -P at x = speed t is on the beam: sum over modes of
+    phi_j(L/2) eta_j, eta_j'' + omega_j^2 eta_j = -P phi_j(speed t), from rest (Fryba)."""
+    w = np.zeros_like(t)
+    for j in range(1, modes + 1):
+        omega = (j * np.pi / L) ** 2 * np.sqrt(EI / MU)
+        forced = j * np.pi * speed / L
+        eta = -P * np.sqrt(2 / (MU * L)) / (omega**2 - forced**2) * (np.sin(forced * t)
+                                                                    - forced / omega * np.sin(omega * t))
+        w += eta * np.sqrt(2 / (MU * L)) * np.sin(j * np.pi / 2)
+    return w
+
+
+def crossing(speed, t_end=None):
+    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": E, "nu": 0.3,
+                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10", "frames": [0.5],
+                                            "damping": 0.0}, "test"))
+    s = System(gravity=(0.0, 0.0, 0.0))
+    beam = s.add(FlexibleBody(sid, name="beam"))
+    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
+    beam.node_marker(2, name="midspan")
+    load = beam.path_marker("axis", ConstantSpeed(speed, 0.0), name="load")
+    s.add(PointForce(load, (0.0, 0.0, -P), name="P"))
+    return s.simulate(t_end or L / speed, h=1e-3, rho_inf=1.0)
+
+
+@pytest.mark.parametrize("speed", [10.0, 30.0])
+def test_moving_force_follows_the_closed_form_series(speed):
+    """Well below (0.32 c_cr) and near (0.96 c_cr) the critical speed."""
+    r = crossing(speed)
+    ref = series_midspan(r.t, speed)
+    z = r.markers["midspan"][:, 2]
+    assert np.max(np.abs(z - ref)) < FRYBA_RTOL * np.max(np.abs(ref))
+    assert np.max(np.abs(r.markers["load"][:, 0] - speed * r.t)) < 1e-9          # the load point on the axis
+    e = r.energy
+    assert np.max(np.abs(e["total"] - e["total"][0])) < MOVING_LOAD_ENERGY_RTOL * np.max(np.abs(e["external"]))
+    if speed > 0.9 * CRITICAL_SPEED:                                    # dynamic amplification near c_cr
+        assert np.max(np.abs(z)) > 1.4 * P * L**3 / (48 * EI)
+
+
+def test_a_load_off_its_path_does_no_work():
+    """After the force leaves the beam (t > L / c) the beam vibrates freely: the force's work
+    stays constant and kinetic + strain energy is conserved."""
+    r = crossing(30.0, t_end=1.0)
+    after = r.t > L / 30.0 + 1e-9
+    work = r.energy["external"][after]
+    assert np.ptp(work) < 1e-9 * np.max(np.abs(r.energy["external"]))
+    mech = (r.energy["kinetic"] + r.energy["strain"])[after]
+    assert np.ptp(mech) < MOVING_LOAD_ENERGY_RTOL * mech.max() and mech.max() > 1.0
+
+
+def test_the_beam_path_survives_the_sid_file(tmp_path):
+    from sidprep.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
+
+    sid = beam_sid(beam_options_from_table({"length": 2.0, "section": "rectangle:0.05,0.02", "bc": "pinned-free",
+                                            "modes": "xz:1-3,xy:1"}, "test"))
+    back = read_sid_hdf5(write_sid_hdf5(sid, tmp_path / "b.sid.h5"))
+    for name in ("s", "points", "phi", "psi"):
+        np.testing.assert_array_equal(getattr(back.paths["axis"], name), getattr(sid.paths["axis"], name))
+    import h5py
+
+    with h5py.File(tmp_path / "b.sid.h5", "r+") as f:       # a version-1 file (before paths) still reads
+        del f["paths"]
+        f.attrs["version"] = 1
+    assert read_sid_hdf5(tmp_path / "b.sid.h5").paths == {}
+
+
+def test_moving_force_example_short(tmp_path):
+    src = ROOT / "examples" / "moving_force"
+    for name in ("scene.toml", "analyse.py"):
+        shutil.copy(src / name, tmp_path / name)
+    r = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "simulate", "scene.toml", "--csv", "-q"],
+                       cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import analyse
+        out = analyse.main(str(tmp_path / "scene.csv"), plot=False)
+    finally:
+        sys.path.remove(str(tmp_path))
+        sys.modules.pop("analyse", None)
+    assert out["error_on_beam"] < FRYBA_RTOL and out["error_after_exit"] < FRYBA_RTOL
+
+
+def test_a_path_marker_on_a_rigid_body_is_a_one_line_error(tmp_path):
+    scene = (ROOT / "examples/moving_force/scene.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(scene.replace('path = "axis"', 'path = "rail"'))
+    r = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "simulate", str(bad), "-q"], capture_output=True,
+                       text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no path 'rail'" in r.stderr, r.stderr
