@@ -23,7 +23,7 @@ _PUBLIC = {
     "sidprep.solver.model.joints": ("Spherical", "Revolute", "Cylindrical", "Prismatic", "Planar", "Fixed",
                                     "JOINT_TYPES", "Driver", "ConstantSpeed", "SmoothStart", "TabulatedMotion"),
     "sidprep.solver.model.forces": ("PointForce", "PointTorque", "SpringDamper", "BumpStop", "bump_stop",
-                                    "JointForce", "JointFriction", "Table"),
+                                    "JointForce", "JointFriction", "MovingMass", "Table"),
     "sidprep.solver.effects": ("EFFECTS",),
     "sidprep.solver.integrators.settings": ("SolverSettings", "METHODS"),
     "sidprep.solver.results": ("Result", "BodyHistory", "JointHistory"),

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.effects import build_report, estimate_sizes, run_estimates
-from sidprep.solver.equations.assemble import energies, evaluate, markers
+from sidprep.solver.equations.assemble import energies, evaluate, markers, moving_masses
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 
@@ -51,6 +51,8 @@ def postprocess(run, s) -> Result:
         for mk, m in enumerate(all_markers):
             positions[m.name][k] = P[mk]
         kinetic, strain, grav = energies(L, R, A, Q, u, M)
+        _, mass_kinetic, mass_potential = moving_masses(L, R, A, Q, u, ud, t)
+        kinetic, grav = kinetic + mass_kinetic, grav + mass_potential
         energy["kinetic"][k], energy["strain"][k], energy["gravity"][k] = kinetic, strain, grav
         energy["spring"][k] = flows[2]
         energy["dissipated"][k] = s.work[k, 1]

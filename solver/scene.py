@@ -492,7 +492,7 @@ def _load_value(t: _Table, joints: dict):
 def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None:
     import sidprep.solver as api
 
-    kinds = ("point_force", "point_torque", "spring_damper", "joint_force", "joint_friction")
+    kinds = ("point_force", "point_torque", "spring_damper", "joint_force", "joint_friction", "moving_mass")
     for name, t in _subtables(file, root, "forces"):
         kind = t.string("type", choices=kinds)
         if kind in ("point_force", "point_torque"):
@@ -521,6 +521,12 @@ def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None
             element = api.JointForce(joint, stiffness=t.number("stiffness", 0.0), damping=t.number("damping", 0.0),
                                      reference=t.number("reference", 0.0), constant=t.number("constant", 0.0),
                                      name=name)
+        elif kind == "moving_mass":
+            try:
+                element = api.MovingMass(_lookup(t, "marker", markers, "marker"), t.number("mass", positive=True),
+                                         name=name)
+            except ValueError as exc:
+                t.fail("marker", str(exc).split(": ", 1)[-1].split("; ")[0], "give a marker with `path` and a motion")
         else:
             joint = _lookup(t, "joint", joints, "joint")
             try:

@@ -20,7 +20,13 @@ from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinat
                                                   stiffened_jacobian)
 from sidprep.solver.equations.curves import motion_state, path_shapes
 from sidprep.solver.equations.forces import curve_arrays, force_elements
-from sidprep.solver.equations.rotations import add, dot, jit, matmul, matvec, put, put2, tmatvec
+from sidprep.solver.equations.layout import FE_MOVING_MASS
+from sidprep.solver.equations.rotations import add, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
+
+#: time step of the second central difference giving a path point's convective acceleration, s
+PATH_GAMMA_STEP = 1e-5
+#: arc-length step of the central difference giving a path's tangent, m
+PATH_TANGENT_STEP = 1e-6
 
 
 @jit
@@ -39,6 +45,84 @@ def add_rows(B, r, col, c, jt, jr, which, w):  # pragma: no cover - compiled
     for a in range(3):
         for k in range(w):
             B[r, col + k] += c[2 * which, a] * jt[a, k] + c[2 * which + 1, a] * jr[a, k]
+
+
+@jit
+def path_point(curve_x, curve_c, curve_meta, first, r, a, q, s):  # pragma: no cover - compiled
+    """Inertial position (3,) of the point at arc length s of a path of a body at (r, a, q)."""
+    point, phi, psi, on = path_shapes(curve_x, curve_c, curve_meta, first, q.shape[0], s)
+    return r + matvec(a, point + matvec(phi, q))
+
+
+@jit
+def path_position(curve_x, curve_c, curve_meta, first, kind, par, cx, cc, r, a, q, u, t, tau):  # pragma: no cover
+    """Inertial position (3,) of a path marker's point after ``tau`` s along the motion of its
+    body at constant velocities u = [v_O, omega, qd] and of its arc length s(t + tau)."""
+    nq = q.shape[0]
+    s = motion_state(kind, par, cx, cc, t + tau)[0]
+    return path_point(curve_x, curve_c, curve_meta, first, r + tau * u[0:3], matmul(a, exp_so3(tau * u[3:6])),
+                      q + tau * u[6:6 + nq], s)
+
+
+@jit
+def path_acceleration(L, k, R, A, Q, u, t):  # pragma: no cover - compiled
+    """Acceleration (3,) of path marker k's point at zero accelerations of its body (the
+    convective part: s_ddot, s_dot^2, 2 s_dot Phi' qd, rotation), by the second central
+    difference of its position along the motion (step PATH_GAMMA_STEP s)."""
+    b = L.mk_body[k]
+    if L.mk_path[k, 1] >= 0:
+        cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
+    else:
+        cx, cc = np.zeros(2), np.zeros((1, 1))
+    q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
+    ub = u[L.uoff[b]:L.uoff[b + 1]].copy()
+    kind, par, first = int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], L.mk_path[k, 0]
+    e = PATH_GAMMA_STEP
+    plus = path_position(L.curve_x, L.curve_c, L.curve_meta, first, kind, par, cx, cc, R[b], A[b], q, ub, t, e)
+    mid = path_position(L.curve_x, L.curve_c, L.curve_meta, first, kind, par, cx, cc, R[b], A[b], q, ub, t, 0.0)
+    minus = path_position(L.curve_x, L.curve_c, L.curve_meta, first, kind, par, cx, cc, R[b], A[b], q, ub, t, -e)
+    return (plus - 2.0 * mid + minus) / (e * e)
+
+
+@jit
+def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
+    """(drive power W, kinetic energy J, gravity potential J) of the moving masses on their
+    paths (model/forces.py MovingMass): the drive that keeps s(t) does the work
+    m (a - g) . (s_dot tau) on the mass (tau = dr/ds, a = J ud + convective part); its kinetic
+    energy is 1/2 m |J u + s_dot tau|^2, of which the system mass matrix (m J^T J) holds
+    1/2 m |J u|^2, so the rest is returned; its potential is -m g . r.  Zeros off the path."""
+    power = kinetic = potential = 0.0
+    count = 0
+    for i in range(L.fe_int.shape[0]):
+        count += L.fe_int[i, 0] == FE_MOVING_MASS
+    if count == 0:
+        return power, kinetic, potential
+    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u, t, False)
+    for i in range(L.fe_int.shape[0]):
+        if L.fe_int[i, 0] != FE_MOVING_MASS:
+            continue
+        k, mass = L.fe_int[i, 1], L.fe_par[i, 0]
+        b = L.mk_body[k]
+        if L.mk_path[k, 1] >= 0:
+            cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
+        else:
+            cx, cc = np.zeros(2), np.zeros((1, 1))
+        s, s_dot, _ = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)
+        q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
+        first = L.mk_path[k, 0]
+        on = path_shapes(L.curve_x, L.curve_c, L.curve_meta, first, q.shape[0], s)[3]
+        if not on:
+            continue
+        d = PATH_TANGENT_STEP
+        tangent = (path_point(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s + d)
+                   - path_point(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s - d)) / (2.0 * d)
+        v_rel = s_dot * tangent
+        w = L.uoff[b + 1] - L.uoff[b]
+        accel = matvec(JT[k, :, :w], ud[L.uoff[b]:L.uoff[b + 1]]) + path_acceleration(L, k, R, A, Q, u, t)
+        power += mass * dot(accel - L.gravity, v_rel)
+        kinetic += mass * dot(v_rel, VEL[k]) + 0.5 * mass * dot(v_rel, v_rel)
+        potential -= mass * dot(L.gravity, P[k])
+    return power, kinetic, potential
 
 
 @jit
@@ -87,6 +171,8 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
                 cx, cc = np.zeros(2), np.zeros((1, 1))
             s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
             point, phi, psi, on = path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], nq, s)
+            if not on:  # beyond the path's ends: on its straight extension, rigidly
+                phi, psi = np.zeros_like(phi), np.zeros_like(psi)
             p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)
         else:
             p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
@@ -151,6 +237,19 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     loads = np.zeros((nmk, 6))
     flows = np.zeros(4)
     force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows)
+    for i in range(L.fe_int.shape[0]):  # moving masses: m J^T J in M, m (g - a_convective) at the point
+        if L.fe_int[i, 0] == FE_MOVING_MASS:
+            k, mass = L.fe_int[i, 1], L.fe_par[i, 0]
+            b = L.mk_body[k]
+            s0, w = uoff[b], uoff[b + 1] - uoff[b]
+            jt = JT[k, :, :w]
+            for r in range(w):
+                for c in range(w):
+                    acc = 0.0
+                    for a in range(3):
+                        acc += jt[a, r] * jt[a, c]
+                    M[s0 + r, s0 + c] += mass * acc
+            add(loads[k], 0, mass * (L.gravity - path_acceleration(L, k, R, A, Q, u, t)))
     for i in range(nb):
         if L.body_flags[i, F_DAMPING]:  # modal damping dissipates qd^T De qd
             qd = u[uoff[i] + 6:uoff[i + 1]]

@@ -17,12 +17,13 @@ from sidprep.solver.equations.body import (CR0, CR1, CT0, CT1, DE, F_CORIOLIS, F
                                            KS1, MD0, MD1, ME, N_FLAGS, N_TERMS, OE0, OE1, P2)
 from sidprep.solver.equations.constraints import ANGLE, NO_COORDINATE, SLIDE
 from sidprep.solver.equations.curves import CONSTANT_SPEED, SMOOTH_START, TABULATED
-from sidprep.solver.model.forces import JointForce, JointFriction, PointTorque, SpringDamper, Table, _MarkerLoad
+from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointTorque, SpringDamper, Table,
+                                         _MarkerLoad)
 from sidprep.solver.model.bodies import PathMarker
 from sidprep.solver.model.joints import ConstantSpeed, SmoothStart
 
 #: force element kinds (equations/forces.py)
-FE_FORCE, FE_TORQUE, FE_SPRING, FE_JOINT_FORCE, FE_FRICTION = range(5)
+FE_FORCE, FE_TORQUE, FE_SPRING, FE_JOINT_FORCE, FE_FRICTION, FE_MOVING_MASS = range(6)
 #: columns of the force-element tables
 FE_INT_COLUMNS, FE_PAR_COLUMNS = 6, 10
 
@@ -248,6 +249,8 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
             if fe.table is not None:
                 row[4] = curves.add_table(fe.table)
             par[:4] = fe.stiffness, fe.damping, fe.reference, fe.constant
+        elif isinstance(fe, MovingMass):
+            row[0], row[1], par[0] = FE_MOVING_MASS, mindex[id(fe.marker)], fe.mass
         elif isinstance(fe, JointFriction):
             row[0], row[3] = FE_FRICTION, jindex[id(fe.joint)]
             par[:4] = fe.mu, 1.0 if fe.joint.kind == "prismatic" else fe.radius, fe.preload, fe.regularisation

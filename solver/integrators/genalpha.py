@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.assemble import evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matvec, put, put2
 from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, advance_pose, expand, lu_factor, lu_solve,
                                              restrict, store_sample)
@@ -256,6 +256,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         for k in range(m):
             if kept[k] >= nrj:
                 flows[3] -= lamn[k] * coords[L.drv_joint[kept[k] - nrj], 1]
+        flows[3] += moving_masses(L, R, A, Q, u, ud, t)[0]  # the drives along paths (the converged ud)
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
@@ -296,6 +297,7 @@ class GeneralizedAlpha(Stepper):
         lam_full = np.zeros(problem.m_all)
         lam_full[problem.kept] = state.lam
         self.flows = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)[-1]
+        self.flows[3] += moving_masses(problem.L, state.R, state.A, state.Q, state.u, state.ud, state.t)[0]
         self.raw = np.zeros(10)
         self.raw[4], self.raw[7] = np.inf, settings.max_steps
 

@@ -181,4 +181,28 @@ class JointFriction:
         self.name = name or f"friction:{joint.name}"
 
 
-FORCE_ELEMENTS = (PointForce, PointTorque, SpringDamper, JointForce, JointFriction)
+class MovingMass:
+    """A point mass carried along a body path at the prescribed arc length s(t) of its
+    PathMarker (seed 003 section 2, a moving mass whose along-path motion is driven): its inertia
+    m (g - a) acts on the body at the path point, with the full acceleration a of that point
+    including the convective terms (2 s_dot Phi' q_dot, s_dot^2 (p'' + Phi'' q), s_ddot (p' + Phi' q)
+    and those of the body's rotation), and its mass joins the body's mass matrix (m J^T J).
+
+    Energy (generalised-alpha): the mass's kinetic energy 1/2 m |v|^2 and potential -m g . r
+    are in energy.kinetic / energy.gravity while it is on the path, and the work of the drive
+    that moves it along the path, m (a - g) . (s_dot dr/ds), is in energy.external.
+    """
+
+    def __init__(self, marker, mass: float, *, name: str | None = None):
+        from sidprep.solver.model.bodies import PathMarker
+
+        if not isinstance(marker, PathMarker):
+            raise ValueError(f"moving mass {name}: its marker '{marker.name}' is not a path marker; "
+                             "make one with FlexibleBody.path_marker")
+        if not mass > 0:
+            raise ValueError(f"moving mass {name}: mass must be > 0 kg, got {mass}")
+        self.marker, self.mass = marker, float(mass)
+        self.name = name or f"mass:{marker.name}"
+
+
+FORCE_ELEMENTS = (PointForce, PointTorque, SpringDamper, JointForce, JointFriction, MovingMass)
