@@ -20,7 +20,7 @@ import importlib
 _PUBLIC = {
     "sidprep.solver.model.system": ("System",),
     "sidprep.solver.model.bodies": ("Ground", "RigidBody", "FlexibleBody", "Marker", "PathMarker"),
-    "sidprep.solver.model.joints": ("Spherical", "Revolute", "Cylindrical", "Prismatic", "Planar", "Fixed",
+    "sidprep.solver.model.joints": ("Spherical", "Revolute", "Cylindrical", "Prismatic", "Planar", "Fixed", "OnPath",
                                     "JOINT_TYPES", "Driver", "ConstantSpeed", "SmoothStart", "TabulatedMotion"),
     "sidprep.solver.model.forces": ("PointForce", "PointTorque", "SpringDamper", "BumpStop", "bump_stop",
                                     "JointForce", "JointFriction", "MovingMass", "Table"),

@@ -374,7 +374,8 @@ def _markers(file: Path, root: dict, system) -> dict:
             if on_node or t.has("position"):
                 t.fail("path", "given together with a node or position", "a path marker's position is s(t) on the path")
             try:
-                m = body.path_marker(t.string("path"), _motion(t), rotation=rotation, name=name)
+                m = body.path_marker(t.string("path"), _motion(t) if t.has("motion") else None, rotation=rotation,
+                                     name=name)
             except ValueError as exc:
                 t.fail("path", str(exc).split("; ")[0], str(exc).split("; ")[-1])
         elif on_node:
@@ -439,6 +440,12 @@ def _joints(file: Path, root: dict, system, markers: dict) -> dict:
             t.fail("initial", f"a {cls.kind} joint has no coordinate to start from",
                    "give initial / initial_rate on a revolute, cylindrical or prismatic joint")
         t.finish()
+        if cls.kind == "on_path":
+            try:
+                joints[name] = system.add(cls(m1, m2, name=name))
+            except ValueError as exc:
+                t.fail("markers", str(exc).split(": ", 1)[-1], "see docs/scenes.md, path markers")
+            continue
         joints[name] = system.add(cls(m1, m2, name=name, initial=initial, initial_rate=rate))
     return joints
 
@@ -644,8 +651,9 @@ def _absolute_nodal_scene(path: Path, root: dict, text: str, t_end: float | None
                  sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams})
 
 
-def simulate(scene: Scene):
-    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> sidprep.solver.Result.
+def simulate(scene: Scene, **overrides):
+    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> sidprep.solver.Result,
+    with ``overrides`` of those keyword arguments (e.g. t_end, h; None keeps the scene's).
 
     The solver's own InputErrors (e.g. Newton failure, joints that cannot close) are re-raised
     with the scene file named first.
@@ -653,7 +661,8 @@ def simulate(scene: Scene):
     try:
         if isinstance(scene.system, AbsoluteNodalModel):
             return simulate_absolute_nodal(scene.system, scene.simulate_kwargs["settings"])
-        return scene.system.simulate(**scene.simulate_kwargs)
+        given = {key: value for key, value in overrides.items() if value is not None}
+        return scene.system.simulate(**{**scene.simulate_kwargs, **given})
     except SimulationFailed as exc:
         raise SimulationFailed(f"{scene.path}: {exc}", exc.result) from None
     except InputError as exc:

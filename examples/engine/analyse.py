@@ -16,7 +16,7 @@ import numpy as np
 
 import sidprep
 from sidprep.solver.linear import mechanism_modes
-from sidprep.solver.scene import load_scene
+from sidprep.solver.scene import load_scene, simulate
 
 HERE = Path(__file__).resolve().parent
 #: spectra: frequencies below this are the crank-speed harmonics (forced, quasi-static), Hz
@@ -79,10 +79,7 @@ def spectrum_peak(t, x, f_min=FREE_VIBRATION_HZ) -> float:
 
 def run(scene_file, t_end=None):
     scene = load_scene(scene_file)
-    kw = dict(scene.simulate_kwargs)
-    if t_end:
-        kw["t_end"] = t_end
-    return scene, scene.system.simulate(**kw)
+    return scene, simulate(scene, t_end=t_end)
 
 
 def main(t_end=None, plot=True, folder=HERE) -> dict:

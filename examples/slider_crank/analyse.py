@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.solver.scene import load_scene
+from sidprep.solver.scene import load_scene, simulate
 
 HERE = Path(__file__).resolve().parent
 #: crank radius and conrod length between the pins, m (the scene's geometry)
@@ -60,11 +60,7 @@ def bookkeeping(result) -> dict:
 
 def main(t_end=None, plot=True, folder=HERE) -> dict:
     """The README's numbers (a dict) for the scene in ``folder``."""
-    scene = load_scene(Path(folder) / "scene.toml")
-    kw = dict(scene.simulate_kwargs)
-    if t_end:
-        kw["t_end"] = t_end
-    r = scene.system.simulate(**kw)
+    r = simulate(load_scene(Path(folder) / "scene.toml"), t_end=t_end)
     x = r.joints["slider_joint"].coordinate + r.markers["guide"][:, 0]
     deviation = x - rigid_slider(r.joints["crank_joint"].coordinate)
     out = {**bookkeeping(r),

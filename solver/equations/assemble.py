@@ -21,12 +21,14 @@ from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinat
 from sidprep.solver.equations.curves import motion_state, path_shapes
 from sidprep.solver.equations.forces import curve_arrays, force_elements
 from sidprep.solver.equations.layout import FE_MOVING_MASS
-from sidprep.solver.equations.rotations import add, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
+from sidprep.solver.equations.rotations import add, align, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
 
 #: time step of the second central difference giving a path point's convective acceleration, s
 PATH_GAMMA_STEP = 1e-5
 #: arc-length step of the central difference giving a path's tangent, m
 PATH_TANGENT_STEP = 1e-6
+#: Newton steps projecting a point onto a path (from the nearest sample; quadratic convergence)
+PROJECTION_ITERATIONS = 3
 
 
 @jit
@@ -50,8 +52,33 @@ def add_rows(B, r, col, c, jt, jr, which, w):  # pragma: no cover - compiled
 @jit
 def path_point(curve_x, curve_c, curve_meta, first, r, a, q, s):  # pragma: no cover - compiled
     """Inertial position (3,) of the point at arc length s of a path of a body at (r, a, q)."""
-    point, phi, psi, on = path_shapes(curve_x, curve_c, curve_meta, first, q.shape[0], s)
+    point, phi = path_shapes(curve_x, curve_c, curve_meta, first, q.shape[0], s)[:2]
     return r + matvec(a, point + matvec(phi, q))
+
+
+@jit
+def projected_arc(curve_x, curve_c, curve_meta, first, r, a, q, target):  # pragma: no cover - compiled
+    """Arc length s (m) of the point of a path (of a body at r, a, q) nearest to ``target``
+    (3,): the undeformed sample nearest to it in the body frame, then Newton on
+    tau(s) . (target - point(s)) = 0 on the deformed path."""
+    meta = curve_meta[first]
+    x = curve_x[meta[0]:meta[0] + meta[1]]
+    local = tmatvec(a, target - r)
+    best, s = np.inf, x[0]
+    for i in range(x.shape[0] - 1):  # the sample points are the cubic pieces' constant terms
+        d2 = 0.0
+        for comp in range(3):
+            m = curve_meta[first + comp]
+            d2 += (local[comp] - curve_c[m[2] + 3 * (m[1] - 1) + i]) ** 2
+        if d2 < best:
+            best, s = d2, x[i]
+    h = PATH_TANGENT_STEP
+    for _ in range(PROJECTION_ITERATIONS):
+        point = path_point(curve_x, curve_c, curve_meta, first, r, a, q, s)
+        tangent = (path_point(curve_x, curve_c, curve_meta, first, r, a, q, s + h)
+                   - path_point(curve_x, curve_c, curve_meta, first, r, a, q, s - h)) / (2.0 * h)
+        s += dot(tangent, target - point) / dot(tangent, tangent)
+    return s
 
 
 @jit
@@ -152,8 +179,9 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
     JTF = np.zeros((nmk, 3, wmax)) if stiffened else JT
     JRF = np.zeros((nmk, 3, wmax)) if stiffened else JR
     shapes = L.shapes
-    for k in range(nmk):
-        if not (every or L.mk_active[k]):
+    for sweep in range(2 * nmk):  # markers that follow a partner on their path (OnPath) after the others
+        k = sweep % nmk
+        if not (every or L.mk_active[k]) or (L.mk_path[k, 2] >= 0) != (sweep >= nmk):
             continue
         b = L.mk_body[k]
         if b < 0:
@@ -165,15 +193,23 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
         q = Q[qoff[b]:qoff[b + 1]].copy()
         on = True
         if L.mk_path[k, 0] >= 0:  # moving along a path: its point and shapes at s(t)
-            if L.mk_path[k, 1] >= 0:
-                cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
+            if L.mk_path[k, 2] >= 0:
+                s = projected_arc(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], R[b], A[b], q,
+                                  P[L.mk_path[k, 2]])
             else:
-                cx, cc = np.zeros(2), np.zeros((1, 1))
-            s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
-            point, phi, psi, on = path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], nq, s)
+                if L.mk_path[k, 1] >= 0:
+                    cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
+                else:
+                    cx, cc = np.zeros(2), np.zeros((1, 1))
+                s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
+            point, phi, psi, on, dpoint, dphi = path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0],
+                                                            nq, s)
             if not on:  # beyond the path's ends: on its straight extension, rigidly
-                phi, psi = np.zeros_like(phi), np.zeros_like(psi)
+                phi, psi, dphi = np.zeros_like(phi), np.zeros_like(psi), np.zeros_like(dphi)
             p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)
+            tangent = dpoint + matvec(dphi, q)  # turned with the path: undeformed -> deformed tangent
+            rot = matmul(A[b], matmul(align(dpoint / np.sqrt(dot(dpoint, dpoint)),
+                                            tangent / np.sqrt(dot(tangent, tangent))), L.mk_rot[k]))
         else:
             p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
                                                   shapes[o:o + 3 * nq].reshape((3, nq)),

@@ -65,11 +65,13 @@ def motion_state(kind, params, x, c, t):  # pragma: no cover - compiled
 @jit
 def path_shapes(curve_x, curve_c, curve_meta, first, nq, s):  # pragma: no cover - compiled
     """Point (3,), Phi (3, nq), Psi (3, nq) of a path (layout.add_path: 3 + 6 nq cubic curves
-    from curve ``first`` on one grid of s) at arc length s (m), and whether s is on the path
-    (beyond its ends the end pieces are extrapolated; callers drop the load there)."""
+    from curve ``first`` on one grid of s) at arc length s (m), whether s is on the path
+    (beyond its ends the end pieces are extrapolated; callers drop the load there), and the
+    s-derivatives of the point and of Phi (the deformed tangent is dpoint + dphi q)."""
     meta = curve_meta[first]
     x = curve_x[meta[0]:meta[0] + meta[1]]
     point, phi, psi = np.zeros(3), np.zeros((3, nq)), np.zeros((3, nq))
+    dpoint, dphi = np.zeros(3), np.zeros((3, nq))
     on = x[0] <= s <= x[-1]
     lo, hi = 0, x.shape[0] - 2
     while lo < hi:  # the piece [x_lo, x_lo+1] holding s (the end pieces beyond the ends)
@@ -83,10 +85,12 @@ def path_shapes(curve_x, curve_c, curve_meta, first, nq, s):  # pragma: no cover
         m = curve_meta[first + comp]
         c = curve_c[m[2]:m[2] + 4 * (m[1] - 1)].reshape((4, m[1] - 1))
         value = ((c[0, lo] * d + c[1, lo]) * d + c[2, lo]) * d + c[3, lo]
+        slope = (3.0 * c[0, lo] * d + 2.0 * c[1, lo]) * d + c[2, lo]
         if comp < 3:
-            point[comp] = value
+            point[comp], dpoint[comp] = value, slope
         elif comp < 3 + 3 * nq:
             phi[(comp - 3) // nq, (comp - 3) % nq] = value
+            dphi[(comp - 3) // nq, (comp - 3) % nq] = slope
         else:
             psi[(comp - 3 - 3 * nq) // nq, (comp - 3 - 3 * nq) % nq] = value
-    return point, phi, psi, on
+    return point, phi, psi, on, dpoint, dphi

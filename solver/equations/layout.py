@@ -198,12 +198,16 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
     mk_pos = np.array([m.position for m in markers], dtype=float).reshape(-1, 3)
     mk_rot = np.array([m.rotation for m in markers], dtype=float).reshape(-1, 3, 3)
     curves = _Curves()
-    mk_path = np.full((len(markers), 2), -1, dtype=np.int64)     # [first path curve, motion curve]
+    mk_path = np.full((len(markers), 3), -1, dtype=np.int64)     # [first path curve, motion curve, partner]
     mk_motion = np.zeros((len(markers), 4))                       # [kind, start, speed, ramp_time]
+    partners = {id(j.marker1): mindex[id(j.marker2)] for j in system.joints if j.kind == "on_path"}
     for k, m in enumerate(markers):
         if isinstance(m, PathMarker):
-            kind, par, mk_path[k, 1] = motion_row(m.motion, curves)
-            mk_motion[k, 0], mk_motion[k, 1:] = kind, par
+            if m.motion is None:  # follows its OnPath partner (System.check)
+                mk_path[k, 2] = partners[id(m)]
+            else:
+                kind, par, mk_path[k, 1] = motion_row(m.motion, curves)
+                mk_motion[k, 0], mk_motion[k, 1:] = kind, par
             mk_path[k, 0] = add_path(m.path, curves)
 
     joints = system.joints

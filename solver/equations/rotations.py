@@ -122,6 +122,15 @@ def exp_so3(theta: np.ndarray) -> np.ndarray:
 
 
 @jit
+def align(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking the unit vector a to the unit vector b (a . b > -1):
+    E + v~ + v~^2 / (1 + a . b), v = a x b; (3,), (3,) -> (3, 3)."""
+    v = cross(a, b)
+    vv = skew(v)
+    return np.eye(3) + vv + matmul(vv, vv) / (1.0 + dot(a, b))
+
+
+@jit
 def quaternion_to_matrix(e: np.ndarray) -> np.ndarray:
     """Rotation matrix of the (normalised on the fly) quaternion e = [e0, e1, e2, e3]."""
     norm = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2] + e[3] * e[3])

@@ -323,11 +323,14 @@ class FlexibleBody(_MassBody):
         self.markers.append(m)
         return m
 
-    def path_marker(self, path: str, motion, *, rotation=None, name: str | None = None) -> "PathMarker":
+    def path_marker(self, path: str, motion=None, *, rotation=None, name: str | None = None) -> "PathMarker":
         """A marker moving along the SID path ``path`` (SID.paths, e.g. "axis" of a Beam) at arc
-        length s(t) given by ``motion`` (ConstantSpeed, SmoothStart or TabulatedMotion, s in m):
-        position p(s) + Phi(s) q, orientation A R(Psi(s) q) R_m (``rotation``, default E).
-        Off the path (s outside its range) it carries no load."""
+        length s(t) given by ``motion`` (ConstantSpeed, SmoothStart or TabulatedMotion, s in m),
+        or, without a motion, at the projection of its OnPath joint partner onto the deformed
+        path: position p(s) + Phi(s) q, orientation A T(s, q) R_m with T the smallest rotation
+        from the undeformed to the deformed path tangent (``rotation`` R_m, default E; an OnPath
+        joint needs the marker's z axis along the path). Off the path (s outside its range) it
+        carries no load."""
         if path not in self.sid.paths:
             have = ", ".join(self.sid.paths) or "none (an analytical Beam has the path 'axis')"
             raise ValueError(f"body '{self.name}' has no path {path!r}; its SID has: {have}")

@@ -38,6 +38,7 @@ _ROWS = {
     "prismatic": (("p", 0, None), ("p", 1, None), ("a", 0, 2), ("a", 1, 2), ("a", 0, 1)),
     "planar": (("p", 2, None), ("a", 2, 0), ("a", 2, 1)),
     "fixed": (("p", 0, None), ("p", 1, None), ("p", 2, None), ("a", 0, 2), ("a", 1, 2), ("a", 0, 1)),
+    "on_path": (("p", 0, None), ("p", 1, None)),
 }
 
 #: joint coordinate kinds: rotation about z (angle) and / or translation along z
@@ -113,7 +114,23 @@ class Fixed(Joint):
     kind = "fixed"
 
 
-JOINT_TYPES = {cls.kind: cls for cls in (Spherical, Revolute, Cylindrical, Prismatic, Planar, Fixed)}
+class OnPath(Joint):
+    """Marker 2 slides freely along the path of marker 1, a path marker without a motion (its
+    arc length s is the projection of marker 2 onto the deformed path; seed 003 eq. 30): the
+    two position rows across the path (2 rows; marker 1's z axis is the path tangent)."""
+
+    kind = "on_path"
+
+    def __init__(self, marker1, marker2, name: str | None = None):
+        from sidprep.solver.model.bodies import PathMarker
+
+        if not isinstance(marker1, PathMarker) or marker1.motion is not None:
+            raise ValueError(f"on_path joint {name}: marker 1 must be a path marker without a motion "
+                             "(FlexibleBody.path_marker(path) with motion=None)")
+        super().__init__(marker1, marker2, name)
+
+
+JOINT_TYPES = {cls.kind: cls for cls in (Spherical, Revolute, Cylindrical, Prismatic, Planar, Fixed, OnPath)}
 
 
 # ---------------------------------------------------------------------------- motion profiles

@@ -68,7 +68,8 @@ class System:
         return [m for b in [self.ground] + self.bodies for m in b.markers]
 
     def check(self) -> None:
-        """ValueError when a joint, driver or force uses a body that was not added."""
+        """ValueError when a joint, driver or force uses a body that was not added, or a path
+        marker without a motion has no OnPath joint to follow."""
         known = {id(b) for b in self.bodies} | {id(self.ground)}
         for item in self.joints + self.drivers + self.forces:
             for name in ("marker", "marker1", "marker2"):
@@ -78,6 +79,11 @@ class System:
             joint = getattr(item, "joint", None) or getattr(item, "argument", None)
             if joint is not None and joint not in self.joints:
                 raise ValueError(f"'{item.name}': joint '{joint.name}' is not added to the system")
+        followed = {id(j.marker1) for j in self.joints if j.kind == "on_path"}
+        for m in self.markers():
+            if getattr(m, "path", None) is not None and m.motion is None and id(m) not in followed:
+                raise ValueError(f"path marker '{m.name}' has no motion and no OnPath joint to follow; give it a "
+                                 "motion or join a body to it with OnPath")
 
     def simulate(self, t_end: float, settings=None, **overrides):
         """Integrate from t = 0 to t_end and return the Result (solver/results.py).
