@@ -23,19 +23,30 @@ ALONG_X = np.array([0.0, np.pi / 2, 0.0])  # rotation vector taking z to x
 
 @pytest.mark.parametrize("kind", sorted(JOINT_TYPES))
 def test_constraint_rows_are_the_time_derivative_of_g(kind):
-    """B u + b_t equals dg/dt along the motion (central differences of the compiled g)."""
+    """B u + b_t equals dg/dt along the motion (central differences of the compiled g); on_path:
+    a rigid body sliding along the axis of a Beam (a path marker following it)."""
     rng = np.random.default_rng(7)
     s = System(gravity=(0, 0, 0))
-    b1 = s.add(RigidBody(1.0, name="b1", position=rng.normal(size=3), rotation=rng.normal(size=3)))
-    b2 = s.add(RigidBody(1.0, name="b2", position=rng.normal(size=3), rotation=rng.normal(size=3)))
-    joint = s.add(JOINT_TYPES[kind](b1.marker(rng.normal(size=3), rng.normal(size=3)),
-                                    b2.marker(rng.normal(size=3), rng.normal(size=3))))
+    if kind == "on_path":
+        from sidprep.beam import beam_options_from_table, beam_sid
+
+        beam = s.add(FlexibleBody(beam_sid(beam_options_from_table(
+            {"length": 2.0, "section": "rectangle:0.05,0.02", "bc": "pinned-pinned", "modes": "xz:1-3,xy:1"}, "t")),
+            name="beam", q0=rng.normal(size=4) * 1e-3, rotation=rng.normal(size=3) * 0.3))
+        marker1 = beam.path_marker("axis", rotation=ALONG_X)
+        b2 = s.add(RigidBody(1.0, name="b2", position=beam.rotation0 @ np.array([0.7, 0.0, 0.0]),
+                             rotation=rng.normal(size=3)))
+    else:
+        b1 = s.add(RigidBody(1.0, name="b1", position=rng.normal(size=3), rotation=rng.normal(size=3)))
+        marker1 = b1.marker(rng.normal(size=3), rng.normal(size=3))
+        b2 = s.add(RigidBody(1.0, name="b2", position=rng.normal(size=3), rotation=rng.normal(size=3)))
+    joint = s.add(JOINT_TYPES[kind](marker1, b2.marker(rng.normal(size=3) * 0.01, rng.normal(size=3))))
     if joint.coordinate_kind:
         s.add(Driver(joint, ConstantSpeed(0.3)))
     run = Run(s, 1.0, SolverSettings())
     R, A, Q, _ = run.initial_positions()
     R, A, Q = assemble_positions(run.L, R, A, Q, 0.5, run.refs, run.kept, run.weights, run.names, run.length)
-    u = rng.normal(size=12)
+    u = rng.normal(size=int(run.L.uoff[-1]))
     lam = np.zeros(len(run.names))
     out = evaluate(run.L, R, A, Q, u, 0.5, lam, run.refs)
     eps = 1e-6
