@@ -23,6 +23,9 @@ def add_reduce_arguments(p) -> None:
     p.add_argument("--frm-nodes", action="append", metavar="NODESET",
                    help="extra FRM load nodes: every node of this node set gets unit x, y, z forces (repeat)")
     p.add_argument("--cutoff-factor", type=float, help="FRM cut-off / highest frequency of interest (default 5)")
+    p.add_argument("--path", dest="paths", action="append", metavar="NAME:x0,y0,z0:x1,y1,z1[:n]",
+                   help="a straight path through the body (m, mesh coordinates) along which loads move; its mode "
+                        "shapes are interpolated from the full FE modes and stored in the SID (repeat)")
     d = p.add_mutually_exclusive_group()
     d.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
     d.add_argument("--rayleigh", type=float, nargs=2, metavar=("ALPHA", "BETA"),
