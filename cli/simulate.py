@@ -68,7 +68,7 @@ def animation_surfaces(scene) -> dict:
     surfaces = {}
     for b in getattr(scene.system, "bodies", ()):          # absolute-nodal beams carry no surface
         src = scene.sources[b.name]
-        if src["kind"] == "flexible":
+        if src["kind"] in ("flexible", "beam"):
             surfaces[b.name] = sid_surface(b.sid)
         elif src["source"]:
             surfaces[b.name] = obj_surface(src["source"])

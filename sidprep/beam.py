@@ -27,7 +27,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.material import Material, builtin_material, material_from_options
-from sidprep.sid import SID, BodyPath, eigen_label, sid_invariants
+from sidprep.sid import SID, BodyPath, SurfaceModes, eigen_label, sid_invariants
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "pinned-pinned", "pinned-free",
                        "clamped-pinned", "clamped-clamped")
@@ -43,6 +43,8 @@ MIN_SEGMENTS = 16
 #: samples of the axis path (SID.paths["axis"]) per half-wave of the shortest kept form: the
 #: solver's cubic spline through them is exact to ~1e-7 of the form's amplitude
 PATH_POINTS_PER_WAVE, PATH_MIN_POINTS = 32, 101
+#: stations of the animation surface (SID.surface) per half-wave of the shortest form
+SURFACE_STATIONS_PER_WAVE, SURFACE_MIN_STATIONS = 8, 21
 
 
 # ------------------------------------------------------------------------------------------------
@@ -389,7 +391,31 @@ def beam_sid(options: BeamOptions) -> SID:
     sid = sid_invariants(X, Ms, U.reshape(-1, nq), nodes, labels=labels, frequencies_hz=f_hz,
                          mode_kinds=("eigen",) * nq, Ke=np.diag(omega ** 2),
                          De=np.diag(2 * zeta * omega), stiffening=stiff, metadata=meta)
-    return replace(sid, paths={"axis": axis_path(forms, L)})
+    depth_y, depth_z = math.sqrt(12 * Iz / A), math.sqrt(12 * Iy / A)
+    return replace(sid, paths={"axis": axis_path(forms, L)}, surface=beam_surface(forms, L, depth_y, depth_z))
+
+
+def beam_surface(forms, L: float, depth_y: float, depth_z: float) -> SurfaceModes:
+    """A box along the axis for the animation, the rectangle with the section's radii of gyration
+    (depths sqrt(12 I / A)); its corners move with the forms as the section's rigid motion,
+    u = phi(x) + psi(x) x (0, y, z)."""
+    half_waves = max(f.curvature_wave for f in forms) * L / math.pi
+    xs = np.linspace(0.0, L, max(SURFACE_MIN_STATIONS, int(math.ceil(SURFACE_STATIONS_PER_WAVE * half_waves)) + 1))
+    corners = 0.5 * np.array([[-depth_y, -depth_z], [depth_y, -depth_z], [depth_y, depth_z], [-depth_y, depth_z]])
+    points = np.array([[x, y, z] for x in xs for y, z in corners])
+    shapes = np.zeros((len(points), 3, len(forms)))
+    for i, x in enumerate(xs):
+        phi, psi = _node_shapes(forms, x)
+        for c, (y, z) in enumerate(corners):
+            shapes[4 * i + c] = phi + np.cross(psi.T, np.array([0.0, y, z])).T
+    tri = []
+    for i in range(len(xs) - 1):  # four sides of each segment, outward normals
+        for c in range(4):
+            a, b, a2, b2 = 4 * i + c, 4 * i + (c + 1) % 4, 4 * (i + 1) + c, 4 * (i + 1) + (c + 1) % 4
+            tri += [(a, b, b2), (a, b2, a2)]
+    last = 4 * (len(xs) - 1)
+    tri += [(0, 2, 1), (0, 3, 2), (last, last + 1, last + 2), (last, last + 2, last + 3)]
+    return SurfaceModes(points, np.array(tri, dtype=np.int64), shapes, np.arange(1, len(points) + 1))
 
 
 def axis_path(forms, L: float) -> BodyPath:
