@@ -359,3 +359,36 @@ def test_robotic_portal_short(tmp_path):
     out = an.main(t_end=9.2, plot=False, folder=tmp_path)
     assert abs(out["r1_dwell_deflection_mm"] / out["r1_dwell_closed_form_mm"] - 1) < PORTAL_DWELL_RTOL
     assert 3.0 < out["beam_deformation_mm"]["runway_a"] < 6.0 and out["states"] == 36
+
+
+#: a mass launched along a stiff beam (E 7e12 Pa, its own weight switched off, so only the mass's
+#: dent of ~1 mm tilts the path) with Coulomb friction: the stopping distance v0^2 / (2 mu g),
+#: fraction (measured 4.4e-4: the dent's slope, 3e-4 rad, against mu = 0.2; the regularisation)
+FRICTION_DISTANCE_RTOL = 0.01
+#: energy with friction: kinetic + strain + gravity + dissipated, against the largest change
+#: (measured 5e-8 at h = 1 ms, 5e-6 at 0.5 ms: the regularised stop is stiff)
+FRICTION_ENERGY_RTOL = 1e-4
+
+
+def test_a_sliding_mass_with_coulomb_friction_stops_after_v0_squared_over_2_mu_g():
+    from sidprep.solver import JointFriction, OnPath, RigidBody
+
+    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": 7e12, "nu": 0.3,
+                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10",
+                                            "damping": 0.0}, "test"))
+    v0, mu = 3.0, 0.2
+    s = System(gravity=(0.0, 0.0, -G))
+    beam = s.add(FlexibleBody(sid, name="beam", effects=["coupling", "coriolis", "centrifugal"]))   # no own weight
+    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
+    along_x = np.array([0.0, np.pi / 2, 0.0])
+    rail = beam.path_marker("axis", rotation=along_x, name="rail")
+    mass = s.add(RigidBody(100.0, inertia=[1e-2, 1e-2, 1e-2], name="mass", position=(4.0, 0.0, 0.0),
+                           velocity=(v0, 0.0, 0.0)))
+    slide = s.add(OnPath(rail, mass.marker(rotation=along_x), name="slide"))
+    s.add(JointFriction(slide, mu, regularisation=1e-3))
+    r = s.simulate(2.5, h=1e-3, rho_inf=1.0, static_start=True)
+    x = r.bodies["mass"].position[:, 0]
+    assert abs((x[-1] - 4.0) / (v0**2 / (2 * mu * G)) - 1) < FRICTION_DISTANCE_RTOL
+    e = r.energy
+    scale = max(np.ptp(e["kinetic"]), np.ptp(e["dissipated"]))
+    assert np.max(np.abs(e["total"] - e["total"][0])) < FRICTION_ENERGY_RTOL * scale

@@ -257,7 +257,7 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
             row[0], row[1], par[0] = FE_MOVING_MASS, mindex[id(fe.marker)], fe.mass
         elif isinstance(fe, JointFriction):
             row[0], row[3] = FE_FRICTION, jindex[id(fe.joint)]
-            par[:4] = fe.mu, 1.0 if fe.joint.kind == "prismatic" else fe.radius, fe.preload, fe.regularisation
+            par[:4] = fe.mu, 1.0 if fe.joint.kind in ("prismatic", "on_path") else fe.radius, fe.preload, fe.regularisation
     cx, cc, cmeta, cper = curves.arrays()
     return Layout(qoff, uoff, np.asarray(system.gravity, float), body_F, body_off, body_flags, body_mass,
                   mk_body, mk_pos, mk_rot, mk_shape, mk_k0, mk_active, mk_path, mk_motion,

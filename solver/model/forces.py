@@ -160,7 +160,7 @@ class JointForce:
 
 
 class JointFriction:
-    """Regularised Coulomb friction in a revolute/cylindrical (torque) or prismatic (force) joint.
+    """Regularised Coulomb friction in a revolute/cylindrical (torque) or prismatic / on_path (force) joint.
 
     Friction = -mu N arm tanh(x_dot / regularisation), with N the magnitude of the joint's
     transverse reaction (the multipliers of its two transverse position rows) plus ``preload``
@@ -170,9 +170,9 @@ class JointFriction:
 
     def __init__(self, joint: Joint, mu: float, *, radius: float = 0.0, preload: float = 0.0,
                  regularisation: float = 1e-3, name: str | None = None):
-        if joint.kind not in ("revolute", "cylindrical", "prismatic"):
-            raise ValueError(f"friction needs a revolute, cylindrical or prismatic joint, got {joint.kind}")
-        if joint.kind != "prismatic" and radius <= 0:
+        if joint.kind not in ("revolute", "cylindrical", "prismatic", "on_path"):
+            raise ValueError(f"friction needs a revolute, cylindrical, prismatic or on_path joint, got {joint.kind}")
+        if joint.kind in ("revolute", "cylindrical") and radius <= 0:
             raise ValueError(f"friction in rotational joint '{joint.name}' needs radius > 0 (m)")
         if regularisation <= 0:
             raise ValueError(f"friction in joint '{joint.name}': regularisation must be > 0 (rad/s or m/s)")

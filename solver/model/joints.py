@@ -42,7 +42,7 @@ _ROWS = {
 }
 
 #: joint coordinate kinds: rotation about z (angle) and / or translation along z
-_COORDINATE = {"revolute": "angle", "cylindrical": "angle", "prismatic": "slide"}
+_COORDINATE = {"revolute": "angle", "cylindrical": "angle", "prismatic": "slide", "on_path": "slide"}
 
 
 class Joint:
@@ -117,7 +117,9 @@ class Fixed(Joint):
 class OnPath(Joint):
     """Marker 2 slides freely along the path of marker 1, a path marker without a motion (its
     arc length s is the projection of marker 2 onto the deformed path; seed 003 eq. 30): the
-    two position rows across the path (2 rows; marker 1's z axis is the path tangent)."""
+    two position rows across the path (2 rows; marker 1's z axis is the path tangent).  Its
+    coordinate is the slide along the tangent from the contact point (~0; its rate is the
+    sliding speed relative to the body's material there, which JointFriction uses)."""
 
     kind = "on_path"
 
@@ -176,8 +178,9 @@ class Driver:
     nrows = 1
 
     def __init__(self, joint: Joint, motion, name: str | None = None):
-        if joint.coordinate_kind is None:
-            raise ValueError(f"driver on joint '{joint.name}': a {joint.kind} joint has no coordinate")
+        if joint.coordinate_kind is None or joint.kind == "on_path":
+            raise ValueError(f"driver on joint '{joint.name}': a {joint.kind} joint has no coordinate to drive"
+                             + ("; move a path marker by its motion instead" if joint.kind == "on_path" else ""))
         if not isinstance(motion, MOTIONS):
             raise ValueError(f"driver on joint '{joint.name}': the motion must be a ConstantSpeed, SmoothStart or "
                              f"TabulatedMotion, got {type(motion).__name__}")
