@@ -19,7 +19,7 @@ from sidprep.solver.equations.body import DE, F_DAMPING, body_equations, body_po
 from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_kinematics,
                                                   stiffened_jacobian)
 from sidprep.solver.equations.curves import motion_state, path_shapes
-from sidprep.solver.equations.forces import curve_arrays, force_elements
+from sidprep.solver.equations.forces import force_elements, motion_curve
 from sidprep.solver.equations.layout import FE_MOVING_MASS
 from sidprep.solver.equations.rotations import add, align, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
 
@@ -97,10 +97,7 @@ def path_acceleration(L, k, R, A, Q, u, t):  # pragma: no cover - compiled
     convective part: s_ddot, s_dot^2, 2 s_dot Phi' qd, rotation), by the second central
     difference of its position along the motion (step PATH_GAMMA_STEP s)."""
     b = L.mk_body[k]
-    if L.mk_path[k, 1] >= 0:
-        cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
-    else:
-        cx, cc = np.zeros(2), np.zeros((1, 1))
+    cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
     q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
     ub = u[L.uoff[b]:L.uoff[b + 1]].copy()
     kind, par, first = int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], L.mk_path[k, 0]
@@ -130,10 +127,7 @@ def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
             continue
         k, mass = L.fe_int[i, 1], L.fe_par[i, 0]
         b = L.mk_body[k]
-        if L.mk_path[k, 1] >= 0:
-            cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
-        else:
-            cx, cc = np.zeros(2), np.zeros((1, 1))
+        cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
         s, s_dot, _ = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)
         q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
         first = L.mk_path[k, 0]
@@ -197,10 +191,7 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
                 s = projected_arc(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], R[b], A[b], q,
                                   P[L.mk_path[k, 2]])
             else:
-                if L.mk_path[k, 1] >= 0:
-                    cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
-                else:
-                    cx, cc = np.zeros(2), np.zeros((1, 1))
+                cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
                 s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
             point, phi, psi, on, dpoint, dphi = path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0],
                                                             nq, s)
@@ -314,10 +305,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         joint_rows(L.jrows[r0:r1], P[k1], AM[k1], P[k2], AM[k2], g, C, r0)
     for d in range(L.drv_joint.shape[0]):
         j = L.drv_joint[d]
-        if L.drv_curve[d] >= 0:
-            cx, cc = curve_arrays(L.curve_x, L.curve_c, L.curve_meta, L.drv_curve[d])
-        else:
-            cx, cc = np.zeros(2), np.zeros((1, 1))
+        cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.drv_curve[d])
         value, rate, _ = motion_state(L.drv_kind[d], L.drv_par[d], cx, cc, t)
         g[nrj + d] = coords[j, 0] - value
         bt[nrj + d] = -rate

@@ -26,6 +26,15 @@ def curve_arrays(curve_x, curve_c, curve_meta, index):  # pragma: no cover - com
 
 
 @jit
+def motion_curve(curve_x, curve_c, curve_meta, index):  # pragma: no cover - compiled
+    """(x, c) of a motion profile's curve (TABULATED), placeholders when ``index`` < 0 (the
+    closed-form profiles of curves.motion_state do not use them)."""
+    if index >= 0:
+        return curve_arrays(curve_x, curve_c, curve_meta, index)
+    return np.zeros(2), np.zeros((1, 1))
+
+
+@jit
 def curve(curve_x, curve_c, curve_meta, curve_period, index, at):  # pragma: no cover - compiled
     """Value of the layout's curve ``index`` at ``at``."""
     x, c = curve_arrays(curve_x, curve_c, curve_meta, index)
