@@ -13,12 +13,33 @@ from sidprep.solver.run import Run
 
 #: central-difference check of the velocity rows (step 1e-6)
 FD_TOL = 1e-8
+#: the same on a marker moving along a Beam's axis: the path's cubic splines and the central
+#: differences of its frame (step 1e-6 m) leave ~1e-8
+PATH_FD_TOL = 1e-7
 #: position-level constraint drift of the index-3 integrator (m, rad)
 DRIFT_TOL = 1e-10
 #: quasi-static slider-crank: dynamic effects are ~1e-7 of the statics
 STATICS_RTOL = 1e-4
 
 ALONG_X = np.array([0.0, np.pi / 2, 0.0])  # rotation vector taking z to x
+
+
+def rows_and_dg_dt(s, rng, frozen=slice(0, 0), t=0.5, eps=1e-6):
+    """(dg/dt by central differences of the compiled g along the motion, B u + b_t, b_t) at the
+    assembled positions of System s and random velocities u (zero at ``frozen``)."""
+    run = Run(s, 1.0, SolverSettings())
+    R, A, Q, _ = run.initial_positions()
+    R, A, Q = assemble_positions(run.L, R, A, Q, t, run.refs, run.kept, run.weights, run.names, run.length)
+    u = rng.normal(size=int(run.L.uoff[-1]))
+    u[frozen] = 0.0
+    lam = np.zeros(len(run.names))
+    out = evaluate(run.L, R, A, Q, u, t, lam, run.refs)
+
+    def g(sign):
+        pose = advance_pose(run.L, R, A, Q, sign * eps * u)
+        return evaluate(run.L, *pose, u, t + sign * eps, lam, run.refs)[2]
+
+    return (g(1) - g(-1)) / (2 * eps), out[3] @ u + out[5], out[5]
 
 
 @pytest.mark.parametrize("kind", sorted(JOINT_TYPES))
@@ -43,19 +64,33 @@ def test_constraint_rows_are_the_time_derivative_of_g(kind):
     joint = s.add(JOINT_TYPES[kind](marker1, b2.marker(rng.normal(size=3) * 0.01, rng.normal(size=3))))
     if joint.coordinate_kind and kind != "on_path":     # an on_path joint is moved by its path marker
         s.add(Driver(joint, ConstantSpeed(0.3)))
-    run = Run(s, 1.0, SolverSettings())
-    R, A, Q, _ = run.initial_positions()
-    R, A, Q = assemble_positions(run.L, R, A, Q, 0.5, run.refs, run.kept, run.weights, run.names, run.length)
-    u = rng.normal(size=int(run.L.uoff[-1]))
-    lam = np.zeros(len(run.names))
-    out = evaluate(run.L, R, A, Q, u, 0.5, lam, run.refs)
-    eps = 1e-6
+    dg_dt, rows, _ = rows_and_dg_dt(s, rng)
+    assert np.allclose(dg_dt, rows, atol=FD_TOL)
 
-    def g(sign):
-        pose = advance_pose(run.L, R, A, Q, sign * eps * u)
-        return evaluate(run.L, *pose, u, 0.5 + sign * eps, lam, run.refs)[2]
 
-    assert np.allclose((g(1) - g(-1)) / (2 * eps), out[3] @ u + out[5], atol=FD_TOL)
+
+@pytest.mark.parametrize("kind", sorted(set(JOINT_TYPES) - {"on_path"}))
+def test_rows_on_a_marker_moving_along_a_path_carry_its_motion_in_b_t(kind):
+    """B u + b_t equals dg/dt along the motion when marker 1 travels along the deformed,
+    twisted axis of a Beam at s(t) (issue 10 item 2d: a carriage guided on a moving point): b_t
+    holds the point's convective velocity s_dot dp/ds and its frame's turning rate.  (The frame's
+    modal columns JR = A Psi are exact to first order in q only, like those of node markers: the
+    SID's rotations are linear; here the modal rates are zero.)"""
+    from sidprep.beam import beam_options_from_table, beam_sid
+
+    rng = np.random.default_rng(11)
+    s = System(gravity=(0, 0, 0))
+    beam = s.add(FlexibleBody(beam_sid(beam_options_from_table(
+        {"length": 2.0, "section": "rectangle:0.05,0.02", "bc": "pinned-pinned", "modes": "xz:1-3,xy:1,torsion:1"},
+        "t")), name="beam", q0=rng.normal(size=5) * 3e-2, rotation=rng.normal(size=3) * 0.3))
+    marker1 = beam.path_marker("axis", ConstantSpeed(0.7, 0.4), rotation=rng.normal(size=3))
+    b2 = s.add(RigidBody(1.0, name="b2", position=rng.normal(size=3), rotation=rng.normal(size=3)))
+    joint = s.add(JOINT_TYPES[kind](marker1, b2.marker(rng.normal(size=3) * 0.01, rng.normal(size=3))))
+    if joint.coordinate_kind:
+        s.add(Driver(joint, ConstantSpeed(0.3)))
+    dg_dt, rows, bt = rows_and_dg_dt(s, rng, frozen=slice(6, 11))   # the beam's modal rates zero
+    assert np.abs(bt).max() > 1e-2                                      # the motion is in b_t
+    assert np.allclose(dg_dt, rows, atol=PATH_FD_TOL)
 
 
 def slider_crank(crank=0.1, rod=0.3, theta0=0.5, speed=0.1, force=-100.0, flexible_rod=False):

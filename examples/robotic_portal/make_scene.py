@@ -13,8 +13,12 @@ import numpy as np
 LENGTH, WIDTH, HEIGHT = 30.0, 15.0, 7.0
 #: steel box girder about 1.3 x 0.5 m: A (m^2), Iy (vertical bending), Iz, J (m^4)
 SECTION = "general:0.07,1.6e-2,4e-3,1.0e-2"
-#: robots: mass (kg); their cycles (start s, end s in m) on each beam, and the cycle timing (s)
-ROBOT_MASS = 1500.0
+#: robots: rigid carriages hanging under the beams (kg, principal inertia about the centre of
+#: mass of a 1.2 x 1.0 x 1.5 m box, kg m^2), on a vertical spring-damper of SUSPENSION_HZ with
+#: SUSPENSION_ZETA damping at HANG m below the beam's axis, a tool point TOOL m below the carriage;
+#: their cycles (start s, end s in m) on each beam, and the cycle timing (s)
+ROBOT_MASS, ROBOT_INERTIA = 1500.0, (406.0, 461.0, 305.0)
+SUSPENSION_HZ, SUSPENSION_ZETA, HANG, TOOL, G = 8.0, 0.1, 0.5, 2.0, 9.81
 CYCLES = {"r1": ("runway_a", 5.0, 20.0), "r2": ("runway_a", 25.0, 12.0),
           "r3": ("runway_b", 5.0, 20.0), "r4": ("runway_b", 25.0, 12.0)}
 RAMP, TRAVEL, DWELL, T_END = 1.5, 4.0, 2.0, 24.0
@@ -67,9 +71,14 @@ markers = ["{name}_column", "{name}_base"]
 """
 
 
-def robot(name: str, beam_name: str, start: float, end: float) -> str:
+def robot(name: str, beam_name: str, start: float, end: float, beam_y: float) -> str:
+    """A robot (seed 003 section 2.2's subsystem): its guide point moving along the beam's axis,
+    the carriage held upright by a prismatic joint (vertical slide) on it and carried by a
+    spring-damper preloaded with the carriage's weight, and its tool point."""
     t, s = cycle(start, end)
     fmt = lambda a: ", ".join(f"{v:.6g}" for v in a)  # noqa: E731
+    k = ROBOT_MASS * (2 * np.pi * SUSPENSION_HZ) ** 2
+    c = 2 * SUSPENSION_ZETA * np.sqrt(k * ROBOT_MASS)
     return f"""[markers.{name}]
 body = "{beam_name}"
 path = "axis"
@@ -77,10 +86,29 @@ motion = "table"
 times = [{fmt(t)}]
 values = [{fmt(s)}]
 
-[forces.{name}_mass]
-type = "moving_mass"
-marker = "{name}"
+[bodies.{name}_carriage]
+type = "rigid"
 mass = {ROBOT_MASS}
+inertia = {list(ROBOT_INERTIA)}
+position = [{start}, {beam_y}, {HEIGHT - HANG}]
+
+[markers.{name}_seat]
+body = "{name}_carriage"
+
+[markers.{name}_tool]
+body = "{name}_carriage"
+position = [0.0, 0.0, {-TOOL}]
+
+[joints.{name}_guide]
+type = "prismatic"                   # vertical slide on the moving guide point
+markers = ["{name}", "{name}_seat"]
+
+[forces.{name}_suspension]
+type = "spring_damper"
+markers = ["{name}", "{name}_seat"]
+stiffness = {k:.6g}
+damping = {c:.6g}
+length = {HANG - ROBOT_MASS * G / k:.6g}         # preloaded with the carriage's weight
 
 """
 
@@ -101,13 +129,14 @@ static_start = true
 
 [output]
 rate = 100
-signals = ["r1.position.z", "r2.position.z", "runway_a.q.1", "runway_b.q.1", "cross.q.1"]
+signals = ["r1.position.z", "r1_tool.position.z", "r2.position.z", "runway_a.q.1", "runway_b.q.1", "cross.q.1"]
 
 """
     parts = [head, beam("runway_a", (0.0, 0.0, HEIGHT), (0.0, 0.0, 0.0)),
              beam("runway_b", (0.0, WIDTH, HEIGHT), (0.0, 0.0, 0.0)),
              beam("cross", (LENGTH, 0.0, HEIGHT), (0.0, 0.0, np.pi / 2))]
-    parts += [robot(name, beam_name, a, b) for name, (beam_name, a, b) in CYCLES.items()]
+    beam_y = {"runway_a": 0.0, "runway_b": WIDTH}
+    parts += [robot(name, beam_name, a, b, beam_y[beam_name]) for name, (beam_name, a, b) in CYCLES.items()]
     return "".join(parts)
 
 

@@ -121,23 +121,17 @@ def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
         count += L.fe_int[i, 0] == FE_MOVING_MASS
     if count == 0:
         return power, kinetic, potential
-    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u, t, False)
+    P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = markers(L, R, A, Q, u, t, False)
     for i in range(L.fe_int.shape[0]):
         if L.fe_int[i, 0] != FE_MOVING_MASS:
             continue
         k, mass = L.fe_int[i, 1], L.fe_par[i, 0]
         b = L.mk_body[k]
         cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
-        s, s_dot, _ = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)
-        q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
-        first = L.mk_path[k, 0]
-        on = path_shapes(L.curve_x, L.curve_c, L.curve_meta, first, q.shape[0], s)[3]
-        if not on:
+        s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
+        if not path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], L.qoff[b + 1] - L.qoff[b], s)[3]:
             continue
-        d = PATH_TANGENT_STEP
-        tangent = (path_point(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s + d)
-                   - path_point(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s - d)) / (2.0 * d)
-        v_rel = s_dot * tangent
+        v_rel = VC[k]
         w = L.uoff[b + 1] - L.uoff[b]
         accel = matvec(JT[k, :, :w], ud[L.uoff[b]:L.uoff[b + 1]]) + path_acceleration(L, k, R, A, Q, u, t)
         power += mass * dot(accel - L.gravity, v_rel)
@@ -147,12 +141,56 @@ def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
 
 
 @jit
+def row_rate(c, v1, w1, v2, w2):  # pragma: no cover - compiled
+    """Rate of a constraint row or joint coordinate with marker coefficients c (4, 3) =
+    (cT1, cR1, cT2, cR2) at marker velocities v1, v2 and angular velocities w1, w2 (3,)."""
+    return dot(c[0], v1) + dot(c[1], w1) + dot(c[2], v2) + dot(c[3], w2)
+
+
+@jit
+def path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s, rotation):  # pragma: no cover - compiled
+    """Position p (3,) and frame A_m (3, 3) (inertial) of a marker at arc length s on a path of
+    a body at (r, a, q), the path's undeformed point x(s) (3,, K), its Phi, Psi (3, nq) there and
+    whether s is on the path (beyond the ends Phi = Psi = 0: the marker rides the straight
+    extension rigidly): p = r + A (x(s) + Phi q); the frame is the
+    marker rotation R_m turned from the undeformed tangent t0 to the deformed t = x' + Phi' q
+    (the smallest rotation) and about t by the twist t0 . (Psi q):
+
+        A_m = A exp(t0.(Psi q) t~) align(t0, t) R_m."""
+    point, phi, psi, on, dpoint, dphi = path_shapes(curve_x, curve_c, curve_meta, first, q.shape[0], s)
+    if not on:
+        phi, psi, dphi = np.zeros_like(phi), np.zeros_like(psi), np.zeros_like(dphi)
+    t0 = dpoint / np.sqrt(dot(dpoint, dpoint))
+    tangent = dpoint + matvec(dphi, q)
+    t1 = tangent / np.sqrt(dot(tangent, tangent))
+    twist = exp_so3(dot(t0, matvec(psi, q)) * t1)
+    rot = matmul(a, matmul(twist, matmul(align(t0, t1), rotation)))
+    return r + matvec(a, point + matvec(phi, q)), rot, point, phi, psi, on
+
+
+@jit
+def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rotation, frame):  # pragma: no cover
+    """Velocity (3,) and angular velocity (3,) (inertial) of a path marker at arc length s
+    moving at s_dot (m/s) over its body held still, frame (3, 3) its A_m there: s_dot dp/ds and
+    s_dot vee(dA_m/ds A_m^T) (path_pose; central differences, step PATH_TANGENT_STEP m)."""
+    h = PATH_TANGENT_STEP
+    p_plus, a_plus = path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s + h, rotation)[:2]
+    p_minus, a_minus = path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s - h, rotation)[:2]
+    w = matmul(a_plus - a_minus, frame.T)
+    scale = s_dot / (2.0 * h)
+    omega = np.array([0.5 * (w[2, 1] - w[1, 2]), 0.5 * (w[0, 2] - w[2, 0]), 0.5 * (w[1, 0] - w[0, 1])])
+    return scale * (p_plus - p_minus), scale * omega
+
+
+@jit
 def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
     """Kinematics at time t (s; path markers move) of the markers that joints and forces use
     (``every``: of all markers):
-    P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial, and the Jacobians JT, JR and the load
-    Jacobians JTF, JRF (nmk, 3, w_max), zero-padded (JTF, JRF are JT, JR when no marker is
-    load-stiffened).
+    P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial velocities of the material point (the
+    body's motion), the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max),
+    zero-padded (JTF, JRF are JT, JR when no marker is load-stiffened), and VC, WC (nmk, 3) the
+    convective velocity and angular velocity of markers moved along their path by a motion s(t)
+    (path_convection; zero for all others): the marker moves at VEL + VC, its frame at OMG + WC.
 
     (The layout L is not passed to helpers inside loops: every call with the 27-array tuple
     costs about a microsecond of reference counting.)"""
@@ -168,6 +206,8 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
     AM = np.zeros((nmk, 3, 3))
     VEL = np.zeros((nmk, 3))
     OMG = np.zeros((nmk, 3))
+    VC = np.zeros((nmk, 3))
+    WC = np.zeros((nmk, 3))
     JT = np.zeros((nmk, 3, wmax))
     JR = np.zeros((nmk, 3, wmax))
     JTF = np.zeros((nmk, 3, wmax)) if stiffened else JT
@@ -185,28 +225,27 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
         nq = qoff[b + 1] - qoff[b]
         o = L.mk_shape[k]
         q = Q[qoff[b]:qoff[b + 1]].copy()
-        on = True
-        if L.mk_path[k, 0] >= 0:  # moving along a path: its point and shapes at s(t)
+        first = L.mk_path[k, 0]
+        if first >= 0:  # moving along a path: its point, frame and shapes at s(t)
             if L.mk_path[k, 2] >= 0:
-                s = projected_arc(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], R[b], A[b], q,
-                                  P[L.mk_path[k, 2]])
+                s = projected_arc(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, P[L.mk_path[k, 2]])
             else:
                 cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
-                s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)[0]
-            point, phi, psi, on, dpoint, dphi = path_shapes(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0],
-                                                            nq, s)
-            if not on:  # beyond the path's ends: on its straight extension, rigidly
-                phi, psi, dphi = np.zeros_like(phi), np.zeros_like(psi), np.zeros_like(dphi)
-            p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)
-            tangent = dpoint + matvec(dphi, q)  # turned with the path: undeformed -> deformed tangent
-            rot = matmul(A[b], matmul(align(dpoint / np.sqrt(dot(dpoint, dpoint)),
-                                            tangent / np.sqrt(dot(tangent, tangent))), L.mk_rot[k]))
+                s, s_dot, _ = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)
+            p, rot, point, phi, psi, on = path_pose(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s,
+                                                    L.mk_rot[k])
+            if L.mk_path[k, 2] < 0:
+                vc, wc = path_convection(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s, s_dot,
+                                         L.mk_rot[k], rot)
+                put(VC[k], 0, vc)
+                put(WC[k], 0, wc)
+            jt, jr = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2:4]
+            if not on:  # off its path: carries no load
+                jt, jr = np.zeros_like(jt), np.zeros_like(jr)
         else:
             p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
                                                   shapes[o:o + 3 * nq].reshape((3, nq)),
                                                   shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq)))
-        if not on:  # off its path: carries no load
-            jt, jr = np.zeros_like(jt), np.zeros_like(jr)
         put(P[k], 0, p)
         put2(AM[k], 0, 0, rot)
         ub = u[uoff[b]:uoff[b + 1]]
@@ -217,7 +256,7 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
         if stiffened:
             put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
             put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
-    return P, AM, VEL, OMG, JT, JR, JTF, JRF
+    return P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC
 
 
 @jit
@@ -228,8 +267,9 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     (friction), refs (nj,) angle-unwrapping references.  Returns M (n, n), f (n,), g (m,),
     B (m, n), B_F (m, n), b_t (m,), C (m, 4, 3) the rows' marker coefficients (cT1, cR1, cT2,
     cR2), coords (nj, 2) joint coordinates and rates, loads (nmk, 6) applied marker loads
-    (inertial) and flows (4,) = [power in by loads, power dissipated, spring energy, driver
-    power in].
+    (inertial) and flows (4,) = [power in by loads, power dissipated, spring energy, power in by
+    the drives of force elements on moving markers] (the drives' power through constraint rows is
+    constraint_power, taken with the step's converged multipliers).
     """
     nb = R.shape[0]
     n = u.shape[0]
@@ -249,21 +289,23 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    P, AM, VEL, OMG, JT, JR, JTF, JRF = markers(L, R, A, Q, u, t, False)
+    P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = markers(L, R, A, Q, u, t, False)
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]
     coords = np.zeros((nj, 2))
     crows = np.zeros((nj, 4, 3))
+    convective = np.zeros(nj)  # the part of a joint coordinate's rate due to path markers' motions
     for j in range(nj):
         if L.joint_kind[j] != NO_COORDINATE:
             k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
             value, c = joint_coordinate(L.joint_kind[j], P[k1], AM[k1], P[k2], AM[k2], refs[j])
+            convective[j] = row_rate(c, VC[k1], WC[k1], VC[k2], WC[k2])
             coords[j, 0] = value
-            coords[j, 1] = dot(c[0], VEL[k1]) + dot(c[1], OMG[k1]) + dot(c[2], VEL[k2]) + dot(c[3], OMG[k2])
+            coords[j, 1] = row_rate(c, VEL[k1], OMG[k1], VEL[k2], OMG[k2]) + convective[j]
             put2(crows[j], 0, 0, c)
     loads = np.zeros((nmk, 6))
     flows = np.zeros(4)
-    force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows)
+    force_elements(L, t, P, AM, VEL, OMG, VC, coords, crows, convective, lam, loads, flows)
     for i in range(L.fe_int.shape[0]):  # moving masses: m J^T J in M, m (g - a_convective) at the point
         if L.fe_int[i, 0] == FE_MOVING_MASS:
             k, mass = L.fe_int[i, 1], L.fe_par[i, 0]
@@ -303,14 +345,15 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
         r0, r1 = L.joint_off[j], L.joint_off[j + 1]
         joint_rows(L.jrows[r0:r1], P[k1], AM[k1], P[k2], AM[k2], g, C, r0)
+        for r in range(r0, r1):  # rheonomic rows of markers moving along a path
+            bt[r] = row_rate(C[r], VC[k1], WC[k1], VC[k2], WC[k2])
     for d in range(L.drv_joint.shape[0]):
         j = L.drv_joint[d]
         cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.drv_curve[d])
         value, rate, _ = motion_state(L.drv_kind[d], L.drv_par[d], cx, cc, t)
         g[nrj + d] = coords[j, 0] - value
-        bt[nrj + d] = -rate
+        bt[nrj + d] = convective[j] - rate
         put2(C[nrj + d], 0, 0, crows[j])
-        flows[3] -= lam[nrj + d] * coords[j, 1]
     j = 0
     for r in range(m_all):
         if r >= nrj:
@@ -327,6 +370,19 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
                 if stiffened:
                     add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
     return M, f, g, B, BF, bt, C, coords, loads, flows
+
+
+@jit
+def constraint_power(L, B, bt, u, lam):  # pragma: no cover - compiled
+    """Power (W) the rheonomic rows put into the bodies, -sum lambda_r (B u)_r over the drivers'
+    rows and the rows with b_t != 0 (joints on markers moving along a path): the work of the
+    drives.  B (m_all, n), bt (m_all,) from evaluate, u (n,), lam (m_all,)."""
+    nrj = L.joint_off[-1]
+    power = 0.0
+    for r in range(B.shape[0]):
+        if r >= nrj or bt[r] != 0.0:
+            power -= lam[r] * dot(B[r], u)
+    return power
 
 
 @jit

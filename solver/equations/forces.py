@@ -2,7 +2,7 @@
 
 Each element adds forces / torques (inertial components) at markers into ``loads`` (nmk, 6)
 and its power into ``flows`` = [power put in by applied loads, power dissipated, spring
-potential energy] (W, W, J).  Loads along a joint coordinate act through the coordinate's
+potential energy, power put in by drives] (W, W, J, W).  Loads along a joint coordinate act through the coordinate's
 velocity row c (constraints.joint_coordinate): F1 = Q cT1, T1 = Q cR1, F2 = Q cT2, T2 = Q cR2.
 """
 
@@ -77,12 +77,15 @@ def bump_potential(par, x):  # pragma: no cover - compiled
 
 
 @jit
-def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # pragma: no cover - compiled
-    """Add every force element's marker loads into loads (nmk, 6) and flows (3,).
+def force_elements(L, t, P, AM, VEL, OMG, VC, coords, crows, convective, lam, loads, flows):  # pragma: no cover
+    """Add every force element's marker loads into loads (nmk, 6) and flows (4,).
 
-    P, AM, VEL, OMG: marker positions, orientations, velocities, angular velocities
-    (inertial); coords (nj, 2) joint coordinate and rate, crows (nj, 4, 3) their velocity rows;
-    lam (m_all,) multipliers (friction reads the transverse reactions).
+    P, AM, VEL, OMG: marker positions, orientations, material velocities, angular velocities
+    (inertial); VC (nmk, 3) the convective velocities of markers moved along a path (a marker
+    moves at VEL + VC); coords (nj, 2) joint coordinate and rate, crows (nj, 4, 3) their velocity
+    rows, convective (nj,) the part of the rates due to path motions; lam (m_all,) multipliers
+    (friction reads the transverse reactions).  Springs and joint loads see the markers' whole
+    motion; the power their loads take from a path's motion (-load . VC) is the drive's, flows[3].
     """
     for i in range(L.fe_int.shape[0]):
         row = L.fe_int[i]
@@ -110,12 +113,13 @@ def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # 
             d = P[mk2] - P[mk1]
             length = np.sqrt(dot(d, d))
             e = d / length if length > 0.0 else np.zeros(3)  # coincident markers: no direction
-            rate = dot(e, VEL[mk2] - VEL[mk1])
+            rate = dot(e, VEL[mk2] + VC[mk2] - VEL[mk1] - VC[mk1])
             x = length - par[2]
             tension, damp, linear = spring_tension(par, x, rate)
             add(loads[mk2], 0, e, -tension)
             add(loads[mk1], 0, e, tension)
             flows[1] += damp * rate
+            flows[3] += tension * dot(e, VC[mk2] - VC[mk1])
             flows[2] += 0.5 * par[0] * x * x + bump_potential(par, x)
         elif kind == FE_JOINT_FORCE:
             x, xd = coords[joint, 0], coords[joint, 1]
@@ -123,6 +127,7 @@ def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # 
             if first >= 0:
                 q += curve(L.curve_x, L.curve_c, L.curve_meta, L.curve_period, first, x)
             add_joint_load(loads, L.joint_mk[joint], crows[joint], q)
+            flows[3] -= q * convective[joint]
             flows[1] += par[1] * xd * xd
             flows[2] += 0.5 * par[0] * (x - par[2]) ** 2
             flows[0] += (q + par[1] * xd + par[0] * (x - par[2])) * xd
@@ -132,4 +137,5 @@ def force_elements(L, t, P, AM, VEL, OMG, coords, crows, lam, loads, flows):  # 
             xd = coords[joint, 1]
             q = -par[0] * normal * par[1] * np.tanh(xd / par[3])
             add_joint_load(loads, L.joint_mk[joint], crows[joint], q)
+            flows[3] -= q * convective[joint]
             flows[1] -= q * xd

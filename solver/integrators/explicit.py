@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.assemble import constraint_power, evaluate
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
 from sidprep.solver.integrators.base import CHUNK, Samples, Stepper, expand, index1_accelerations, store_sample
 from sidprep.solver.integrators.runge_kutta import rk4_step
@@ -59,7 +59,9 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
                                    MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
     put(lam_guess, 0, lam)
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    flows = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)[-1]
+    lam_all = expand(lam, kept, m_all)
+    out = evaluate(L, R, A, Q, u, t, lam_all, refs)
+    flows = out[-1]
     ydot = np.zeros(y.shape[0])
     o = 0
     for i in range(R.shape[0]):
@@ -73,7 +75,7 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
     put(ydot, o, ud)
     ydot[o + n] = flows[0]
     ydot[o + n + 1] = flows[1]
-    ydot[o + n + 2] = flows[3]
+    ydot[o + n + 2] = flows[3] + constraint_power(L, out[3], out[5], u, lam_all)
     return ydot
 
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate, moving_masses
+from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matvec, put, put2
 from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, advance_pose, expand, lu_factor, lu_solve,
                                              restrict, store_sample)
@@ -86,7 +86,7 @@ def ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept):  
         r[i] = acc
     for k in range(m):
         r[nf + k] = g[kept[k]] / (h * h * prm[4])
-    return r, M, f, B, BF, coords, flows
+    return r, M, f, B, BF, bt, coords, flows
 
 
 @jit
@@ -129,6 +129,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
     """
     nf, m, n = free.shape[0], kept.shape[0], u.shape[0]
     nj = refs.shape[0]
+    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     ts = np.empty(capacity)
     Rs = np.empty((capacity,) + R.shape)
     As = np.empty((capacity,) + A.shape)
@@ -168,7 +169,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         last = np.inf
         it = 0
         converged = False
-        r, M, f, B, BF, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
+        r, M, f, B, BF, bt, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
         while True:
             if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
                 eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
@@ -208,7 +209,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
             if err <= tol and drift <= tol * length:  # the update shrinks the drift further
                 converged = True
                 break
-            r, M, f, B, BF, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
+            r, M, f, B, BF, bt, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
                                                         kept)
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
@@ -251,12 +252,9 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         stats[0] += 1
         stats[4] = min(stats[4], h)
         stats[5] = max(stats[5], h)
-        nrj = L.joint_off[-1]
-        flows[3] = 0.0  # driver power with the converged multipliers (the last evaluation predates them)
-        for k in range(m):
-            if kept[k] >= nrj:
-                flows[3] -= lamn[k] * coords[L.drv_joint[kept[k] - nrj], 1]
-        flows[3] += moving_masses(L, R, A, Q, u, ud, t)[0]  # the drives along paths (the converged ud)
+        # the drives' power through their rows with the converged multipliers (the last evaluation
+        # predates them), and that of the moving masses with the converged ud
+        flows[3] += constraint_power(L, B, bt, u, expand(lamn, kept, m_all)) + moving_masses(L, R, A, Q, u, ud, t)[0]
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
@@ -296,8 +294,10 @@ class GeneralizedAlpha(Stepper):
         self.work = np.zeros(3)
         lam_full = np.zeros(problem.m_all)
         lam_full[problem.kept] = state.lam
-        self.flows = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)[-1]
-        self.flows[3] += moving_masses(problem.L, state.R, state.A, state.Q, state.u, state.ud, state.t)[0]
+        out = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)
+        self.flows = out[-1]
+        self.flows[3] += (constraint_power(problem.L, out[3], out[5], state.u, lam_full)
+                          + moving_masses(problem.L, state.R, state.A, state.Q, state.u, state.ud, state.t)[0])
         self.raw = np.zeros(10)
         self.raw[4], self.raw[7] = np.inf, settings.max_steps
 
