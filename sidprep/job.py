@@ -25,7 +25,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe_checks import fe_checks, structured_checks
-from sidprep.paths import fe_path, parse_path, path_samples
+from sidprep.paths import fe_path, located_paths
 from sidprep.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
                              DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
 
@@ -304,7 +304,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     material, material_notes = model_material(o)
     mesh, source = load_mesh(mesh_in, o, ph)
     notes = list(mesh.notes) + material_notes
-    paths = [path_samples(mesh, parse_path(spec, units.length_to_m)) for spec in o.paths]
+    paths = located_paths(mesh, o.paths, units.length_to_m)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     check_mode_count(o, mesh.n_dof, len(interfaces))
     check_parts_held(mesh, interfaces, source)

@@ -242,6 +242,17 @@ def path_samples(mesh, spec: PathSpec) -> PathSamples:
     return PathSamples(spec.name, s, x, element, L)
 
 
+def located_paths(mesh, specs, length_to_m: float = 1.0) -> list[PathSamples]:
+    """PathSamples of the ``--path`` strings ``specs`` (coordinates times ``length_to_m``, m);
+    InputErrors for bad specs, a name given twice, unknown node sets and points outside."""
+    parsed = [parse_path(spec, length_to_m) for spec in specs]
+    names = [p.name for p in parsed]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise InputError(f"path {twice[0]!r} is given twice; give each path its own name")
+    return [path_samples(mesh, p) for p in parsed]
+
+
 def shape_functions(L: np.ndarray, order: int, gradL: np.ndarray):
     """Values N (nn,) and gradients dN (nn, 3) of the element's nodal shape functions at the
     barycentric coordinates L (4,), with gradL (4, 3) the gradients of L."""

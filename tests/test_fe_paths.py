@@ -12,7 +12,8 @@ import pytest
 from sidprep.cli.main import main
 from sidprep.errors import InputError
 from sidprep.mesh import read_mesh
-from sidprep.paths import INSIDE_TOL, fe_path, parse_path, path_samples, uniform_arc_length_samples
+from sidprep.paths import (INSIDE_TOL, fe_path, located_paths, parse_path, path_samples,
+                           uniform_arc_length_samples)
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 #: the parabola y = 0.025 + 0.04 x (1 - x) through 3 points (the not-a-knot spline is exactly it):
@@ -153,6 +154,11 @@ def test_bad_paths_are_one_line_errors_before_the_fe_work(bar, spec, message):
     with pytest.raises(InputError, match=message) as info:
         path_samples(bar, parse_path(spec))
     assert "\n" not in str(info.value)
+
+
+def test_a_path_name_given_twice_is_an_error(bar):
+    with pytest.raises(InputError, match="path 'p' is given twice"):
+        located_paths(bar, ["p:0,0.025,0.04:1,0.025,0.04", "q:0,0,0:1,0,0", "p:0,0,0:1,0,0"])
 
 
 def test_path_coordinates_are_in_the_jobs_units():
