@@ -136,14 +136,16 @@ def ordered_node_points(mesh, spec: PathSpec) -> np.ndarray:
                          f"{', '.join(sorted(mesh.node_sets)) or '(none)'}")
     nodes = np.asarray(mesh.node_sets[spec.nodes], dtype=np.int64)
     along = mesh.points[nodes] @ spec.direction
+    if len(nodes) < 2:
+        raise InputError(f"path {spec.name!r}: node set {spec.nodes!r} has {len(nodes)} node(s); a path needs two "
+                         "or more (e.g. the nodes of one edge)")
     order = np.argsort(along, kind="stable")
     gaps = np.diff(along[order])
-    if len(nodes) < 2 or (gaps <= NODE_ORDER_TOL * (np.ptp(along) or 1.0)).any():
-        k = int(np.argmin(gaps)) if len(gaps) else 0
-        raise InputError(f"path {spec.name!r}: node set {spec.nodes!r} has {len(nodes)} node(s)"
-                         + (f", nodes {mesh.node_ids[nodes[order[k]]]} and {mesh.node_ids[nodes[order[k + 1]]]} at "
-                            "the same position along dir" if len(gaps) else "")
-                         + "; give a node set along a line (e.g. the nodes of one edge) and its direction")
+    k = int(np.argmin(gaps))
+    if gaps[k] <= NODE_ORDER_TOL * np.ptp(along):
+        a, b = mesh.node_ids[nodes[order[k:k + 2]]]
+        raise InputError(f"path {spec.name!r}: nodes {a} and {b} of node set {spec.nodes!r} lie at the same position "
+                         "along dir; give a node set along a line (e.g. the nodes of one edge) and its direction")
     return mesh.points[nodes[order]]
 
 

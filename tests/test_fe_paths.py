@@ -147,12 +147,14 @@ def test_a_point_1_cm_outside_the_piston_rod_is_a_one_line_error(tmp_path, monke
     ("p:nodes=free_end", "needs exactly nodes=SET and dir"),
     ("p:nodes=free_end:dir=w", "dir=w is not a direction"),
     ("p:nodes=rail:dir=x", "no node set 'rail'"),
-    ("p:nodes=free_end:dir=y", "at the same position along dir"),
+    ("p:nodes=free_end:dir=y", "lie at the same position along dir"),
+    ("p:nodes=one:dir=x", "has 1 node"),
     ("p:0,0.025,0.04:1.5,0.025,0.04", "outside the mesh"),
 ])
 def test_bad_paths_are_one_line_errors_before_the_fe_work(bar, spec, message):
+    mesh = replace(bar, node_sets={**bar.node_sets, "one": bar.node_sets["free_end"][:1]})
     with pytest.raises(InputError, match=message) as info:
-        path_samples(bar, parse_path(spec))
+        path_samples(mesh, parse_path(spec))
     assert "\n" not in str(info.value)
 
 
