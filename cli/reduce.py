@@ -23,9 +23,15 @@ def add_reduce_arguments(p) -> None:
     p.add_argument("--frm-nodes", action="append", metavar="NODESET",
                    help="extra FRM load nodes: every node of this node set gets unit x, y, z forces (repeat)")
     p.add_argument("--cutoff-factor", type=float, help="FRM cut-off / highest frequency of interest (default 5)")
-    p.add_argument("--path", dest="paths", action="append", metavar="NAME:x0,y0,z0:x1,y1,z1[:n]",
-                   help="a straight path through the body (m, mesh coordinates) along which loads move; its mode "
-                        "shapes are interpolated from the full FE modes and stored in the SID (repeat)")
+    p.add_argument("--path", dest="paths", action="append",
+                   metavar="NAME:x0,y0,z0:x1,y1,z1[:x2,y2,z2 ...][:n] | NAME:nodes=SET:dir=x[:n]",
+                   help="a path in or on the body along which loads move (repeat): the curve through the given "
+                        "points (mesh coordinates, in the job's units) or through the nodes of node set SET "
+                        "ordered along dir (x, y, z, -x, ... or dx,dy,dz); straight for 2 points, else a smooth "
+                        "cubic spline (no corners: the solver differentiates the path), sampled at n points "
+                        "(default 201) of equal arc length. Its mode shapes are interpolated from the full FE "
+                        "modes and stored in the SID; points on a curved surface just outside the faceted mesh "
+                        "(within 0.1 element edge) are accepted")
     d = p.add_mutually_exclusive_group()
     d.add_argument("--damping", type=float, help="modal damping ratio of every mode (default 0.02)")
     d.add_argument("--rayleigh", type=float, nargs=2, metavar=("ALPHA", "BETA"),

@@ -25,7 +25,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe_checks import fe_checks, structured_checks
-from sidprep.paths import fe_path, parse_path
+from sidprep.paths import fe_path, located_paths
 from sidprep.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
                              DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
 
@@ -304,7 +304,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     material, material_notes = model_material(o)
     mesh, source = load_mesh(mesh_in, o, ph)
     notes = list(mesh.notes) + material_notes
-    paths = [parse_path(spec) for spec in o.paths]
+    paths = located_paths(mesh, o.paths, units.length_to_m)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     check_mode_count(o, mesh.n_dof, len(interfaces))
     check_parts_held(mesh, interfaces, source)
@@ -330,7 +330,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
                 "fixed_interface_modes": int(len(red.cb.fixed_interface_hz))}
     sid = build_sid(red, mesh, Ms, damping=o.damping, stiffening=stiff, metadata=metadata)
     if paths:
-        sid = replace(sid, paths={name: fe_path(mesh, red.Phi_fe, a, b, n, name) for name, a, b, n in paths})
+        sid = replace(sid, paths={p.name: fe_path(mesh, red.Phi_fe, p) for p in paths})
     with ph("checks", "reduced vs full FE model"):
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)

@@ -50,8 +50,9 @@ class ReduceOptions(ModelOptions):
     interfaces : "NAME[:rbe2|rbe3]" strings or job-file tables; empty = every node set able to
     carry 6 DOF, as RBE2. frame : "free" or an interface name. modes / fmax (Hz): one of them
     (neither = ``DEFAULT_MODES``). damping : ratio in [0, 1), a per-mode tuple, or
-    {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:n]" straight
-    paths (m, mesh coordinates) stored with their interpolated mode shapes (sidprep.paths).
+    {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
+    curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
+    dir), stored with their interpolated mode shapes (sidprep.paths).
     """
 
     interfaces: tuple = ()
