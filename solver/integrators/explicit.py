@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from sidprep.solver.equations.assemble import constraint_power, evaluate
+from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
 from sidprep.solver.integrators.base import CHUNK, Samples, Stepper, expand, index1_accelerations, store_sample
 from sidprep.solver.integrators.runge_kutta import rk4_step
@@ -75,7 +75,7 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
     put(ydot, o, ud)
     ydot[o + n] = flows[0]
     ydot[o + n + 1] = flows[1]
-    ydot[o + n + 2] = flows[3] + constraint_power(L, out[3], out[5], u, lam_all)
+    ydot[o + n + 2] = flows[3] + constraint_power(L, out[3], out[5], u, lam_all) + moving_masses(L, R, A, Q, u, ud, t)[0]
     return ydot
 
 
