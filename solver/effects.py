@@ -187,6 +187,9 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
     if spec != "auto":
         reasons = {e: ("named by the scene" if e in spec else "not named by the scene") for e in EFFECTS}
         chosen = {e for e in spec if avail[e]}
+        if "gravity" in chosen and "coupling" not in chosen and avail["coupling"]:
+            chosen.add("coupling")
+            reasons["coupling"] = "not named, kept: gravity's modal force Ct0 g uses the coupling matrix Ct0"
         if "centrifugal_stiffening" in chosen and kom_only:
             reasons["centrifugal_stiffening"] = ("named by the scene; WARNING: Oe.M1 holds only Kom "
                                                  "(softening) without K0omega")
