@@ -376,7 +376,7 @@ PORTAL_TOOL_RTOL = 5e-3
 def test_robotic_portal_short(tmp_path):
     import importlib.util
 
-    for name in ("scene.toml", "analyse.py"):
+    for name in ("scene.toml", "analyse.py", "carriage.obj"):
         shutil.copy(ROOT / "examples/robotic_portal" / name, tmp_path / name)
     spec = importlib.util.spec_from_file_location("portal_analyse", tmp_path / "analyse.py")
     an = importlib.util.module_from_spec(spec)

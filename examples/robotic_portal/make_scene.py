@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Writes scene.toml of the robotic portal (README.md): the robots' accelerate-travel-stop cycles
-as tabulated motions along the beams.
+as tabulated motions along the beams; and carriage.obj, the robots' surface for the animation
+(the carriage box and a stem down to the tool point).
 
-    python make_scene.py      # scene.toml (committed)
+    python make_scene.py      # scene.toml and carriage.obj (committed)
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ SECTION = "general:0.07,1.6e-2,4e-3,1.0e-2"
 #: mass of a 1.2 x 1.0 x 1.5 m box, kg m^2), on a vertical spring-damper of SUSPENSION_HZ with
 #: SUSPENSION_ZETA damping at HANG m below the beam's axis, a tool point TOOL m below the carriage;
 #: their cycles (start s, end s in m) on each beam, and the cycle timing (s)
-ROBOT_MASS, ROBOT_INERTIA = 1500.0, (406.0, 461.0, 305.0)
+ROBOT_MASS, ROBOT_INERTIA, ROBOT_BOX = 1500.0, (406.0, 461.0, 305.0), (1.2, 1.0, 1.5)
 SUSPENSION_HZ, SUSPENSION_ZETA, HANG, TOOL, G = 8.0, 0.1, 0.5, 2.0, 9.81
 CYCLES = {"r1": ("runway_a", 5.0, 20.0), "r2": ("runway_a", 25.0, 12.0),
           "r3": ("runway_b", 5.0, 20.0), "r4": ("runway_b", 25.0, 12.0)}
@@ -90,6 +91,7 @@ values = [{fmt(s)}]
 type = "rigid"
 mass = {ROBOT_MASS}
 inertia = {list(ROBOT_INERTIA)}
+obj = "carriage.obj"
 position = [{start}, {beam_y}, {HEIGHT - HANG}]
 
 [markers.{name}_seat]
@@ -140,6 +142,19 @@ signals = ["r1.position.z", "r1_tool.position.z", "r2.position.z", "runway_a.q.1
     return "".join(parts)
 
 
+def write_carriage_obj(path: str = "carriage.obj") -> None:
+    """The carriage's surface in its body frame (centre of mass at the origin): the box and a
+    0.1 m stem from its bottom to the tool point."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=ROBOT_BOX)
+    stem_length = TOOL - ROBOT_BOX[2] / 2
+    stem = trimesh.creation.box(extents=(0.1, 0.1, stem_length))
+    stem.apply_translation((0.0, 0.0, -ROBOT_BOX[2] / 2 - stem_length / 2))
+    trimesh.util.concatenate([box, stem]).export(path)
+
+
 if __name__ == "__main__":
     with open("scene.toml", "w") as f:
         f.write(scene())
+    write_carriage_obj()
