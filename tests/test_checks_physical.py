@@ -6,17 +6,16 @@ Reference: a lumped-mass body whose inertia about its CM is computed here in clo
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sidprep.checks import failed_checks, inertia_about_cm, physical_checks, sid_checks
+from sidprep.errors import InputError
 from sidprep.io.sid_fem import read_sid_fem, write_sid_fem
 from sidprep.sid import sid_invariants
 
-REFERENCE = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem"
-ROOT = Path(__file__).resolve().parents[1]
+from test_sid_fem import REF as REFERENCE, ROOT
 
 
 def lumped_body(seed=1, n=8, nq=2):
@@ -66,13 +65,14 @@ def test_negative_jyy_fails_check_with_exit_1(tmp_path):
     assert "inertia about CM positive definite" in run.stdout
 
 
-def test_deleted_jyy_line_fails_check(tmp_path):
+def test_deleted_jyy_line_fails_read(tmp_path):
     sid, _, _ = lumped_body()
     lines = write_sid_fem(sid, tmp_path / "good.SID_FEM").read_text().splitlines()
     start = lines.index(next(l for l in lines if l.strip() == "J"))
     k = next(i for i in range(start, len(lines)) if lines[i].strip().startswith("m0( 2, 1)"))
     (tmp_path / "bad.SID_FEM").write_text("\n".join(lines[:k] + lines[k + 1:]) + "\n")
-    assert failed_checks(sid_checks(read_sid_fem(tmp_path / "bad.SID_FEM")))
+    with pytest.raises(InputError, match=r"J lacks 1 of its \d+ entries \(first m0\(2,1\)\)"):
+        read_sid_fem(tmp_path / "bad.SID_FEM")
 
 
 def test_negative_stiffness_fails():

@@ -15,7 +15,10 @@ from sidprep.errors import InputError
 from sidprep.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
 from sidprep.sid import SYMMETRIC, Taylor, inertia_matrix, sid_invariants
 
-REF = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem"
+ROOT = Path(__file__).resolve().parents[1]
+#: the third-party files: ../shared/reference/sid_fem beside the checkout (or beside a worktree's folder)
+REF = next((p / "shared" / "reference" / "sid_fem" for p in (ROOT.parent, ROOT.parent.parent)
+            if (p / "shared" / "reference" / "sid_fem").is_dir()), ROOT.parent / "shared" / "reference" / "sid_fem")
 MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 DIGITS_12 = 5e-12      # relative error of a %19.11E number (12 significant digits)
 LABEL_ROUNDING = 1e-3  # labels carry 3 decimals of Hz; FE and reduced frequencies differ slightly
@@ -124,7 +127,8 @@ def test_computed_sid_round_trip_to_12_digits(tmp_path, layout):
 
 def welib_style(sid):
     """Rewrite a file in the welib/FEMBeam dialect: J 3x3, m1(row, col, q), k-block Gr/Ge,
-    nq = 0 in order-0 Me/Ge/Ke/De, 'new frame', written zeros, Ke lower triangle (structure 2)."""
+    nq = 0 in order-0 Me/Ge/Ke/De, 'new frame', written zeros (all of ksigma, structure 0),
+    Ke lower triangle (structure 2)."""
     nq = sid.nq
     J3 = Taylor(inertia_matrix(sid.J.M0), np.stack([inertia_matrix(sid.J.M1[:, k, 0])
                                                     for k in range(nq)], 1))
@@ -134,8 +138,11 @@ def welib_style(sid):
     text = text.replace("           frame\n", "           new frame\n")
     for member in ("Me", "Ge", "Ke", "De"):
         text = re.sub(rf"(\n\s+{member}\n(?:.*\n){{3}}\s+nq\s+=)\s+\d+", r"\1    0", text)
-    text = re.sub(r"(\n\s+Ke\n(?:.*\n)*?)\s+m0\( 1, 2\).*\n", r"\1\n", text, count=1)
-    text = re.sub(r"(\n\s+ksigma\n(?:.*\n){6})", r"\1                          m0( 1, 1)  = 0.0\n", text)
+    head, ke, tail = re.split(r"(?<=\n)(\s+Ke\n(?:.*\n)*?\s+end Ke\n)", text)
+    upper = re.compile(r".*m0\(\s*(\d+),\s*(\d+)\).*\n")
+    ke = upper.sub(lambda m: "" if int(m.group(1)) < int(m.group(2)) else m.group(0), ke)
+    zeros = "".join(f"                          m0({k + 1:2d}, 1)  = 0.0\n" for k in range(nq))
+    text = re.sub(r"(\n\s+ksigma\n(?:.*\n){6})", lambda m: m.group(1) + zeros, head + ke + tail)
     return text, Ke
 
 
@@ -181,7 +188,7 @@ def test_malformed_file_names_file_and_line(tmp_path, sub, words):
 def test_truncated_and_missing_files(tmp_path):
     text = format_sid_fem(random_sid(2))
     with pytest.raises(InputError, match="unexpected end of file"):
-        parse_sid_fem(text[: len(text) // 2], "half.SID_FEM")
+        parse_sid_fem(text[: text.rindex("\n", 0, len(text) // 2) + 1], "half.SID_FEM")
     with pytest.raises(InputError, match="cannot read"):
         read_sid_fem(tmp_path / "nope.SID_FEM")
 
