@@ -161,6 +161,78 @@ def test_welib_dialect_is_read(tmp_path):
     assert np.allclose(got.Cr.M1, sid.Cr.M1, rtol=1e-11)
 
 
+ENTRY_LINE = re.compile(r"^\s*m[01]\(.*=\s*(\S+)\s*$")
+
+
+def omit_zeros(text):
+    """``text`` as a writer that omits zero entries (the native dialect) would have written it."""
+    kept = [line for line in text.splitlines()
+            if not ((m := ENTRY_LINE.match(line)) and float(m.group(1).replace("D", "E")) == 0.0)]
+    return "\n".join(kept).replace(", all entries written", "") + "\n"
+
+
+def without_largest_line(text, block, kind):
+    """``text`` without the ``kind`` ("m0" / "m1") entry line of largest |value| in the member
+    ``block`` (over all nodes for origin, phi, psi, AP); None when the member has no such line."""
+    lines = text.splitlines(keepends=True)
+    inside, best = False, None
+    for k, line in enumerate(lines):
+        words = line.split()
+        inside = (inside or words == [block]) and words != ["end", block]
+        if inside and line.strip().startswith(kind + "("):
+            size = abs(float(line.rpartition("=")[2].replace("D", "E")))
+            best = max(best or (size, k), (size, k))
+    return None if best is None else "".join(lines[:best[1]] + lines[best[1] + 1:])
+
+
+def test_every_deleted_entry_line_of_a_sidprep_file_is_refused():
+    """sidprep writes every entry, zeros included: any one entry line deleted is damage, refused
+    with one line naming the block, its lines and the fix."""
+    text = format_sid_fem(random_sid(stiffening=True))
+    assert "all entries written" in text.splitlines()[0]
+    lines = text.splitlines(keepends=True)
+    entries = [k for k, line in enumerate(lines) if ENTRY_LINE.match(line)]
+    assert len(entries) > 400
+    for k in entries:
+        with pytest.raises(InputError) as err:
+            parse_sid_fem("".join(lines[:k] + lines[k + 1:]), "cut.SID_FEM")
+        message = str(err.value)
+        assert re.match(r"cut\.SID_FEM:\d+-\d+: (node \d+ )?\w+ lacks 1 of its \d+ entries \(first m[01]\(", message)
+        assert message.endswith("the file is truncated or edited; re-export it") and "\n" not in message
+
+
+def test_a_file_that_omits_zeros_reads_the_same_and_counts_them():
+    sid = random_sid(3)
+    full, sparse = parse_sid_fem(format_sid_fem(sid)), parse_sid_fem(omit_zeros(format_sid_fem(sid)))
+    assert max_relative_difference(full, sparse) == 0.0
+    assert full.metadata["sid_fem_entries"]["omitted_entries"] == 0
+    entries = sparse.metadata["sid_fem_entries"]
+    assert not entries["zeros_written"] and entries["omitted_entries"] > 0
+    assert entries["omitted_entries"] + entries["written_entries"] == full.metadata["sid_fem_entries"]["written_entries"]
+
+
+BLOCK_ERRORS = [  # (substitution on a sidprep file, with or without its zeros; words of the message)
+    ((r"(\n(\s+)m0\( 1, 1\)( += .*)\n)", r"\1\2m0( 1, 1)\3\n"), "is written twice"),
+    ((r"(\n +ksigma\n(?:.*\n){5}\s+structure\s+=)\s+0\n", r"\1    0\n                          m0( 1, 1) = 1.0D+00\n"),
+     "contradicts structure 0 of ksigma"),
+    ((r"(\n +Ke\n(?:.*\n){6})", r"\1                          m0( 1, 2) = 1.0D+00\n"),
+     "contradicts structure 1 of Ke"),
+    ((r"(\n +De\n(?:.*\n){6})", r"\1                          m0( 4, 4) = 1.0D+00\n"), "is outside"),
+    ((r"\n +nqn += +0\n", "\n"), "lacks its header line(s) nqn"),
+]
+
+
+@pytest.mark.parametrize("zeros", ["written", "omitted"])
+@pytest.mark.parametrize("sub,words", BLOCK_ERRORS)
+def test_block_errors_in_both_kinds_of_file(sub, words, zeros):
+    text = format_sid_fem(random_sid(4))
+    text = text if zeros == "written" else omit_zeros(text)
+    bad = re.sub(sub[0], sub[1], text, count=1)
+    assert bad != text
+    with pytest.raises(InputError, match=re.escape(words)):
+        parse_sid_fem(bad, "bad.SID_FEM")
+
+
 MALFORMED = [  # (substitution on a valid file, expected words in the message)
     ((r"mass +=.*", "mass = 9.0x8"), "not a number"),
     ((r"end Ct\b", "end Cx"), "end Ct"),
