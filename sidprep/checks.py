@@ -79,9 +79,7 @@ def inertia_identities(sid: SID) -> dict:
         "the CM shift per mode is the modal momentum (4.8 #3)")}
     if nq == 0:
         return out
-    G = gr_tensor(sid.Gr.M0, nq)
-    J1 = _m1(sid.J, (6, nq, 1))[:, :, 0]
-    I1 = np.stack([inertia_matrix(J1[:, k]) for k in range(nq)])
+    G, J1, I1 = gyroscopic_and_inertia_change(sid)
     from_oe = inertia_change_from_oe(sid.Oe.M0)
     cr = np.stack([skew(c) for c in sid.Cr.M0])
     out["J.M1 = sym(Gr0)"] = _entry(_relative(0.5 * (G + G.transpose(0, 2, 1)) - I1, G), IDENTITY_RTOL,
@@ -121,20 +119,40 @@ def inertia_identities(sid: SID) -> dict:
     return out
 
 
+def gyroscopic_and_inertia_change(sid: SID) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The canonical Gr0 tensor (nq, 3, 3), J.M1 as stored (6, nq) and as 3x3 matrices (nq, 3, 3)."""
+    J1 = _m1(sid.J, (6, sid.nq, 1))[:, :, 0]
+    return gr_tensor(sid.Gr.M0, sid.nq), J1, np.stack([inertia_matrix(J1[:, k]) for k in range(sid.nq)])
+
+
 def inertia_change_from_oe(oe: np.ndarray) -> np.ndarray:
     """J.M1 (6, nq) the centrifugal term Oe0 (nq, 6) implies: -[2xx, 2yy, 2zz, xy, xz, yz] (4.8 #4)."""
     return -np.stack([2 * oe[:, 0], 2 * oe[:, 1], 2 * oe[:, 2], oe[:, 3], oe[:, 5], oe[:, 4]])
 
 
 def zeroed_entries(stored: np.ndarray, twin: np.ndarray, scale: float, mirrored: bool = False) -> int | None:
-    """How many entries of ``stored`` are exactly 0 where ``twin`` (what an identity says they are)
-    is not, or the reverse: the mark of a deleted line in a file that omits zero entries.
+    """How many entries of ``stored`` are exactly 0 where ``twin`` is not, or the reverse: the mark
+    of a deleted line in a file that omits zero entries.
 
-    None when the identity fails (beyond IDENTITY_RTOL * scale) where both are nonzero: then a
-    lone zero may be legitimate (nodal rotary inertia, a generator's convention).  Entries below
-    ZEROED_ENTRY_RTOL * scale are round-off and not counted.  ``mirrored``: the twin of entry
-    [..., i, j] is made from stored[..., j, i], so the mirror of a lone zero is not held against
-    the identity.
+    Parameters
+    ----------
+    stored : ndarray
+        Entries as stored.
+    twin : ndarray, same shape
+        What an identity of sid-spec.md 4.8 says they are, from other stored members.
+    scale : float
+        Size of the quantity (a physical bound, or its largest entry); entries below
+        ZEROED_ENTRY_RTOL * scale are round-off and not counted.
+    mirrored : bool
+        The twin of entry [..., i, j] is made from stored[..., j, i]: the mirror of a lone zero is
+        then not held against the identity.
+
+    Returns
+    -------
+    int or None
+        The number of lone zeros; None when the identity fails (beyond IDENTITY_RTOL * scale) where
+        both are nonzero, for then a lone zero may be legitimate (nodal rotary inertia, stiffening
+        terms, a generator's convention).
     """
     if scale <= 0:
         return None
@@ -157,9 +175,7 @@ def zeroed_entry_checks(sid: SID) -> dict:
     nq = sid.nq
     if nq == 0:
         return {}
-    G = gr_tensor(sid.Gr.M0, nq)
-    J1 = _m1(sid.J, (6, nq, 1))[:, :, 0]
-    I1 = np.stack([inertia_matrix(J1[:, k]) for k in range(nq)])
+    G, J1, I1 = gyroscopic_and_inertia_change(sid)
     oe1 = _m1(sid.Oe, (nq, nq, 6))
     # Cauchy-Schwarz bounds: |int phi_k,a phi_j,b dm| <= max Me_kk, |int c_a phi_k,b dm| <= sqrt(int |c|^2 dm max Me_kk)
     modal = float(np.max(np.abs(np.diag(sid.Me.M0))))

@@ -391,11 +391,25 @@ def _check_no_duplicates(lines: _Lines, raw: _RawTaylor) -> None:
 
 
 def _structure_violation(M0: np.ndarray, given: np.ndarray, structure: int) -> tuple[int, int] | None:
-    """0-based (i, j) of the written m0 entry contradicting ``structure`` most, or None.
+    """The written m0 entry that contradicts ``structure`` most.
 
     Zero (0): every written entry is zero; diagonal (1): written off-diagonal entries are zero;
     identity (4): written entries are those of E; symmetric (2): entries written in both triangles
     agree.  Deviations count relative to max |M0| (at least 1 for the identity).
+
+    Parameters
+    ----------
+    M0 : (nrow, ncol) ndarray
+        The matrix with the written entries in place (before mirroring).
+    given : (nrow, ncol) bool ndarray
+        Which entries are written.
+    structure : int
+        The declared structure code.
+
+    Returns
+    -------
+    tuple of int or None
+        0-based (i, j) of the worst entry beyond STRUCTURE_MATCH_RTOL, or None.
     """
     if structure == GENERAL or not given.any():
         return None
@@ -412,10 +426,9 @@ def _structure_violation(M0: np.ndarray, given: np.ndarray, structure: int) -> t
 def _build_taylor(lines: _Lines, raw: _RawTaylor, nq: int, m1_order: str) -> Taylor:
     """Apply the reader rules of sid-spec.md 2 / 7.5 to one block.
 
-    Errors for an index outside the declared dimensions, an entry written twice, or a structure
-    code the written entries contradict.
+    Its header is checked (:func:`_check_header`).  Errors for an index outside the declared
+    dimensions, an entry written twice, or a structure code the written entries contradict.
     """
-    _check_header(lines, raw, nq)
     _check_no_duplicates(lines, raw)
     h = raw.header
     nrow, ncol, structure = h["nrow"], h["ncol"], h["structure"]
@@ -456,11 +469,18 @@ def _complete_m0_sets(structure: int, nrow: int, ncol: int) -> list[np.ndarray]:
 
 
 def _absent_entries(raw: _RawTaylor, nq: int, m1_order: str, zeros_written: bool) -> tuple[int, str]:
-    """(count, first) of the entries of a block that are not written, and the first one's key.
+    """The entries of a block that are not written.
 
-    m0: against the closest complete set of :func:`_complete_m0_sets`.  m1 (order >= 1 or m1 lines):
-    against all nrow x nq x ncol entries; a writer that writes zeros may leave out a vanishing M1
-    entirely, a writer that omits zeros leaves out its zero entries.
+    m0 counts against the closest complete set of :func:`_complete_m0_sets`; m1 (order >= 1 or m1
+    lines) against all nrow x nq x ncol entries: a writer that writes zeros may leave out a
+    vanishing M1 entirely, a writer that omits zeros leaves out its zero entries.
+
+    Returns
+    -------
+    count : int
+        How many entries are not written.
+    first : str
+        The first of them as the file would write it ("m0(2,1)", "m1(3,1,1)"); "" if none.
     """
     h = raw.header
     nrow, ncol = h["nrow"], h["ncol"]
@@ -582,6 +602,8 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         raise lines.error(1, f"line 1 announces {raw['counts'][0]} nodes and {raw['counts'][1]} "
                              f"modes, the file has {len(raw['nodes'])} and {nq}")
     blocks = list(raw["members"].values()) + [t for nd in raw["nodes"] for t in nd.members.values()]
+    for block in blocks:
+        _check_header(lines, block, nq)
     m1_order = _detect_m1_order(lines, blocks, nq)
     build = lambda r: _build_taylor(lines, r, nq, m1_order)  # noqa: E731
     members = {name: build(r) for name, r in raw["members"].items()}
