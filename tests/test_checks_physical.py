@@ -208,3 +208,26 @@ def test_cr_deletion_shows_where_gr_carries_cr():
     (the bar's free-free Cr0 is round-off, hence the lumped body with its Cr0 of order 1)."""
     text = omit_zeros(format_sid_fem(lumped_body()[0]))
     assert "no zeroed entry: Cr0 vs axial(Gr0)/2" in failures_after_deleting(text, "Cr", "m0")
+
+
+def test_label_frequencies_against_generalized_eigenvalues():
+    """Eigen-labelled coordinates whose Me, Ke are not diagonal (a rotated eigenbasis): the labels
+    are the generalized eigenfrequencies of (Ke, Me); zeroing Ke's coupling entry changes them."""
+    from dataclasses import replace
+
+    from sidprep.checks import modal_checks
+    from sidprep.sid import SYMMETRIC, Taylor
+
+    w = 2 * np.pi * np.array([3.0, 7.0])                     # rad/s
+    c, s = np.cos(0.4), np.sin(0.4)
+    R = np.array([[c, -s], [s, c]])
+    Me = np.diag([2.0, 0.5])                                  # kg
+    root = np.diag(np.sqrt(np.diag(Me)))
+    Ke = root @ R.T @ np.diag(w ** 2) @ R @ root              # eigenvalues of (Ke, Me): w^2
+    sid = replace(lumped_body()[0], Me=Taylor(Me, None, SYMMETRIC), Ke=Taylor(Ke, None, SYMMETRIC),
+                  frequencies_hz=w / (2 * np.pi), mode_kinds=("eigen", "eigen"))
+    name = "labels: f = sqrt(Ke/Me)/2pi"
+    checks = modal_checks(sid)
+    assert not checks["Me, Ke diagonal for eigen modes"]["passed"] and checks[name]["value"] < 1e-14
+    uncoupled = Taylor(np.diag(np.diag(Ke)), None, SYMMETRIC)   # the off-diagonal lines deleted
+    assert name in failed_checks(modal_checks(replace(sid, Ke=uncoupled)))
