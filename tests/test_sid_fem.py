@@ -218,7 +218,7 @@ BLOCK_ERRORS = [  # (substitution on a sidprep file, with or without its zeros; 
     ((r"(\n +Ke\n(?:.*\n){6})", r"\1                          m0( 1, 2) = 1.0D+00\n"),
      "contradicts structure 1 of Ke"),
     ((r"(\n +De\n(?:.*\n){6})", r"\1                          m0( 4, 4) = 1.0D+00\n"), "is outside"),
-    ((r"\n +nqn += +0\n", "\n"), "lacks its header line(s) nqn"),
+    ((r"\n +ncol += +1\n", "\n"), "lacks its header line(s) ncol"),
 ]
 
 
@@ -231,6 +231,17 @@ def test_block_errors_in_both_kinds_of_file(sub, words, zeros):
     assert bad != text
     with pytest.raises(InputError, match=re.escape(words)):
         parse_sid_fem(bad, "bad.SID_FEM")
+
+
+def test_header_lines_other_than_the_size_are_required_where_zeros_are_written():
+    """A file that writes its zeros follows the writer rules (all six header lines): a missing one is
+    damage; a file that omits zeros may leave out order, nq, nqn, structure (defaults 0, nelastq, 0, 3)."""
+    text = format_sid_fem(random_sid(5))
+    cut = re.compile(r"\n +nqn += +0\n")
+    with pytest.raises(InputError, match=re.escape("lacks its header line(s) nqn")):
+        parse_sid_fem(cut.sub("\n", text, count=1), "bad.SID_FEM")
+    sparse = omit_zeros(text)
+    assert max_relative_difference(parse_sid_fem(cut.sub("\n", sparse)), parse_sid_fem(sparse)) == 0.0
 
 
 MALFORMED = [  # (substitution on a valid file, expected words in the message)

@@ -365,12 +365,15 @@ def _m1_index(a: int, b: int, c: int, m1_order: str) -> tuple[int, int, int]:
     return (a - 1, b - 1, c - 1) if m1_order == "row,q,col" else (a - 1, c - 1, b - 1)
 
 
-def _check_header(lines: _Lines, raw: _RawTaylor, nq: int) -> None:
-    """All six header fields present (sid-spec.md 7.4 rule 2), nq and structure admissible."""
-    h = raw.header
-    missing = [key for key in HEADER_FIELDS if key not in h]
+def _check_header(lines: _Lines, raw: _RawTaylor, nq: int, zeros_written: bool) -> None:
+    """The header of a block: nrow and ncol present, all six fields if the file writes its zeros
+    (its writer follows sid-spec.md 7.4 rule 2: a missing one is damage), else the others take
+    their defaults (order 0, nq = nelastq, nqn 0, structure 3); nq and structure admissible."""
+    required = HEADER_FIELDS if zeros_written else ("nrow", "ncol")
+    missing = [key for key in required if key not in raw.header]
     if missing:
         raise lines.error(raw.line, f"{raw.where} lacks its header line(s) {', '.join(missing)}")
+    h = raw.header = {"order": 0, "nq": nq, "nqn": 0, "structure": GENERAL, **raw.header}
     if h["nq"] not in (nq, 0):
         raise lines.error(raw.line, f"{raw.where} has nq = {h['nq']} but nelastq = {nq}")
     if h["structure"] not in (ZERO, DIAGONAL, SYMMETRIC, GENERAL, IDENTITY):
@@ -602,8 +605,9 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         raise lines.error(1, f"line 1 announces {raw['counts'][0]} nodes and {raw['counts'][1]} "
                              f"modes, the file has {len(raw['nodes'])} and {nq}")
     blocks = list(raw["members"].values()) + [t for nd in raw["nodes"] for t in nd.members.values()]
+    zeros_written = _writes_zeros(raw["comment"], blocks)
     for block in blocks:
-        _check_header(lines, block, nq)
+        _check_header(lines, block, nq, zeros_written)
     m1_order = _detect_m1_order(lines, blocks, nq)
     build = lambda r: _build_taylor(lines, r, nq, m1_order)  # noqa: E731
     members = {name: build(r) for name, r in raw["members"].items()}
@@ -638,7 +642,7 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         node_id = int(nd.name) if nd.name.lstrip("-").isdigit() else index + 1
         nodes.append(SIDNode(node_id, parts["origin"], parts["phi"], parts["psi"], parts["AP"],
                              parts.get("sigma"), nd.name))
-    entries = _entry_census(lines, blocks, nq, m1_order, _writes_zeros(raw["comment"], blocks))
+    entries = _entry_census(lines, blocks, nq, m1_order, zeros_written)
 
     labels = tuple(raw["labels"][k][1] for k in range(1, nq + 1))
     from_labels = [float(m.group(1).replace("D", "E").replace("d", "e")) if (m := _FREQ.search(s))
