@@ -6,9 +6,12 @@ from __future__ import annotations
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "check", help="re-run the model checks of a SID file (.sid.h5 or .SID_FEM); exit 1 on failure",
-        description="Checks the self-consistency identities of sid-spec.md 4.8, the modal matrices and the "
-                    "label frequencies, plus the FE comparisons stored by 'sidprep reduce'. Exit status 0: "
-                    "all checks of severity 'error' pass; 1: one fails; 2: the file cannot be read.")
+        description="Checks physical possibility (mass, inertia about the CM, Me, Ke, node orientations), "
+                    "the self-consistency identities of sid-spec.md 4.8 (also entry by entry, which finds "
+                    "deleted lines of SID_FEM files that omit zeros), the modal matrices and the label "
+                    "frequencies, plus the FE comparisons stored by 'sidprep reduce'. Exit status 0: "
+                    "all checks of severity 'error' pass; 1: one fails; 2: the file cannot be read "
+                    "(or is damaged: a SID_FEM file that writes its zeros lacks an entry).")
     p.add_argument("file", metavar="FILE", help=".sid.h5 or .SID_FEM file")
     p.set_defaults(func=run)
 

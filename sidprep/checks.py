@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.sid import IDENTITY, SID, ge_tensor, gr_tensor, inertia_matrix, skew
+from sidprep.sid import IDENTITY, SID, axial, ge_tensor, gr_tensor, inertia_matrix, skew
 
 #: relative tolerance of exact identities (covers 12-digit ASCII rounding and round-off)
 IDENTITY_RTOL = 1e-9
@@ -32,6 +32,11 @@ FREE_BODY_RIGID_MODES = 6
 KE_PSD_RTOL = 1e-9
 #: relative slack of the inertia triangle inequalities I_a + I_b >= I_c (a thin rod reaches equality)
 TRIANGLE_RTOL = 1e-9
+#: |AP0^T AP0 - E| and |det AP0 - 1| tolerated for a node orientation (6-decimal writers: welib %f)
+ROTATION_TOL = 1e-5
+#: size of a stored entry, relative to the scale of its identity, above which an exact 0 opposite it
+#: counts as a zeroed entry; smaller entries are round-off (balken1m's Cr.M1 is ~1e-17 of Me)
+ZEROED_ENTRY_RTOL = 1e-6
 
 
 def _relative(residual: np.ndarray, reference: np.ndarray) -> float:
@@ -74,11 +79,8 @@ def inertia_identities(sid: SID) -> dict:
         "the CM shift per mode is the modal momentum (4.8 #3)")}
     if nq == 0:
         return out
-    G = gr_tensor(sid.Gr.M0, nq)
-    J1 = _m1(sid.J, (6, nq, 1))[:, :, 0]
-    I1 = np.stack([inertia_matrix(J1[:, k]) for k in range(nq)])
-    oe = sid.Oe.M0
-    from_oe = -np.stack([2 * oe[:, 0], 2 * oe[:, 1], 2 * oe[:, 2], oe[:, 3], oe[:, 5], oe[:, 4]])
+    G, J1, I1 = gyroscopic_and_inertia_change(sid)
+    from_oe = inertia_change_from_oe(sid.Oe.M0)
     cr = np.stack([skew(c) for c in sid.Cr.M0])
     out["J.M1 = sym(Gr0)"] = _entry(_relative(0.5 * (G + G.transpose(0, 2, 1)) - I1, G), IDENTITY_RTOL,
                                     "inertia change per mode vs Gr (4.8 #4; rotary inertia breaks it)",
@@ -117,6 +119,100 @@ def inertia_identities(sid: SID) -> dict:
     return out
 
 
+def gyroscopic_and_inertia_change(sid: SID) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The canonical Gr0 tensor (nq, 3, 3), J.M1 as stored (6, nq) and as 3x3 matrices (nq, 3, 3)."""
+    J1 = _m1(sid.J, (6, sid.nq, 1))[:, :, 0]
+    return gr_tensor(sid.Gr.M0, sid.nq), J1, np.stack([inertia_matrix(J1[:, k]) for k in range(sid.nq)])
+
+
+def inertia_change_from_oe(oe: np.ndarray) -> np.ndarray:
+    """J.M1 (6, nq) the centrifugal term Oe0 (nq, 6) implies: -[2xx, 2yy, 2zz, xy, xz, yz] (4.8 #4)."""
+    return -np.stack([2 * oe[:, 0], 2 * oe[:, 1], 2 * oe[:, 2], oe[:, 3], oe[:, 5], oe[:, 4]])
+
+
+def zeroed_entries(stored: np.ndarray, twin: np.ndarray, scale: float, mirrored: bool = False) -> int | None:
+    """How many entries of ``stored`` are exactly 0 where ``twin`` is not, or the reverse: the mark
+    of a deleted line in a file that omits zero entries.
+
+    Parameters
+    ----------
+    stored : ndarray
+        Entries as stored.
+    twin : ndarray, same shape
+        What an identity of sid-spec.md 4.8 says they are, from other stored members.
+    scale : float
+        Size of the quantity (a physical bound, or its largest entry); entries below
+        ZEROED_ENTRY_RTOL * scale are round-off and not counted.
+    mirrored : bool
+        The twin of entry [..., i, j] is made from stored[..., j, i]: the mirror of a lone zero is
+        then not held against the identity.
+
+    Returns
+    -------
+    int or None
+        The number of lone zeros; None when the identity fails (beyond IDENTITY_RTOL * scale) where
+        both are nonzero, for then a lone zero may be legitimate (nodal rotary inertia, stiffening
+        terms, a generator's convention).
+    """
+    if scale <= 0:
+        return None
+    lone = ((stored == 0) != (twin == 0)) & (np.abs(stored - twin) > ZEROED_ENTRY_RTOL * scale)
+    mirror_of_lone = lone.swapaxes(-1, -2) if mirrored else np.zeros_like(lone)
+    both = (stored != 0) & (twin != 0) & ~mirror_of_lone
+    if np.max(np.abs(stored - twin)[both], initial=0.0) > IDENTITY_RTOL * scale:
+        return None
+    return int(np.count_nonzero(lone))
+
+
+def zeroed_entry_checks(sid: SID) -> dict:
+    """Deleted lines of a file that omits zeros, found through stored twins (sid-spec.md 4.8).
+
+    Where an identity holds at every entry stored on both sides, an entry read as exactly 0 while
+    its twin is not was deleted: J.M1 vs Oe0 (#4), Gr0 vs 2 J.M1 - Gr0^T (#4, sym Gr0 = I1),
+    Cr0 vs the axial vector of Gr0 / 2 (#5), Ge vs 2 Cr.M1 (#6, no stiffening), Oe.M1 vs its
+    transpose in the two modal indices (#7).  A check is listed only where its identity holds.
+    """
+    nq = sid.nq
+    if nq == 0:
+        return {}
+    G, J1, I1 = gyroscopic_and_inertia_change(sid)
+    oe1 = _m1(sid.Oe, (nq, nq, 6))
+    # Cauchy-Schwarz bounds: |int phi_k,a phi_j,b dm| <= max Me_kk, |int c_a phi_k,b dm| <= sqrt(int |c|^2 dm max Me_kk)
+    modal = float(np.max(np.abs(np.diag(sid.Me.M0))))
+    moment = float(np.sqrt(0.5 * abs(np.trace(inertia_matrix(sid.J.M0))) * modal))
+    pairs = {   # name: (stored, twin, scale bound, twin built from the stored entry's mirror)
+        "J.M1 vs Oe0": (J1, inertia_change_from_oe(sid.Oe.M0), moment, False),
+        "Gr0 vs 2 J.M1 - Gr0^T": (G, 2 * I1 - G.transpose(0, 2, 1), moment, True),
+        "Cr0 vs axial(Gr0)/2": (sid.Cr.M0, 0.5 * axial(G), moment, False),
+        "Ge vs 2 Cr.M1": (ge_tensor(sid.Ge.M0, nq), 2 * _m1(sid.Cr, (nq, nq, 3)).transpose(2, 0, 1), modal, False),
+        "Oe.M1 vs its transpose": (oe1, oe1.transpose(1, 0, 2), modal, False),
+    }
+    out = {}
+    for name, (stored, twin, bound, mirrored) in pairs.items():
+        scale = max(bound, float(np.max(np.abs(stored), initial=0.0)), float(np.max(np.abs(twin), initial=0.0)))
+        count = zeroed_entries(stored, twin, scale, mirrored)
+        if count is not None:
+            out[f"no zeroed entry: {name}"] = _entry(
+                count, 0, "entries exactly 0 where the identity's other side is not (a deleted line "
+                          "of a file that omits zeros); value = their number")
+    return out
+
+
+def file_notes(sid: SID) -> dict:
+    """Entries a SID_FEM file did not write (metadata ``sid_fem_entries`` of the reader), as a note."""
+    meta = sid.metadata if isinstance(sid.metadata, dict) else {}
+    entries = meta.get("sid_fem_entries")
+    if not isinstance(entries, dict):
+        return {}
+    how = ("the file writes its zeros: none may be missing" if entries["zeros_written"] else
+           "read as 0: the file's writer omits zeros, so a deleted line there is told from a zero "
+           "only by the identities")
+    return {"SID_FEM entries not written": {
+        "value": entries["omitted_entries"], "tolerance": None, "passed": True, "severity": "info",
+        "description": f"{entries['omitted_entries']} of {entries['omitted_entries'] + entries['written_entries']} "
+                       f"entries; {how}"}}
+
+
 def modal_checks(sid: SID) -> dict:
     """Me, Ke and the ielastq labels (sid-spec.md 3.7, 3.12, 4.8 #8)."""
     nq = sid.nq
@@ -134,17 +230,49 @@ def modal_checks(sid: SID) -> dict:
     if eigen:
         sub = np.ix_(eigen, eigen)
         off = lambda A: A - np.diag(np.diag(A))  # noqa: E731
-        out["Me, Ke diagonal for eigen modes"] = _entry(
-            max(_relative(off(Me[sub]), Me[sub]), _relative(off(Ke[sub]), Ke[sub])),
-            MODAL_DIAGONAL_RTOL, "eigen-type coordinates are M- and K-orthogonal", "warning")
-        f = np.asarray(sid.frequencies_hz, dtype=float)[eigen]
-        lam = np.diag(Ke)[eigen] / np.diag(Me)[eigen]
-        f_ke = np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi)
-        ok = np.isfinite(f) & (f > 0)
-        dev = float(np.max(np.abs(f_ke[ok] - f[ok]) / f[ok], initial=0.0))
-        out["labels: f = sqrt(Ke/Me)/2pi"] = _entry(dev, LABEL_FREQUENCY_RTOL,
-                                                    "label frequencies vs the modal stiffness (4.8 #8)")
+        diagonal = _entry(max(_relative(off(Me[sub]), Me[sub]), _relative(off(Ke[sub]), Ke[sub])),
+                          MODAL_DIAGONAL_RTOL, "eigen-type coordinates are M- and K-orthogonal", "warning")
+        out["Me, Ke diagonal for eigen modes"] = diagonal
+        out["labels: f = sqrt(Ke/Me)/2pi"] = _entry(
+            label_frequency_deviation(np.asarray(sid.frequencies_hz, dtype=float)[eigen], Me[sub], Ke[sub],
+                                      diagonal["passed"]), LABEL_FREQUENCY_RTOL,
+            "label frequencies vs the modal stiffness (4.8 #8): per coordinate sqrt(Ke_ii/Me_ii)/2pi, "
+            "or, where Me and Ke are not diagonal, the sorted generalized eigenfrequencies")
     return out
+
+
+def label_frequency_deviation(f: np.ndarray, Me: np.ndarray, Ke: np.ndarray, diagonal: bool) -> float:
+    """Largest relative deviation of label frequencies from those of Ke and Me.
+
+    Parameters
+    ----------
+    f : (n,) ndarray
+        Label frequencies, Hz (NaN or <= 0 where a label has none).
+    Me, Ke : (n, n) ndarray
+        Modal mass and stiffness of the labelled coordinates.
+    diagonal : bool
+        Me and Ke are diagonal: compare coordinate by coordinate with sqrt(Ke_ii/Me_ii)/2pi; else
+        compare the sorted labels with the sorted generalized eigenfrequencies of (Ke, Me) (only
+        when every label carries a frequency; inf when Me is not positive definite).
+
+    Returns
+    -------
+    float
+        max |f_Ke - f| / f.
+    """
+    ok = np.isfinite(f) & (f > 0)
+    if diagonal:
+        f_ke = np.sqrt(np.clip(np.diag(Ke) / np.diag(Me), 0, None)) / (2 * np.pi)
+        return float(np.max(np.abs(f_ke[ok] - f[ok]) / f[ok], initial=0.0))
+    if not ok.all():
+        return 0.0
+    try:
+        L = np.linalg.cholesky(0.5 * (Me + Me.T))
+    except np.linalg.LinAlgError:
+        return float("inf")
+    A = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (Ke + Ke.T)).T)
+    f_ke = np.sqrt(np.clip(np.linalg.eigvalsh(A), 0, None)) / (2 * np.pi)
+    return float(np.max(np.abs(f_ke - np.sort(f)) / np.sort(f)))
 
 
 def inertia_about_cm(sid: SID) -> np.ndarray:
@@ -154,11 +282,13 @@ def inertia_about_cm(sid: SID) -> np.ndarray:
 
 
 def physical_checks(sid: SID) -> dict:
-    """Is the SID physically possible?  Mass, inertia about the CM, Ke (any SID, any generator).
+    """Is the SID physically possible?  Mass, inertia about the CM, Ke, node orientations (any SID,
+    any generator).
 
     A deleted or zeroed data line (a damaged file) typically breaks one of these: the principal
     moments of inertia about the CM must be positive and satisfy I_a + I_b >= I_c; Ke must be
-    positive semidefinite (Me positive definite is checked in :func:`modal_checks`).
+    positive semidefinite (Me positive definite is checked in :func:`modal_checks`); each node's
+    AP0 must be a rotation.
     """
     mass = float(sid.mass)
     out = {"mass > 0": _entry(0.0 if mass > 0 else float("inf"), 0.0,
@@ -180,7 +310,16 @@ def physical_checks(sid: SID) -> dict:
         out["Ke positive semidefinite"] = _entry(
             max(-ev[0], 0.0) / max(abs(ev).max(), 1e-300), KE_PSD_RTOL,
             "modal stiffness has no negative eigenvalue (value -min/max)")
+    if sid.nodes:
+        out["node orientations AP0 are rotations"] = _entry(
+            max(rotation_defect(n.AP.M0) for n in sid.nodes), ROTATION_TOL,
+            "AP0 maps node-frame to body-frame components (3.2): value max |AP0^T AP0 - E|, |det - 1|")
     return out
+
+
+def rotation_defect(A: np.ndarray) -> float:
+    """How far a 3x3 matrix is from a rotation: max(|A^T A - E|, |det A - 1|)."""
+    return max(float(np.max(np.abs(A.T @ A - np.eye(3)))), abs(float(np.linalg.det(A)) - 1.0))
 
 
 def _reduction_report(meta) -> dict:
@@ -251,8 +390,9 @@ def normalise_external(checks) -> dict:
 def sid_checks(sid: SID) -> dict:
     """All checks of ``sid``: identities, modal data, free-body checks, and the FE comparisons."""
     meta = sid.metadata if isinstance(sid.metadata, dict) else {}
-    return {**physical_checks(sid), **node_identities(sid), **inertia_identities(sid), **modal_checks(sid),
-            **free_body_checks(sid), **normalise_external(meta.get("checks"))}
+    return {**file_notes(sid), **physical_checks(sid), **node_identities(sid), **inertia_identities(sid),
+            **zeroed_entry_checks(sid), **modal_checks(sid), **free_body_checks(sid),
+            **normalise_external(meta.get("checks"))}
 
 
 def failed_checks(checks: dict) -> list[str]:
@@ -261,9 +401,11 @@ def failed_checks(checks: dict) -> list[str]:
 
 
 def format_checks(checks: dict) -> str:
-    """One line per check: status, name, value, tolerance."""
+    """One line per check: status, name, value, tolerance (counts as integers, none as '-')."""
     def number(v):
-        return f"{v:10.3e}" if isinstance(v, (int, float)) else f"{str(v):>10s}"
+        if isinstance(v, int) and not isinstance(v, bool):
+            return f"{v:10d}"
+        return f"{v:10.3e}" if isinstance(v, float) else f"{'-' if v is None else str(v):>10s}"
 
     lines = []
     for name, c in checks.items():

@@ -5,6 +5,7 @@ theorem (inertia about the CM from the inertia about the origin, checked by reco
 """
 
 import json
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -43,6 +44,8 @@ def test_info_json_of_real_file(capsys):
     I_o = np.array(info["inertia"]["about_origin"])
     assert np.allclose(I_cm + m * (c @ c * np.eye(3) - np.outer(c, c)), I_o, rtol=1e-12, atol=0)
     assert all({"value", "tolerance", "passed"} <= set(v) for v in info["checks"].values())
+    note = info["checks"]["SID_FEM entries not written"]      # the file omits zeros: a note, no failure
+    assert note["severity"] == "info" and note["value"] > 0 and "omits zeros" in note["description"]
 
 
 def test_info_table_and_check_pass(tmp_path, capsys):
@@ -52,7 +55,7 @@ def test_info_table_and_check_pass(tmp_path, capsys):
     code, out, _ = run(capsys, "check", path)
     assert code == 0 and "checks passed" in out
     code, out, _ = run(capsys, "check", write_sid_fem(random_sid(), tmp_path / "body.SID_FEM"))
-    assert code == 0
+    assert code == 0 and re.search(r"info SID_FEM entries not written +0 ", out)
 
 
 def test_check_fails_on_inconsistent_sid(tmp_path, capsys):

@@ -15,7 +15,10 @@ from sidprep.errors import InputError
 from sidprep.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
 from sidprep.sid import SYMMETRIC, Taylor, inertia_matrix, sid_invariants
 
-REF = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem"
+ROOT = Path(__file__).resolve().parents[1]
+#: the third-party files: ../shared/reference/sid_fem beside the checkout (or beside a worktree's folder)
+REF = next((p / "shared" / "reference" / "sid_fem" for p in (ROOT.parent, ROOT.parent.parent)
+            if (p / "shared" / "reference" / "sid_fem").is_dir()), ROOT.parent / "shared" / "reference" / "sid_fem")
 MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 DIGITS_12 = 5e-12      # relative error of a %19.11E number (12 significant digits)
 LABEL_ROUNDING = 1e-3  # labels carry 3 decimals of Hz; FE and reduced frequencies differ slightly
@@ -124,7 +127,8 @@ def test_computed_sid_round_trip_to_12_digits(tmp_path, layout):
 
 def welib_style(sid):
     """Rewrite a file in the welib/FEMBeam dialect: J 3x3, m1(row, col, q), k-block Gr/Ge,
-    nq = 0 in order-0 Me/Ge/Ke/De, 'new frame', written zeros, Ke lower triangle (structure 2)."""
+    nq = 0 in order-0 Me/Ge/Ke/De, 'new frame', written zeros (all of ksigma, structure 0),
+    Ke lower triangle (structure 2)."""
     nq = sid.nq
     J3 = Taylor(inertia_matrix(sid.J.M0), np.stack([inertia_matrix(sid.J.M1[:, k, 0])
                                                     for k in range(nq)], 1))
@@ -134,8 +138,11 @@ def welib_style(sid):
     text = text.replace("           frame\n", "           new frame\n")
     for member in ("Me", "Ge", "Ke", "De"):
         text = re.sub(rf"(\n\s+{member}\n(?:.*\n){{3}}\s+nq\s+=)\s+\d+", r"\1    0", text)
-    text = re.sub(r"(\n\s+Ke\n(?:.*\n)*?)\s+m0\( 1, 2\).*\n", r"\1\n", text, count=1)
-    text = re.sub(r"(\n\s+ksigma\n(?:.*\n){6})", r"\1                          m0( 1, 1)  = 0.0\n", text)
+    head, ke, tail = re.split(r"(?<=\n)(\s+Ke\n(?:.*\n)*?\s+end Ke\n)", text)
+    upper = re.compile(r".*m0\(\s*(\d+),\s*(\d+)\).*\n")
+    ke = upper.sub(lambda m: "" if int(m.group(1)) < int(m.group(2)) else m.group(0), ke)
+    zeros = "".join(f"                          m0({k + 1:2d}, 1)  = 0.0\n" for k in range(nq))
+    text = re.sub(r"(\n\s+ksigma\n(?:.*\n){6})", lambda m: m.group(1) + zeros, head + ke + tail)
     return text, Ke
 
 
@@ -152,6 +159,89 @@ def test_welib_dialect_is_read(tmp_path):
     assert np.allclose(got.Gr.M0, sid.Gr.M0, rtol=1e-11) and np.allclose(got.Ge.M0, sid.Ge.M0, rtol=1e-11)
     assert np.allclose(got.Ke.M0, Ke.M0, rtol=1e-11)            # mirrored upper triangle
     assert np.allclose(got.Cr.M1, sid.Cr.M1, rtol=1e-11)
+
+
+ENTRY_LINE = re.compile(r"^\s*m[01]\(.*=\s*(\S+)\s*$")
+
+
+def omit_zeros(text):
+    """``text`` as a writer that omits zero entries (the native dialect) would have written it."""
+    kept = [line for line in text.splitlines()
+            if not ((m := ENTRY_LINE.match(line)) and float(m.group(1).replace("D", "E")) == 0.0)]
+    return "\n".join(kept).replace(", all entries written", "") + "\n"
+
+
+def without_largest_line(text, block, kind):
+    """``text`` without the ``kind`` ("m0" / "m1") entry line of largest |value| in the member
+    ``block`` (over all nodes for origin, phi, psi, AP); None when the member has no such line."""
+    lines = text.splitlines(keepends=True)
+    inside, best = False, None
+    for k, line in enumerate(lines):
+        words = line.split()
+        inside = (inside or words == [block]) and words != ["end", block]
+        if inside and line.strip().startswith(kind + "("):
+            size = abs(float(line.rpartition("=")[2].replace("D", "E")))
+            best = max(best or (size, k), (size, k))
+    return None if best is None else "".join(lines[:best[1]] + lines[best[1] + 1:])
+
+
+def test_every_deleted_entry_line_of_a_sidprep_file_is_refused():
+    """sidprep writes every entry, zeros included: any one entry line deleted is damage, refused
+    with one line naming the block, its lines and the fix."""
+    text = format_sid_fem(random_sid(stiffening=True))
+    assert "all entries written" in text.splitlines()[0]
+    lines = text.splitlines(keepends=True)
+    entries = [k for k, line in enumerate(lines) if ENTRY_LINE.match(line)]
+    assert len(entries) > 400
+    for k in entries:
+        with pytest.raises(InputError) as err:
+            parse_sid_fem("".join(lines[:k] + lines[k + 1:]), "cut.SID_FEM")
+        message = str(err.value)
+        assert re.match(r"cut\.SID_FEM:\d+-\d+: (node \d+ )?\w+ lacks 1 of its \d+ entries \(first m[01]\(", message)
+        assert message.endswith("the file is truncated or edited; re-export it") and "\n" not in message
+
+
+def test_a_file_that_omits_zeros_reads_the_same_and_counts_them():
+    sid = random_sid(3)
+    full, sparse = parse_sid_fem(format_sid_fem(sid)), parse_sid_fem(omit_zeros(format_sid_fem(sid)))
+    assert max_relative_difference(full, sparse) == 0.0
+    assert full.metadata["sid_fem_entries"]["omitted_entries"] == 0
+    entries = sparse.metadata["sid_fem_entries"]
+    assert not entries["zeros_written"] and entries["omitted_entries"] > 0
+    assert entries["omitted_entries"] + entries["written_entries"] == full.metadata["sid_fem_entries"]["written_entries"]
+
+
+BLOCK_ERRORS = [  # (substitution on a sidprep file, with or without its zeros; words of the message)
+    ((r"(\n(\s+)m0\( 1, 1\)( += .*)\n)", r"\1\2m0( 1, 1)\3\n"), "is written twice"),
+    ((r"(\n +ksigma\n(?:.*\n){5}\s+structure\s+=)\s+0\n", r"\1    0\n                          m0( 1, 1) = 1.0D+00\n"),
+     "contradicts structure 0 of ksigma"),
+    ((r"(\n +Ke\n(?:.*\n){6})", r"\1                          m0( 1, 2) = 1.0D+00\n"),
+     "contradicts structure 1 of Ke"),
+    ((r"(\n +De\n(?:.*\n){6})", r"\1                          m0( 4, 4) = 1.0D+00\n"), "is outside"),
+    ((r"\n +ncol += +1\n", "\n"), "lacks its header line(s) ncol"),
+]
+
+
+@pytest.mark.parametrize("zeros", ["written", "omitted"])
+@pytest.mark.parametrize("sub,words", BLOCK_ERRORS)
+def test_block_errors_in_both_kinds_of_file(sub, words, zeros):
+    text = format_sid_fem(random_sid(4))
+    text = text if zeros == "written" else omit_zeros(text)
+    bad = re.sub(sub[0], sub[1], text, count=1)
+    assert bad != text
+    with pytest.raises(InputError, match=re.escape(words)):
+        parse_sid_fem(bad, "bad.SID_FEM")
+
+
+def test_header_lines_other_than_the_size_are_required_where_zeros_are_written():
+    """A file that writes its zeros follows the writer rules (all six header lines): a missing one is
+    damage; a file that omits zeros may leave out order, nq, nqn, structure (defaults 0, nelastq, 0, 3)."""
+    text = format_sid_fem(random_sid(5))
+    cut = re.compile(r"\n +nqn += +0\n")
+    with pytest.raises(InputError, match=re.escape("lacks its header line(s) nqn")):
+        parse_sid_fem(cut.sub("\n", text, count=1), "bad.SID_FEM")
+    sparse = omit_zeros(text)
+    assert max_relative_difference(parse_sid_fem(cut.sub("\n", sparse)), parse_sid_fem(sparse)) == 0.0
 
 
 MALFORMED = [  # (substitution on a valid file, expected words in the message)
@@ -181,7 +271,7 @@ def test_malformed_file_names_file_and_line(tmp_path, sub, words):
 def test_truncated_and_missing_files(tmp_path):
     text = format_sid_fem(random_sid(2))
     with pytest.raises(InputError, match="unexpected end of file"):
-        parse_sid_fem(text[: len(text) // 2], "half.SID_FEM")
+        parse_sid_fem(text[: text.rindex("\n", 0, len(text) // 2) + 1], "half.SID_FEM")
     with pytest.raises(InputError, match="cannot read"):
         read_sid_fem(tmp_path / "nope.SID_FEM")
 

@@ -32,12 +32,20 @@ HEADER_FIELDS = ("order", "nrow", "ncol", "nq", "nqn", "structure")
 
 #: relative residual of an invariant relation below which a Gr/Ge layout counts as matching
 LAYOUT_MATCH_TOL = 1e-6
+#: deviation of a written m0 entry from what its structure code promises (zero off the diagonal,
+#: the identity, a symmetric partner), relative to max |M0| (at least 1 for the identity), above
+#: which the structure contradicts the entries (12-digit rounding; cartop's Ke triangles differ
+#: by 1e-14)
+STRUCTURE_MATCH_RTOL = 1e-9
+#: line-1 comment of the files whose writer writes every entry, zeros included (sidprep's)
+ZEROS_WRITTEN_NOTE = "all entries written"
 
 _COUNTS = re.compile(r"^\s*(\d+)\s+(\d+)\s*(?::No\. nodes, No\. modes:)?(.*)$")
 _INDEXED = re.compile(r"^(m[01n]|ielastq)\s*\(\s*(\d+)\s*(?:,\s*(\d+)\s*)?(?:,\s*(\d+)\s*)?\)$")
 _FREQ = re.compile(r":\s*([-+]?\d+(?:\.\d*)?(?:[eEdD][-+]?\d+)?)\s*Hz")
 _LAYOUT_HINT = re.compile(r"Gr/Ge\s+(a-block|k-block)")
 _GEO_STIFF = re.compile(r"Geo_Stiff\s*=\s*yes", re.IGNORECASE)
+_ZEROS_WRITTEN = re.compile(re.escape(ZEROS_WRITTEN_NOTE))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -81,13 +89,26 @@ def _assign(indent: int, key: str, value: str) -> str:
     return f"{' ' * indent}{key:<{max(48 - indent, len(key) + 1)}}={value}"
 
 
-def _m0_entries(M0: np.ndarray, structure: int):
-    """(i, j) 0-based entries of M0 the writer emits for ``structure`` (sid-spec.md 2, 7.4)."""
+def _m0_entries(M0: np.ndarray, structure: int) -> list[tuple[int, int]]:
+    """(i, j) 0-based entries of M0 the writer emits for ``structure`` (sid-spec.md 2, 7.4).
+
+    Every entry the structure code leaves open is written, zeros included (not the spec's
+    "omit exact zeros"), so that a reader can tell a deleted line from a zero entry.
+    """
     if structure in (ZERO, IDENTITY):
         return []
     if structure == DIAGONAL:
-        return [(i, i) for i in range(min(M0.shape)) if M0[i, i] != 0]
-    return [(i, j) for i, j in zip(*np.nonzero(M0))]
+        return [(i, i) for i in range(min(M0.shape))]
+    return list(np.ndindex(M0.shape))
+
+
+def _m1_entries(M1: np.ndarray | None) -> list[tuple[int, int, int]]:
+    """(row, q, col) 0-based entries of M1 the writer emits: none if M1 vanishes, else all of them,
+    zeros included, the modal index fastest as in genuine files."""
+    if M1 is None or not np.any(M1):
+        return []
+    nrow, nq, ncol = M1.shape
+    return [(i, k, j) for j, i, k in np.ndindex(ncol, nrow, nq)]
 
 
 def _taylor_lines(name: str, T: Taylor, nq: int, indent: int) -> list[str]:
@@ -98,10 +119,8 @@ def _taylor_lines(name: str, T: Taylor, nq: int, indent: int) -> list[str]:
     lines += [_assign(inner, k, f"{v:5d}") for k, v in header.items()]
     lines += [_assign(inner, f"m0({i + 1:2d},{j + 1:2d})", _number(T.M0[i, j]))
               for i, j in _m0_entries(T.M0, T.structure)]
-    if T.M1 is not None:
-        cols, rows, qs = np.nonzero(T.M1.transpose(2, 0, 1))     # as genuine files: q fastest
-        lines += [_assign(inner, f"m1({i + 1:2d},{k + 1:2d},{j + 1:2d})", _number(T.M1[i, k, j]))
-                  for j, i, k in zip(cols, rows, qs)]
+    lines += [_assign(inner, f"m1({i + 1:2d},{k + 1:2d},{j + 1:2d})", _number(T.M1[i, k, j]))
+              for i, k, j in _m1_entries(T.M1)]
     lines.append(" " * indent + f"end {name}")
     return lines
 
@@ -114,7 +133,7 @@ def format_sid_fem(sid: SID, layout: str = "a-block", comment: str = "") -> str:
     geo = any(key.startswith("K0") for key in sid.stiffening)
     units = f"{sid.units} (kg, m, s, N, rad)" if sid.units == "SI" else sid.units
     comment = " ".join(comment.split())                         # line 1 must stay one line
-    text = (f"sidprep SID, units {units}, Gr/Ge {layout}"
+    text = (f"sidprep SID, units {units}, Gr/Ge {layout}, {ZEROS_WRITTEN_NOTE}"
             f"{'. ' + comment if comment else ''}{' Geo_Stiff= yes' if geo else ''}")
     lines = [f"{len(sid.nodes):5d}{nq:5d}    :No. nodes, No. modes:{text}", " part",
              _assign(6, "new modal", ""), " " * 11 + "refmod",
@@ -152,10 +171,16 @@ def write_sid_fem(sid: SID, path, layout: str = "a-block", comment: str = "") ->
 
 @dataclass
 class _RawTaylor:
-    """A Taylor block as written: header fields and 1-based entries with their line numbers."""
+    """A Taylor block as written: header fields and 1-based entries with their line numbers.
+
+    ``where`` names the block in messages ("Ke", "node 1125 origin"); ``line`` / ``end`` are the
+    lines of its name and of its ``end`` line.
+    """
 
     name: str
     line: int
+    where: str = ""
+    end: int = 0
     header: dict = field(default_factory=dict)
     m0: list = field(default_factory=list)        # (line, i, j, value)
     m1: list = field(default_factory=list)        # (line, a, b, c, value) as written
@@ -216,11 +241,12 @@ def _is_end(text: str, name: str) -> bool:
     return text.split() == ["end", name]
 
 
-def _read_taylor(lines: _Lines, name: str, line: int) -> _RawTaylor:
-    raw = _RawTaylor(name, line)
+def _read_taylor(lines: _Lines, name: str, line: int, where: str) -> _RawTaylor:
+    raw = _RawTaylor(name, line, where)
     while True:
         n, text = lines.next(f"'end {name}'")
         if _is_end(text, name):
+            raw.end = n
             return raw
         key, value = _split(text)
         if value is None:
@@ -271,7 +297,7 @@ def _parse(lines: _Lines) -> dict:
         elif key in MODAL_MEMBERS and value is None:
             if key in out["members"]:
                 raise lines.error(n, f"member {key} appears twice")
-            out["members"][key] = _read_taylor(lines, key, n)
+            out["members"][key] = _read_taylor(lines, key, n, key)
         else:
             raise lines.error(n, f"unexpected '{text}' in modal (members: refmod, frame, "
                                  f"{', '.join(MODAL_MEMBERS)})")
@@ -311,7 +337,7 @@ def _parse_frame(lines: _Lines, out: dict) -> None:
                 continue
             if key not in NODE_MEMBERS or value is not None:
                 raise lines.error(m, f"unexpected '{text}' in node {node.name}")
-            node.members[key] = _read_taylor(lines, key, m)
+            node.members[key] = _read_taylor(lines, key, m, f"node {node.name} {key}")
         out["nodes"].append(node)
 
 
@@ -334,36 +360,177 @@ def _detect_m1_order(lines: _Lines, blocks: list[_RawTaylor], nq: int) -> str:
     raise lines.error(bad[0], f"m1 index {bad[1:4]} is out of range for nq = {nq}")
 
 
+def _m1_index(a: int, b: int, c: int, m1_order: str) -> tuple[int, int, int]:
+    """0-based (row, q, col) of the written 1-based ``m1(a, b, c)`` in ``m1_order``."""
+    return (a - 1, b - 1, c - 1) if m1_order == "row,q,col" else (a - 1, c - 1, b - 1)
+
+
+def _check_header(lines: _Lines, raw: _RawTaylor, nq: int, zeros_written: bool) -> None:
+    """The header of a block: nrow and ncol present, all six fields if the file writes its zeros
+    (its writer follows sid-spec.md 7.4 rule 2: a missing one is damage), else the others take
+    their defaults (order 0, nq = nelastq, nqn 0, structure 3); nq and structure admissible."""
+    required = HEADER_FIELDS if zeros_written else ("nrow", "ncol")
+    missing = [key for key in required if key not in raw.header]
+    if missing:
+        raise lines.error(raw.line, f"{raw.where} lacks its header line(s) {', '.join(missing)}")
+    h = raw.header = {"order": 0, "nq": nq, "nqn": 0, "structure": GENERAL, **raw.header}
+    if h["nq"] not in (nq, 0):
+        raise lines.error(raw.line, f"{raw.where} has nq = {h['nq']} but nelastq = {nq}")
+    if h["structure"] not in (ZERO, DIAGONAL, SYMMETRIC, GENERAL, IDENTITY):
+        raise lines.error(raw.line, f"{raw.where} has unknown structure {h['structure']}")
+    if h["structure"] in (IDENTITY, SYMMETRIC) and h["nrow"] != h["ncol"]:
+        raise lines.error(raw.line, f"{raw.where}: structure {h['structure']} needs a square matrix")
+
+
+def _check_no_duplicates(lines: _Lines, raw: _RawTaylor) -> None:
+    """Each m0 / m1 index is written at most once."""
+    seen = {}
+    for kind, entries in (("m0", raw.m0), ("m1", raw.m1)):
+        for n, *idx, _ in entries:
+            key = f"{kind}({','.join(map(str, idx))})"
+            if key in seen:
+                raise lines.error(n, f"{key} of {raw.where} is written twice (lines {seen[key]} and {n})")
+            seen[key] = n
+
+
+def _structure_violation(M0: np.ndarray, given: np.ndarray, structure: int) -> tuple[int, int] | None:
+    """The written m0 entry that contradicts ``structure`` most.
+
+    Zero (0): every written entry is zero; diagonal (1): written off-diagonal entries are zero;
+    identity (4): written entries are those of E; symmetric (2): entries written in both triangles
+    agree.  Deviations count relative to max |M0| (at least 1 for the identity).
+
+    Parameters
+    ----------
+    M0 : (nrow, ncol) ndarray
+        The matrix with the written entries in place (before mirroring).
+    given : (nrow, ncol) bool ndarray
+        Which entries are written.
+    structure : int
+        The declared structure code.
+
+    Returns
+    -------
+    tuple of int or None
+        0-based (i, j) of the worst entry beyond STRUCTURE_MATCH_RTOL, or None.
+    """
+    if structure == GENERAL or not given.any():
+        return None
+    if structure == SYMMETRIC:
+        deviation = np.where(given & given.T, np.abs(M0 - M0.T), 0.0)
+    else:
+        promised = {ZERO: np.zeros_like(M0), DIAGONAL: M0 * np.eye(*M0.shape), IDENTITY: np.eye(len(M0))}
+        deviation = np.where(given, np.abs(M0 - promised[structure]), 0.0)
+    scale = max(np.max(np.abs(M0)), 1.0 if structure == IDENTITY else 0.0)
+    worst = np.unravel_index(np.argmax(deviation), deviation.shape)
+    return worst if deviation[worst] > STRUCTURE_MATCH_RTOL * scale else None
+
+
 def _build_taylor(lines: _Lines, raw: _RawTaylor, nq: int, m1_order: str) -> Taylor:
-    """Apply the reader rules of sid-spec.md 2 / 7.5 to one block."""
+    """Apply the reader rules of sid-spec.md 2 / 7.5 to one block.
+
+    Its header is checked (:func:`_check_header`).  Errors for an index outside the declared
+    dimensions, an entry written twice, or a structure code the written entries contradict.
+    """
+    _check_no_duplicates(lines, raw)
     h = raw.header
-    if "nrow" not in h or "ncol" not in h:
-        raise lines.error(raw.line, f"{raw.name} lacks nrow/ncol")
-    nrow, ncol, structure = h["nrow"], h["ncol"], h.get("structure", GENERAL)
-    if h.get("nq", nq) not in (nq, 0):
-        raise lines.error(raw.line, f"{raw.name} has nq = {h['nq']} but nelastq = {nq}")
-    if structure not in (ZERO, DIAGONAL, SYMMETRIC, GENERAL, IDENTITY):
-        raise lines.error(raw.line, f"{raw.name} has unknown structure {structure}")
-    if structure == IDENTITY and nrow != ncol:
-        raise lines.error(raw.line, f"{raw.name}: structure 4 (identity) needs a square matrix")
+    nrow, ncol, structure = h["nrow"], h["ncol"], h["structure"]
     M0 = np.eye(nrow) if structure == IDENTITY else np.zeros((nrow, ncol))
     given = np.zeros((nrow, ncol), dtype=bool)
     for n, i, j, v in raw.m0:
         if i > nrow or j > ncol:
-            raise lines.error(n, f"m0({i},{j}) is outside the {nrow}x{ncol} matrix {raw.name}")
+            raise lines.error(n, f"m0({i},{j}) is outside the {nrow}x{ncol} matrix {raw.where}")
         M0[i - 1, j - 1] = v
         given[i - 1, j - 1] = True
-    if structure == SYMMETRIC and nrow == ncol:
+    bad = _structure_violation(M0, given, structure)
+    if bad is not None:
+        line = next(n for n, i, j, _ in raw.m0 if (i - 1, j - 1) == bad)
+        raise lines.error(line, f"m0({bad[0] + 1},{bad[1] + 1}) = {M0[bad]:.6g} contradicts "
+                                f"structure {structure} of {raw.where}")
+    if structure == SYMMETRIC:
         M0 = np.where(given | ~given.T, M0, M0.T)
     M1 = None
-    if h.get("order", 0) >= 1 or raw.m1:
+    if h["order"] >= 1 or raw.m1:
         M1 = np.zeros((nrow, nq, ncol))
         for n, a, b, c, v in raw.m1:
-            k, j = (b, c) if m1_order == "row,q,col" else (c, b)
-            if a > nrow or k > nq or j > ncol:
-                raise lines.error(n, f"m1({a},{b},{c}) is outside {raw.name} ({nrow}x{nq}x{ncol})")
-            M1[a - 1, k - 1, j - 1] = v
+            i, k, j = _m1_index(a, b, c, m1_order)
+            if i >= nrow or k >= nq or j >= ncol:
+                raise lines.error(n, f"m1({a},{b},{c}) is outside {raw.where} ({nrow}x{nq}x{ncol})")
+            M1[i, k, j] = v
     return Taylor(M0, M1, structure)
+
+
+def _complete_m0_sets(structure: int, nrow: int, ncol: int) -> list[np.ndarray]:
+    """Masks of the m0 entry sets a writer that writes zeros may emit for ``structure``.
+
+    Zero and identity: none, or all (welib); diagonal: the diagonal, or all; symmetric: one
+    triangle (welib, FEMBeam) or both (cartop); general: all.
+    """
+    full = np.ones((nrow, ncol), dtype=bool)
+    return {ZERO: [~full, full], IDENTITY: [~full, full], DIAGONAL: [np.eye(nrow, ncol, dtype=bool), full],
+            SYMMETRIC: [np.tril(full), np.triu(full), full]}.get(structure, [full])
+
+
+def _absent_entries(raw: _RawTaylor, nq: int, m1_order: str, zeros_written: bool) -> tuple[int, str]:
+    """The entries of a block that are not written.
+
+    m0 counts against the closest complete set of :func:`_complete_m0_sets`; m1 (order >= 1 or m1
+    lines) against all nrow x nq x ncol entries: a writer that writes zeros may leave out a
+    vanishing M1 entirely, a writer that omits zeros leaves out its zero entries.
+
+    Returns
+    -------
+    count : int
+        How many entries are not written.
+    first : str
+        The first of them as the file would write it ("m0(2,1)", "m1(3,1,1)"); "" if none.
+    """
+    h = raw.header
+    nrow, ncol = h["nrow"], h["ncol"]
+    given = np.zeros((nrow, ncol), dtype=bool)
+    for _, i, j, _ in raw.m0:
+        given[i - 1, j - 1] = True
+    m0_absent = min((mask & ~given for mask in _complete_m0_sets(h["structure"], nrow, ncol)
+                     if not np.any(given & ~mask)), key=np.count_nonzero)
+    m1_absent = np.zeros((nrow, nq, ncol), dtype=bool)
+    if raw.m1 or (h["order"] >= 1 and not zeros_written):
+        m1_absent[:] = True
+        for _, a, b, c, _ in raw.m1:
+            m1_absent[_m1_index(a, b, c, m1_order)] = False
+    count = int(np.count_nonzero(m0_absent) + np.count_nonzero(m1_absent))
+    if np.any(m0_absent):
+        i, j = np.argwhere(m0_absent)[0] + 1
+        return count, f"m0({i},{j})"
+    if np.any(m1_absent):
+        i, k, j = np.argwhere(m1_absent)[0] + 1
+        return count, f"m1({i},{k},{j})" if m1_order == "row,q,col" else f"m1({i},{j},{k})"
+    return 0, ""
+
+
+def _entry_census(lines: _Lines, blocks: list[_RawTaylor], nq: int, m1_order: str,
+                  zeros_written: bool) -> dict:
+    """Entries written and left out over all blocks (metadata ``sid_fem_entries``).
+
+    In a file whose writer writes zeros (:data:`ZEROS_WRITTEN_NOTE` on line 1, or any entry
+    written as zero), a left-out entry is damage: InputError naming the block and its lines.
+    """
+    omitted = 0
+    for raw in blocks:
+        count, first = _absent_entries(raw, nq, m1_order, zeros_written)
+        if count and zeros_written:
+            total = count + len(raw.m0) + len(raw.m1)
+            raise InputError(f"{lines.path}:{raw.line}-{raw.end}: {raw.where} lacks {count} of its "
+                             f"{total} entries (first {first}) although this file writes its zero "
+                             f"entries: the file is truncated or edited; re-export it")
+        omitted += count
+    return {"zeros_written": zeros_written, "omitted_entries": omitted,
+            "written_entries": sum(len(raw.m0) + len(raw.m1) for raw in blocks)}
+
+
+def _writes_zeros(comment: str, blocks: list[_RawTaylor]) -> bool:
+    """Does the file's writer write zero entries (line-1 note, or any entry written as zero)?"""
+    return bool(_ZEROS_WRITTEN.search(comment)) or any(
+        entry[-1] == 0.0 for raw in blocks for entry in raw.m0 + raw.m1)
 
 
 def _j_as_vector(J: Taylor) -> Taylor:
@@ -438,6 +605,9 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         raise lines.error(1, f"line 1 announces {raw['counts'][0]} nodes and {raw['counts'][1]} "
                              f"modes, the file has {len(raw['nodes'])} and {nq}")
     blocks = list(raw["members"].values()) + [t for nd in raw["nodes"] for t in nd.members.values()]
+    zeros_written = _writes_zeros(raw["comment"], blocks)
+    for block in blocks:
+        _check_header(lines, block, nq, zeros_written)
     m1_order = _detect_m1_order(lines, blocks, nq)
     build = lambda r: _build_taylor(lines, r, nq, m1_order)  # noqa: E731
     members = {name: build(r) for name, r in raw["members"].items()}
@@ -472,6 +642,7 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
         node_id = int(nd.name) if nd.name.lstrip("-").isdigit() else index + 1
         nodes.append(SIDNode(node_id, parts["origin"], parts["phi"], parts["psi"], parts["AP"],
                              parts.get("sigma"), nd.name))
+    entries = _entry_census(lines, blocks, nq, m1_order, zeros_written)
 
     labels = tuple(raw["labels"][k][1] for k in range(1, nq + 1))
     from_labels = [float(m.group(1).replace("D", "E").replace("d", "e")) if (m := _FREQ.search(s))
@@ -495,6 +666,7 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
             "Ge_layout_residuals": {k: float(v) if np.isfinite(v) else None for k, v in ge_res.items()},
         },
         "frequencies_from_Ke_hz": [float(f) for f in from_ke],
+        "sid_fem_entries": entries,
     }
     return SID(
         mass=raw["mass"][1], labels=labels, nodes=tuple(nodes), **members,
