@@ -148,17 +148,18 @@ def row_rate(c, v1, w1, v2, w2):  # pragma: no cover - compiled
 
 
 @jit
-def path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s, rotation):  # pragma: no cover - compiled
+def path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s, rotation, extend):  # pragma: no cover - compiled
     """Position p (3,) and frame A_m (3, 3) (inertial) of a marker at arc length s on a path of
     a body at (r, a, q), the path's undeformed point x(s) (3,, K), its Phi, Psi (3, nq) there and
     whether s is on the path (beyond the ends Phi = Psi = 0: the marker rides the straight
-    extension rigidly): p = r + A (x(s) + Phi q); the frame is the
+    extension rigidly; ``extend``: the end pieces' shapes go on, for derivatives at the ends):
+    p = r + A (x(s) + Phi q); the frame is the
     marker rotation R_m turned from the undeformed tangent t0 to the deformed t = x' + Phi' q
     (the smallest rotation) and about t by the twist t0 . (Psi q):
 
         A_m = A exp(t0.(Psi q) t~) align(t0, t) R_m."""
     point, phi, psi, on, dpoint, dphi = path_shapes(curve_x, curve_c, curve_meta, first, q.shape[0], s)
-    if not on:
+    if not (on or extend):
         phi, psi, dphi = np.zeros_like(phi), np.zeros_like(psi), np.zeros_like(dphi)
     t0 = dpoint / np.sqrt(dot(dpoint, dpoint))
     tangent = dpoint + matvec(dphi, q)
@@ -169,13 +170,14 @@ def path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s, rotation):  # pra
 
 
 @jit
-def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rotation, frame):  # pragma: no cover
+def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rotation, frame, on):  # pragma: no cover
     """Velocity (3,) and angular velocity (3,) (inertial) of a path marker at arc length s
     moving at s_dot (m/s) over its body held still, frame (3, 3) its A_m there: s_dot dp/ds and
-    s_dot vee(dA_m/ds A_m^T) (path_pose; central differences, step PATH_TANGENT_STEP m)."""
+    s_dot vee(dA_m/ds A_m^T) (path_pose; central differences, step PATH_TANGENT_STEP m; at the
+    path's ends (``on``) with the end pieces' shapes on both sides)."""
     h = PATH_TANGENT_STEP
-    p_plus, a_plus = path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s + h, rotation)[:2]
-    p_minus, a_minus = path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s - h, rotation)[:2]
+    p_plus, a_plus = path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s + h, rotation, on)[:2]
+    p_minus, a_minus = path_pose(curve_x, curve_c, curve_meta, first, r, a, q, s - h, rotation, on)[:2]
     w = matmul(a_plus - a_minus, frame.T)
     scale = s_dot / (2.0 * h)
     omega = np.array([0.5 * (w[2, 1] - w[1, 2]), 0.5 * (w[0, 2] - w[2, 0]), 0.5 * (w[1, 0] - w[0, 1])])
@@ -233,10 +235,10 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
                 cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
                 s, s_dot, _ = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)
             p, rot, point, phi, psi, on = path_pose(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s,
-                                                    L.mk_rot[k])
+                                                    L.mk_rot[k], False)
             if L.mk_path[k, 2] < 0:
                 vc, wc = path_convection(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s, s_dot,
-                                         L.mk_rot[k], rot)
+                                         L.mk_rot[k], rot, on)
                 put(VC[k], 0, vc)
                 put(WC[k], 0, wc)
             jt, jr = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2:4]
