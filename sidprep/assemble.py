@@ -229,7 +229,12 @@ def mass_matrix(mesh: FEMesh, material: Material, lumped: bool = False,
     :func:`lumped_scalar_mass`)."""
     if lumped:
         return sp.diags(np.repeat(lumped_scalar_mass(mesh, material.rho), 3)).tocsr()
-    return sp.kron(scalar_mass_matrix(mesh, material.rho, pattern), sp.identity(3), format="csr")
+    return vector_mass(scalar_mass_matrix(mesh, material.rho, pattern))
+
+
+def vector_mass(Ms: sp.spmatrix) -> sp.csr_matrix:
+    """M = Ms (x) I3 (3n, 3n) from the scalar mass matrix, without explicit zeros."""
+    return sp.kron(Ms, sp.identity(3), format="csr")
 
 
 def stiffness_and_mass(mesh: FEMesh, material: Material) -> tuple[sp.csr_matrix, sp.csr_matrix]:

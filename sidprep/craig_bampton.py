@@ -83,9 +83,9 @@ def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
 
 
 def constraint_modes(K: sp.spmatrix, factor, b: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb)."""
-    K = K.tocsc()
-    rhs = -K[i][:, b].toarray()
+    """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb).  K symmetric CSR:
+    K_ib is read from the boundary rows (no CSC copy of K)."""
+    rhs = -K[b].toarray()[:, i].T
     return np.asarray(factor.solve(rhs)).reshape(len(i), len(b))
 
 
@@ -164,7 +164,7 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
         b, i = split_dofs(K.shape[0], boundary_dofs)
         K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
         try:
-            factor = factorize(K_ii.tocsc())
+            factor = factorize(K_ii)              # CSR of a symmetric matrix: no CSC copy
         except (np.linalg.LinAlgError, RuntimeError) as exc:  # singular interior: the boundary does not hold it
             raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
                              "statically — add an interface or use the free frame") from exc
