@@ -11,7 +11,7 @@ MASS_CHECK_TOL = 1e-10
 FREQUENCY_CHECK_TOL = 0.01
 #: FEMBS promise for static deflection of the reduced body vs the full FE model
 STATIC_CHECK_TOL = 0.01
-#: the eigenvalue count's fixed-point iteration: relative step at convergence, and its iteration limit
+#: the eigenvalue count's conjugate gradients: relative residual (M norm) at convergence, iteration limit
 COUNT_RTOL = 1e-10
 COUNT_MAX_ITERATIONS = 200
 #: the count's shift sits between the checked Ritz values and the next one; the checked set grows
@@ -53,9 +53,10 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     dynamic Schur complement (K - sigma M)_bb - (K - sigma M)_bi (K - sigma M)_ii^-1 (K - sigma M)_ib.
 
     (K - sigma M)_ii^-1 is applied exactly: on the computed fixed-interface modes spectrally, on their
-    M_ii-orthogonal complement by the fixed point y = K_ii^-1 (g + sigma M_ii y) with the reduction's
-    K_ii factor (contraction sigma / mu_(ncb+1) < 1).  None when that iteration does not converge
-    (sigma above the computed fixed-interface spectrum): the count cannot be certified.
+    M_ii-orthogonal complement W by conjugate gradients on (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g with
+    the reduction's K_ii factor (condition number 1 / (1 - sigma / mu_(ncb+1))).  None when that
+    operator is not definite or the iteration does not converge (sigma above the computed
+    fixed-interface spectrum): the count cannot be certified.
     """
     cb = red.cb
     n = cb.basis.shape[0]
@@ -77,13 +78,34 @@ def eigenvalue_count(red, sigma: float) -> int | None:
 
     c = Phi.T @ F
     g = F - m_ii(Phi @ c)
-    y = np.zeros_like(g)
+
+    def solve_w(v):                                       # (K_ii^-1 v, M_ii K_ii^-1 v), projected onto W
+        w = np.asarray(cb.interior_factor.solve(v)).reshape(v.shape)
+        w -= Phi @ (Phi.T @ m_ii(w))                      # the modes' round-off (M_ii-orthonormal to 1e-10)
+        return w, m_ii(w)
+
+    # (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g on W by conjugate gradients in the M_ii inner product
+    # (the operator is self-adjoint there, eigenvalues 1 - sigma / mu >= 1 - sigma / mu_(ncb+1) > 0),
+    # one column per boundary DOF, one solve and two M_ii products per step
+    r, Mr = solve_w(g)
+    y, p, Mp = np.zeros_like(r), r.copy(), Mr.copy()
+    rr = rr0 = np.einsum("ij,ij->j", r, Mr)
     for _ in range(COUNT_MAX_ITERATIONS):
-        y_new = np.asarray(cb.interior_factor.solve(g + sigma * m_ii(y))).reshape(g.shape)
-        y_new -= Phi @ (Phi.T @ m_ii(y_new))
-        step, y = np.abs(y_new - y).max(), y_new
-        if step <= COUNT_RTOL * np.abs(y).max():
+        active = rr > COUNT_RTOL ** 2 * rr0
+        if not active.any():
             break
+        w, Mw = solve_w(Mp)
+        pBp = np.einsum("ij,ij->j", p, Mp) - sigma * np.einsum("ij,ij->j", Mp, w)
+        if np.any(pBp[active] <= 0):                      # not definite: sigma above mu_(ncb+1)
+            return None
+        alpha = np.where(active, rr / np.where(active, pBp, 1.0), 0.0)
+        y += alpha * p
+        r -= alpha * (p - sigma * w)
+        Mr -= alpha * (Mp - sigma * Mw)
+        rr, rr_old = np.einsum("ij,ij->j", r, Mr), rr
+        beta = np.where(active, rr / np.where(active, rr_old, 1.0), 0.0)
+        p = r + beta * p
+        Mp = Mr + beta * Mp
     else:
         return None
     S = A_b[:, b] - F.T @ (Phi @ (c / (mu - sigma)[:, None]) + y)
