@@ -120,24 +120,27 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
 
 
 #: peak of a whole `sidprep reduce` run over the estimated peak of a direct eigen solve of the same
-#: model (K_model, M_model, the K_ii factor, dense constraint modes and basis, the frequency check's
-#: own factor): measured 2.1 / 2.2 on 92k / 211k-DOF tet10 bars with two RBE2 interfaces (docs/performance.md)
-REDUCE_OVER_MODES_PEAK = 2.2
+#: model (K_model and M_model, the K_ii factor with K_ii and M_ii, the dense constraint modes, the
+#: Lanczos vectors of the fixed-interface modes, the basis): 1.38 / 1.36 on 93k / 211k-DOF tet10 bars
+#: with two RBE2 interfaces and 30 modes (docs/performance.md, since the frequency check needs no
+#: second factor; 2.1-2.2 before)
+REDUCE_OVER_MODES_PEAK = 1.4
 
 
-def reduction_peak_bytes(n_dof: int, nnz: int | None = None) -> float:
-    """Estimated peak memory (bytes) of a whole reduction of an n_dof model, before it runs."""
+def reduction_peak_bytes(n_dof: int, nnz: int | None = None, extent=None) -> float:
+    """Estimated peak memory (bytes) of a whole reduction of an n_dof model, before it runs;
+    ``extent`` : the body's bounding-box edge lengths (default a cube, the densest fill)."""
     from sidprep.linalg import estimate_peak_memory
 
-    return REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz).direct_peak_bytes
+    return REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz, extent).direct_peak_bytes
 
 
-def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None) -> None:
+def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None, extent=None) -> None:
     """Refuse (InputError, one line) a reduction whose estimated peak exceeds the memory this run may
     use, before the factorisation starts, instead of meeting the out-of-memory killer."""
     from sidprep.linalg import MEMORY_HEADROOM, available_memory_bytes
 
-    need = reduction_peak_bytes(n_dof, nnz)
+    need = reduction_peak_bytes(n_dof, nnz, extent)
     avail = available_memory_bytes() if memory_limit is None else float(memory_limit)
     if need > MEMORY_HEADROOM * avail:
         raise InputError(f"model too large for this machine: the reduction of {n_dof} DOF needs ~{need / 1024 ** 3:.1f} GB, "
@@ -145,7 +148,7 @@ def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = No
                          "SIDPREP_MEMORY_LIMIT (bytes, or with K/M/G)")
 
 
-def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=None) -> ReducedModel:
+def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=None, extent=None) -> ReducedModel:
     """Craig-Bampton reduction (module docstring); n_modes fixed-interface modes or all below fmax Hz.
 
     Parameters
@@ -154,10 +157,11 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
     boundary_dofs : (nb,) int; K_ii must be positive definite (the boundary holds the body).
     n_modes : int, optional; fmax : float, optional (Hz)
     memory_limit : bytes this run may use (default ``sidprep.linalg.available_memory_bytes()``)
+    extent : (3,) bounding-box edge lengths of the body for the memory estimate (default a cube)
     """
     from sidprep.linalg import factorize
 
-    check_reduction_memory(K.shape[0], K.nnz, memory_limit)
+    check_reduction_memory(K.shape[0], K.nnz, memory_limit, extent)
 
     with single_threaded_blas():
         K, M = sp.csr_matrix(K), sp.csr_matrix(M)

@@ -163,10 +163,11 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
         rigid = rigid_modes_model(im, mesh.points)
     boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(rigid, np.arange(im.n_model))
     with ph("craig-bampton", f"{len(boundary)} boundary DOF"):
+        extent = np.ptp(mesh.points, axis=0)
         if fmax is not None:
-            cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax)
+            cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax, extent=extent)
         else:
-            cb = craig_bampton(K_model, M_model, boundary, n_modes=max(CB_MIN_MODES, 3 * n_modes))
+            cb = craig_bampton(K_model, M_model, boundary, n_modes=max(CB_MIN_MODES, 3 * n_modes), extent=extent)
     held = None if frame == "free" else im.master_dofs[names.index(frame)]
     held_r = () if held is None else np.flatnonzero(np.isin(boundary, held))
     with ph("modes", "eigen + frequency-response modes"):
