@@ -89,8 +89,23 @@ def constraint_modes(K: sp.spmatrix, factor, b: np.ndarray, i: np.ndarray) -> np
     return np.asarray(factor.solve(rhs)).reshape(len(i), len(b))
 
 
+def interior_operator(A: sp.spmatrix, interior) -> spla.LinearOperator:
+    """The block A_ii (``interior``: indices or a mask) as an operator, without copying the block:
+    x -> (A x_padded)[interior], x (ni,) or (ni, k)."""
+    n = A.shape[0]
+    ni = int(np.count_nonzero(interior)) if np.asarray(interior).dtype == bool else len(interior)
+
+    def matmat(X):
+        full = np.zeros((n,) + X.shape[1:])
+        full[interior] = X
+        return (A @ full)[interior]
+
+    return spla.LinearOperator((ni, ni), matvec=matmat, matmat=matmat, dtype=float)
+
+
 def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
-    """Lowest eigenpairs of K_ii phi = lambda M_ii phi by shift-invert at 0 with the given factor.
+    """Lowest eigenpairs of K_ii phi = lambda M_ii phi by shift-invert at 0 with the given factor
+    (K_ii, M_ii sparse matrices or operators; ARPACK's shift-invert mode applies only M_ii and the factor).
 
     Returns (frequencies Hz (nm,), vectors (ni, nm) M_ii-normalised).  With ``fmax``, the count
     grows (doubling) until the highest computed frequency passes fmax, then is cut at fmax.
@@ -115,7 +130,7 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
     if fmax is not None and n_modes is None:
         keep = f <= fmax
         f, vec = f[keep], vec[:, keep]
-    vec = vec / np.sqrt(np.einsum("ij,ij->j", vec, M_ii @ vec))
+    vec /= np.sqrt(np.einsum("ij,ij->j", vec, M_ii @ vec))
     return f, vec
 
 
@@ -166,9 +181,8 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
     with single_threaded_blas():
         K, M = sp.csr_matrix(K), sp.csr_matrix(M)
         b, i = split_dofs(K.shape[0], boundary_dofs)
-        K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
         try:
-            factor = factorize(K_ii)              # CSR of a symmetric matrix: no CSC copy
+            factor = factorize(K[i][:, i])        # the copy K_ii lives only while it is factorised
         except (np.linalg.LinAlgError, RuntimeError) as exc:  # singular interior: the boundary does not hold it
             raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
                              "statically — add an interface or use the free frame") from exc
@@ -176,7 +190,7 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
         if n_modes == 0 or (n_modes is None and fmax is None):
             f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
         else:
-            f, Phi_m = fixed_interface_modes(K_ii, M_ii, factor, n_modes, fmax)
+            f, Phi_m = fixed_interface_modes(interior_operator(K, i), interior_operator(M, i), factor, n_modes, fmax)
     basis = np.zeros((K.shape[0], len(b) + len(f)))
     basis[i, :len(b)] = Psi
     basis[b, np.arange(len(b))] = 1.0

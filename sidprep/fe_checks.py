@@ -58,6 +58,8 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     operator is not definite or the iteration does not converge (sigma above the computed
     fixed-interface spectrum): the count cannot be certified.
     """
+    from sidprep.craig_bampton import interior_operator
+
     cb = red.cb
     n = cb.basis.shape[0]
     nb = cb.n_boundary
@@ -71,10 +73,7 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     A_b = (red.K_model.tocsr()[b] - sigma * red.M_model.tocsr()[b]).toarray()     # rows b of K - sigma M
     F = A_b[:, interior].T
 
-    def m_ii(v):
-        full = np.zeros((n, v.shape[1]))
-        full[interior] = v
-        return (red.M_model @ full)[interior]
+    m_ii = interior_operator(red.M_model, interior).matmat
 
     c = Phi.T @ F
     g = F - m_ii(Phi @ c)
