@@ -69,18 +69,27 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     mu = (2 * np.pi * cb.fixed_interface_hz) ** 2
     if len(mu) and sigma >= mu[-1]:
         return None
-    Phi = cb.basis[interior, nb:]
+    modes = cb.basis[:, nb:]                              # a view: the modes are zero on the boundary
+
+    def phi_t(v):                                         # Phi^T v without an interior copy of Phi
+        full = np.zeros((n, v.shape[1]))
+        full[interior] = v
+        return modes.T @ full
+
+    def phi(coef):
+        return (modes @ coef)[interior]
+
     A_b = (red.K_model.tocsr()[b] - sigma * red.M_model.tocsr()[b]).toarray()     # rows b of K - sigma M
     F = A_b[:, interior].T
 
     m_ii = interior_operator(red.M_model, interior).matmat
 
-    c = Phi.T @ F
-    g = F - m_ii(Phi @ c)
+    c = phi_t(F)
+    g = F - m_ii(phi(c))
 
     def solve_w(v):                                       # (K_ii^-1 v, M_ii K_ii^-1 v), projected onto W
         w = np.asarray(cb.interior_factor.solve(v)).reshape(v.shape)
-        w -= Phi @ (Phi.T @ m_ii(w))                      # the modes' round-off (M_ii-orthonormal to 1e-10)
+        w -= phi(phi_t(m_ii(w)))                          # the modes' round-off (M_ii-orthonormal to 1e-10)
         return w, m_ii(w)
 
     # (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g on W by conjugate gradients in the M_ii inner product
@@ -107,7 +116,7 @@ def eigenvalue_count(red, sigma: float) -> int | None:
         Mp = Mr + beta * Mp
     else:
         return None
-    S = A_b[:, b] - F.T @ (Phi @ (c / (mu - sigma)[:, None]) + y)
+    S = A_b[:, b] - F.T @ (phi(c / (mu - sigma)[:, None]) + y)
     return int(np.sum(mu < sigma) + np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) < 0))
 
 
@@ -152,7 +161,9 @@ def frequency_bounds(red, m: int) -> tuple[np.ndarray, np.ndarray, str]:
                           f"{np.sqrt(sigma) / (2 * np.pi):.5g} Hz, the basis {checked}")
     theta = lam[n_rigid:n_rigid + checked]
     wanted, m = m, checked
-    X = cb.basis[:, ~held] @ Z[:, n_rigid:n_rigid + m]
+    Z_all = np.zeros((cb.K.shape[0], m))
+    Z_all[~held] = Z[:, n_rigid:n_rigid + m]
+    X = cb.basis @ Z_all                                  # no column copy of the basis
     AX = relieved_static_solve(red, red.M_model @ X)
     H = X.T @ (red.M_model @ AX)
     nu, W = np.linalg.eigh(0.5 * (H + H.T))
