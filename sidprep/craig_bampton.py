@@ -190,7 +190,9 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
         if n_modes == 0 or (n_modes is None and fmax is None):
             f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
         else:
-            f, Phi_m = fixed_interface_modes(interior_operator(K, i), interior_operator(M, i), factor, n_modes, fmax)
+            # K_ii only as an operator (shift-invert never applies it); M_ii copied after the factorisation
+            # (ARPACK applies it ~4x per mode: 0.56 -> 0.2 ms per product through the copy, piston rod)
+            f, Phi_m = fixed_interface_modes(interior_operator(K, i), M[i][:, i], factor, n_modes, fmax)
     basis = np.zeros((K.shape[0], len(b) + len(f)))
     basis[i, :len(b)] = Psi
     basis[b, np.arange(len(b))] = 1.0
