@@ -11,6 +11,8 @@ MASS_CHECK_TOL = 1e-10
 FREQUENCY_CHECK_TOL = 0.01
 #: FEMBS promise for static deflection of the reduced body vs the full FE model
 STATIC_CHECK_TOL = 0.01
+#: columns per static solve of the checks
+STATIC_BLOCK = 12
 #: the eigenvalue count's conjugate gradients: relative residual (M norm) at convergence, iteration limit
 COUNT_RTOL = 1e-10
 COUNT_MAX_ITERATIONS = 200
@@ -22,13 +24,18 @@ COUNT_GAP = 1.1
 def relieved_static_solve(red, P: np.ndarray) -> np.ndarray:
     """Exact full-model static deflection under loads P (n_model, nc), through the reduction's K_ii
     factor.  Free bodies: inertia relief, then the rigid part removed (mean-axis deflection), so
-    that u = G P with G symmetric and G M R = 0 for the rigid motions R."""
+    that u = G P with G symmetric and G M R = 0 for the rigid motions R.  Solved STATIC_BLOCK
+    columns at a time (the solve's temporaries scale with the columns: peak memory at 1M DOF)."""
     R, M = red.rigid, red.M_model
-    if red.held is None:
-        P = P - M @ (R @ np.linalg.solve(R.T @ (M @ R), R.T @ P))
-    u = red.static_solve(P)
-    if red.held is None:
-        u = u - R @ np.linalg.solve(R.T @ (M @ R), R.T @ (M @ u))
+    u = np.empty(P.shape)
+    for s in range(0, P.shape[1], STATIC_BLOCK):
+        Pb = P[:, s:s + STATIC_BLOCK]
+        if red.held is None:
+            Pb = Pb - M @ (R @ np.linalg.solve(R.T @ (M @ R), R.T @ Pb))
+        ub = red.static_solve(Pb)
+        if red.held is None:
+            ub -= R @ np.linalg.solve(R.T @ (M @ R), R.T @ (M @ ub))
+        u[:, s:s + STATIC_BLOCK] = ub
     return u
 
 
@@ -168,7 +175,12 @@ def frequency_bounds(red, m: int) -> tuple[np.ndarray, np.ndarray, str]:
     H = X.T @ (red.M_model @ AX)
     nu, W = np.linalg.eigh(0.5 * (H + H.T))
     nu, W = nu[::-1], W[:, ::-1]                          # largest nu = lowest frequency first
-    R = AX @ W - (X @ W) * nu
+    R = AX @ W                                            # the residuals, with few n x m temporaries
+    del AX
+    X = X @ W
+    X *= nu
+    R -= X
+    del X
     clusters = [[j] for j in range(m)]
 
     def norm(c):
