@@ -12,6 +12,10 @@ The machine is shared: quote the ratios measured side by side, not the absolute 
     python benchmarks/scale.py --dof 100000 250000            # the table rows
     python benchmarks/scale.py --dof 100000 --ccx             # with CalculiX beside it
     python benchmarks/scale.py --piston-rod 5                 # end-to-end median of the small case
+    python benchmarks/scale.py --dof 1000000 --no-modes --mesh-first   # the 1M-DOF reduction alone
+
+``--mesh-first`` writes the tet10 mesh to a binary .msh (gmsh, in this process) before the runs, so
+that the runs measure the model, not the meshing; ``--dof`` then targets the reduction's DOF (free).
 """
 
 from __future__ import annotations
@@ -43,9 +47,32 @@ Physical Surface("free_end") = {{2}};
 SINGLE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
-def bar_h(dof: int) -> float:
-    """Mesh size for about ``dof`` DOF (DOF ~ h^-3)."""
-    return 0.01 * (DOF_AT_H001 / dof) ** (1.0 / 3.0)
+#: free DOF of the bar meshed to .msh at h = 0.007551 m (measured: 210 600)
+FREE_DOF_AT_H0007551 = (0.007551, 210_600)
+
+
+def bar_h(dof: int, free: bool = False) -> float:
+    """Mesh size for about ``dof`` DOF (DOF ~ h^-3): clamped DOF of the .geo, or with ``free`` all DOF."""
+    h0, n0 = FREE_DOF_AT_H0007551 if free else (0.01, DOF_AT_H001)
+    return h0 * (n0 / dof) ** (1.0 / 3.0)
+
+
+def write_msh(geo: Path) -> Path:
+    """Mesh the .geo to a binary tet10 .msh beside it (one gmsh session in this process)."""
+    import gmsh
+
+    out = geo.with_suffix(".msh")
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(geo))
+        gmsh.model.mesh.generate(3)
+        gmsh.model.mesh.setOrder(2)
+        gmsh.option.setNumber("Mesh.Binary", 1)
+        gmsh.write(str(out))
+    finally:
+        gmsh.finalize()
+    return out
 
 
 def timed(cmd: list[str], cwd: Path) -> tuple[str, str, float, float]:
@@ -68,6 +95,17 @@ def estimate_mb(mesh_path: Path, n_modes: int, clamp: bool) -> tuple[int, float]
     n = mesh.n_dof - (3 * int((mesh.points[:, 0] < 1e-9).sum()) if clamp else 0)
     est = estimate_peak_memory(n, extent=np.ptp(mesh.points, axis=0), n_modes=n_modes)
     return n, est.direct_peak_bytes / 2 ** 20
+
+
+def reduce_estimate_mb(mesh_path: Path) -> float:
+    """The reduction's own estimate of its peak (sidprep.craig_bampton.reduction_peak_bytes), MiB."""
+    import numpy as np
+
+    from sidprep.craig_bampton import reduction_peak_bytes
+    from sidprep.mesh import read_mesh
+
+    mesh = read_mesh(mesh_path)
+    return reduction_peak_bytes(mesh.n_dof, extent=np.ptp(mesh.points, axis=0)) / 2 ** 20
 
 
 def run_modes(mesh: Path, work: Path) -> dict:
@@ -112,6 +150,8 @@ def main(argv=None) -> int:
     ap.add_argument("--dof", type=int, nargs="*", default=[100_000, 250_000], help="DOF targets")
     ap.add_argument("--ccx", action="store_true", help="CalculiX beside sidprep modes (same mesh)")
     ap.add_argument("--no-reduce", action="store_true", help="modes only")
+    ap.add_argument("--no-modes", action="store_true", help="reduce only")
+    ap.add_argument("--mesh-first", action="store_true", help="mesh to .msh before the runs (module docstring)")
     ap.add_argument("--piston-rod", type=int, default=0, metavar="N", help="end-to-end median of N runs")
     args = ap.parse_args(argv)
     print(f"load {os.getloadavg()[0]:.1f}")
@@ -120,20 +160,24 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         for dof in args.dof:
-            h = bar_h(dof)
+            h = bar_h(dof, free=args.mesh_first)
             geo = work / f"bar_{dof}.geo"
             geo.write_text(BAR_GEO.format(a=BOX[0], b=BOX[1], c=BOX[2], h=h))
-            n, est = estimate_mb(geo, 10, clamp=True)
-            m = run_modes(geo, work)
-            ccx = run_calculix(h, work) if args.ccx else None
-            cc = (f"{ccx['wall_s']:.1f} | {ccx['rss_mb']:.0f} | {m['wall_s'] / ccx['wall_s']:.2f} | "
-                  f"{m['rss_mb'] / ccx['rss_mb']:.2f}") if ccx else "- | - | - | -"
-            print(f"| {n} | modes | {m['wall_s']:.1f} | {m['rss_mb']:.0f} | {est:.0f} | {est / m['rss_mb']:.2f} | "
-                  f"{m['choice']} | {cc} |", flush=True)
+            mesh = write_msh(geo) if args.mesh_first else geo
+            if not args.no_modes:
+                n, est = estimate_mb(mesh, 10, clamp=True)
+                m = run_modes(mesh, work)
+                ccx = run_calculix(h, work) if args.ccx else None
+                cc = (f"{ccx['wall_s']:.1f} | {ccx['rss_mb']:.0f} | {m['wall_s'] / ccx['wall_s']:.2f} | "
+                      f"{m['rss_mb'] / ccx['rss_mb']:.2f}") if ccx else "- | - | - | -"
+                print(f"| {n} | modes | {m['wall_s']:.1f} | {m['rss_mb']:.0f} | {est:.0f} | {est / m['rss_mb']:.2f} | "
+                      f"{m['choice']} | {cc} |", flush=True)
             if not args.no_reduce:
-                r = run_reduce(geo, work)
+                est = reduce_estimate_mb(mesh)
+                r = run_reduce(mesh, work)
                 print(f"| {r['dof']} | reduce (CB, 2 RBE2, 30 modes + FRMs, checks {'passed' if r['passed'] else 'FAILED'}) | "
-                      f"{r['wall_s']:.1f} | {r['rss_mb']:.0f} | - | - | cholmod | - | - | - | - |", flush=True)
+                      f"{r['wall_s']:.1f} | {r['rss_mb']:.0f} | {est:.0f} | {est / r['rss_mb']:.2f} | cholmod | - | - | - | - |",
+                      flush=True)
     if args.piston_rod:
         print(f"piston rod `sidprep reduce` end to end: median {piston_rod(args.piston_rod):.2f} s of {args.piston_rod}")
     return 0

@@ -20,8 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from skfem.quadrature import get_quadrature
-from skfem.refdom import RefTet
 
 from sidprep.errors import InputError
 from sidprep.material import Material
@@ -79,10 +77,25 @@ def shape_gradients(X: np.ndarray, dN: np.ndarray, weights: np.ndarray, first: i
     return G, det * weights[None, :]
 
 
+def _keast_points() -> dict:
+    """Keast's symmetric rules on the reference tetrahedron (the ones scikit-fem uses for these
+    degrees; written out here, so that assembly does not import scikit-fem):
+    {degree: (points (3, nq), weights (nq,) summing to the volume 1/6)}."""
+    a2, b2 = (5 + 3 * np.sqrt(5)) / 20, (5 - np.sqrt(5)) / 20
+    a4, b4 = (1 + np.sqrt(5 / 14)) / 4, (1 - np.sqrt(5 / 14)) / 4
+    c, d = 11 / 14, 1 / 14
+    return {
+        2: (np.array([[a2, b2, b2], [b2, b2, b2], [b2, b2, a2], [b2, a2, b2]]).T, np.full(4, 1 / 24)),
+        4: (np.array([[0.25, 0.25, 0.25], [c, d, d], [d, d, d], [d, d, c], [d, c, d],
+                      [b4, a4, a4], [a4, b4, a4], [a4, a4, b4], [a4, b4, b4], [b4, a4, b4], [b4, b4, a4]]).T,
+            np.array([-74 / 5625] + [343 / 45000] * 4 + [56 / 2250] * 6)),
+    }
+
+
 def quadrature_rule(order: int, degree: int):
     """Shape functions N (nq, nn), reference gradients dN (nq, nn, 3) and weights w (nq,) of the
-    tetrahedron rule exact to ``degree`` (scikit-fem's tables), for tet4 (order 1) or tet10 (2)."""
-    xi, w = get_quadrature(RefTet, degree)
+    tetrahedron rule exact to ``degree`` (2 or 4, :func:`_keast_points`), for tet4 (order 1) or tet10 (2)."""
+    xi, w = _keast_points()[degree]
     N, dN = shape_functions(order, xi)
     return N, dN, w
 
@@ -216,7 +229,12 @@ def mass_matrix(mesh: FEMesh, material: Material, lumped: bool = False,
     :func:`lumped_scalar_mass`)."""
     if lumped:
         return sp.diags(np.repeat(lumped_scalar_mass(mesh, material.rho), 3)).tocsr()
-    return sp.kron(scalar_mass_matrix(mesh, material.rho, pattern), sp.identity(3), format="csr")
+    return vector_mass(scalar_mass_matrix(mesh, material.rho, pattern))
+
+
+def vector_mass(Ms: sp.spmatrix) -> sp.csr_matrix:
+    """M = Ms (x) I3 (3n, 3n) from the scalar mass matrix, without explicit zeros."""
+    return sp.kron(Ms, sp.identity(3), format="csr")
 
 
 def stiffness_and_mass(mesh: FEMesh, material: Material) -> tuple[sp.csr_matrix, sp.csr_matrix]:

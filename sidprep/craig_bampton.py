@@ -83,14 +83,29 @@ def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
 
 
 def constraint_modes(K: sp.spmatrix, factor, b: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb)."""
-    K = K.tocsc()
-    rhs = -K[i][:, b].toarray()
+    """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb).  K symmetric CSR:
+    K_ib is read from the boundary rows (no CSC copy of K)."""
+    rhs = -K[b].toarray()[:, i].T
     return np.asarray(factor.solve(rhs)).reshape(len(i), len(b))
 
 
+def interior_operator(A: sp.spmatrix, interior) -> spla.LinearOperator:
+    """The block A_ii (``interior``: indices or a mask) as an operator, without copying the block:
+    x -> (A x_padded)[interior], x (ni,) or (ni, k)."""
+    n = A.shape[0]
+    ni = int(np.count_nonzero(interior)) if np.asarray(interior).dtype == bool else len(interior)
+
+    def matmat(X):
+        full = np.zeros((n,) + X.shape[1:])
+        full[interior] = X
+        return (A @ full)[interior]
+
+    return spla.LinearOperator((ni, ni), matvec=matmat, matmat=matmat, dtype=float)
+
+
 def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
-    """Lowest eigenpairs of K_ii phi = lambda M_ii phi by shift-invert at 0 with the given factor.
+    """Lowest eigenpairs of K_ii phi = lambda M_ii phi by shift-invert at 0 with the given factor
+    (K_ii, M_ii sparse matrices or operators; ARPACK's shift-invert mode applies only M_ii and the factor).
 
     Returns (frequencies Hz (nm,), vectors (ni, nm) M_ii-normalised).  With ``fmax``, the count
     grows (doubling) until the highest computed frequency passes fmax, then is cut at fmax.
@@ -115,29 +130,32 @@ def fixed_interface_modes(K_ii, M_ii, factor, n_modes=None, fmax=None):
     if fmax is not None and n_modes is None:
         keep = f <= fmax
         f, vec = f[keep], vec[:, keep]
-    vec = vec / np.sqrt(np.einsum("ij,ij->j", vec, M_ii @ vec))
+    vec /= np.sqrt(np.einsum("ij,ij->j", vec, M_ii @ vec))
     return f, vec
 
 
 #: peak of a whole `sidprep reduce` run over the estimated peak of a direct eigen solve of the same
-#: model (K_model, M_model, the K_ii factor, dense constraint modes and basis, the frequency check's
-#: own factor): measured 2.1 / 2.2 on 92k / 211k-DOF tet10 bars with two RBE2 interfaces (docs/performance.md)
-REDUCE_OVER_MODES_PEAK = 2.2
+#: model (K_model and M_model, the K_ii factor with K_ii and M_ii, the dense constraint modes, the
+#: Lanczos vectors of the fixed-interface modes, the basis): 1.38 / 1.36 on 93k / 211k-DOF tet10 bars
+#: with two RBE2 interfaces and 30 modes (docs/performance.md, since the frequency check needs no
+#: second factor; 2.1-2.2 before)
+REDUCE_OVER_MODES_PEAK = 1.4
 
 
-def reduction_peak_bytes(n_dof: int, nnz: int | None = None) -> float:
-    """Estimated peak memory (bytes) of a whole reduction of an n_dof model, before it runs."""
+def reduction_peak_bytes(n_dof: int, nnz: int | None = None, extent=None) -> float:
+    """Estimated peak memory (bytes) of a whole reduction of an n_dof model, before it runs;
+    ``extent`` : the body's bounding-box edge lengths (default a cube, the densest fill)."""
     from sidprep.linalg import estimate_peak_memory
 
-    return REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz).direct_peak_bytes
+    return REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz, extent).direct_peak_bytes
 
 
-def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None) -> None:
+def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None, extent=None) -> None:
     """Refuse (InputError, one line) a reduction whose estimated peak exceeds the memory this run may
     use, before the factorisation starts, instead of meeting the out-of-memory killer."""
     from sidprep.linalg import MEMORY_HEADROOM, available_memory_bytes
 
-    need = reduction_peak_bytes(n_dof, nnz)
+    need = reduction_peak_bytes(n_dof, nnz, extent)
     avail = available_memory_bytes() if memory_limit is None else float(memory_limit)
     if need > MEMORY_HEADROOM * avail:
         raise InputError(f"model too large for this machine: the reduction of {n_dof} DOF needs ~{need / 1024 ** 3:.1f} GB, "
@@ -145,7 +163,7 @@ def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = No
                          "SIDPREP_MEMORY_LIMIT (bytes, or with K/M/G)")
 
 
-def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=None) -> ReducedModel:
+def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=None, extent=None) -> ReducedModel:
     """Craig-Bampton reduction (module docstring); n_modes fixed-interface modes or all below fmax Hz.
 
     Parameters
@@ -154,17 +172,17 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
     boundary_dofs : (nb,) int; K_ii must be positive definite (the boundary holds the body).
     n_modes : int, optional; fmax : float, optional (Hz)
     memory_limit : bytes this run may use (default ``sidprep.linalg.available_memory_bytes()``)
+    extent : (3,) bounding-box edge lengths of the body for the memory estimate (default a cube)
     """
     from sidprep.linalg import factorize
 
-    check_reduction_memory(K.shape[0], K.nnz, memory_limit)
+    check_reduction_memory(K.shape[0], K.nnz, memory_limit, extent)
 
     with single_threaded_blas():
         K, M = sp.csr_matrix(K), sp.csr_matrix(M)
         b, i = split_dofs(K.shape[0], boundary_dofs)
-        K_ii, M_ii = K[i][:, i].tocsr(), M[i][:, i].tocsr()
         try:
-            factor = factorize(K_ii.tocsc())
+            factor = factorize(K[i][:, i])        # the copy K_ii lives only while it is factorised
         except (np.linalg.LinAlgError, RuntimeError) as exc:  # singular interior: the boundary does not hold it
             raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
                              "statically — add an interface or use the free frame") from exc
@@ -172,7 +190,9 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
         if n_modes == 0 or (n_modes is None and fmax is None):
             f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
         else:
-            f, Phi_m = fixed_interface_modes(K_ii, M_ii, factor, n_modes, fmax)
+            # K_ii only as an operator (shift-invert never applies it); M_ii copied after the factorisation
+            # (ARPACK applies it ~4x per mode: 0.56 -> 0.2 ms per product through the copy, piston rod)
+            f, Phi_m = fixed_interface_modes(interior_operator(K, i), M[i][:, i], factor, n_modes, fmax)
     basis = np.zeros((K.shape[0], len(b) + len(f)))
     basis[i, :len(b)] = Psi
     basis[b, np.arange(len(b))] = 1.0

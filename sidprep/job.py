@@ -141,6 +141,8 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
 
     interfaces : list of sidprep.interfaces.Interface; frame : "free" or an interface name;
     load_nodes : FE node indices that get 3 unit FRM forces each, besides every master DOF.
+    K_fe and M_fe are only projected: a caller that keeps no reference to them lets them be freed
+    before the factorisation (peak memory).
     """
     from sidprep.interfaces import interface_model, rigid_modes_model
     from sidprep.modes import modal_basis
@@ -157,13 +159,15 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
     with ph("interfaces", f"{len(interfaces)} master node(s)"):
         im = interface_model(mesh.n_nodes, interfaces, mesh.points)
         K_model, M_model = im.project(K_fe), im.project(M_fe)
+        del K_fe, M_fe                            # freed here unless the caller keeps them (peak memory)
         rigid = rigid_modes_model(im, mesh.points)
     boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(rigid, np.arange(im.n_model))
     with ph("craig-bampton", f"{len(boundary)} boundary DOF"):
+        extent = np.ptp(mesh.points, axis=0)
         if fmax is not None:
-            cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax)
+            cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax, extent=extent)
         else:
-            cb = craig_bampton(K_model, M_model, boundary, n_modes=max(CB_MIN_MODES, 3 * n_modes))
+            cb = craig_bampton(K_model, M_model, boundary, n_modes=max(CB_MIN_MODES, 3 * n_modes), extent=extent)
     held = None if frame == "free" else im.master_dofs[names.index(frame)]
     held_r = () if held is None else np.flatnonzero(np.isin(boundary, held))
     with ph("modes", "eigen + frequency-response modes"):
@@ -292,7 +296,7 @@ def model_material(o):
 
 
 def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
-    from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
+    from sidprep.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
     from sidprep.interfaces import select_patch
     from sidprep.material import unit_system
     from sidprep.plausibility import unit_warnings
@@ -309,12 +313,17 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     check_mode_count(o, mesh.n_dof, len(interfaces))
     check_parts_held(mesh, interfaces, source)
     with ph("assemble", f"{mesh.n_dof} DOF"):
-        K_fe = stiffness_matrix(mesh, material)
-        M_fe = mass_matrix(mesh, material)
-        Ms = scalar_mass_matrix(mesh, material.rho)
+        pattern = block_pattern(mesh.cells, mesh.n_nodes)
+        assembled = {"K": stiffness_matrix(mesh, material, pattern)}
+        Ms = scalar_mass_matrix(mesh, material.rho, pattern)
+        assembled["M"] = vector_mass(Ms)
+        del pattern
     load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
-    red = reduce_body(mesh, K_fe, M_fe, interfaces, frame=o.frame, n_modes=o.modes, fmax=o.fmax,
-                      frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
+    # K_fe and M_fe are handed over (popped), so that reduce_body frees them once projected, before
+    # the factorisation (peak memory); M_fe is rebuilt from Ms afterwards
+    red = reduce_body(mesh, assembled.pop("K"), assembled.pop("M"), interfaces, frame=o.frame, n_modes=o.modes,
+                      fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
+    M_fe = vector_mass(Ms)
     eigen_hz = [f for f, kind in zip(red.basis.frequencies_hz, red.basis.kinds) if kind == "eigen" and f > 0]
     notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0), min(eigen_hz, default=None))
     stiff = None

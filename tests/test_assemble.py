@@ -11,7 +11,7 @@ from skfem import Basis, BilinearForm, ElementTetP1, ElementTetP2, ElementVector
 from skfem.helpers import dot
 from skfem.models.elasticity import linear_elasticity
 
-from sidprep.assemble import lumped_scalar_mass, mass_matrix, scalar_mass_matrix, stiffness_matrix
+from sidprep.assemble import _keast_points, lumped_scalar_mass, mass_matrix, scalar_mass_matrix, stiffness_matrix
 from sidprep.errors import InputError
 from sidprep.linalg import rigid_body_modes
 from sidprep.material import Material
@@ -140,3 +140,15 @@ def test_inverted_element_is_input_error():
     cells[0, [8, 9]] = cells[0, [9, 8]]
     with pytest.raises(InputError, match="non-positive Jacobian"):
         stiffness_matrix(FEMesh(points=mesh.points, cells=cells, node_ids=mesh.node_ids), MAT)
+
+
+@pytest.mark.parametrize("degree", [2, 4])
+def test_quadrature_rules_are_scikit_fems(degree):
+    """The Keast rules written out in sidprep.assemble are the ones scikit-fem gives."""
+    from skfem.quadrature import get_quadrature
+    from skfem.refdom import RefTet
+
+    points, weights = _keast_points()[degree]
+    ref_points, ref_weights = get_quadrature(RefTet, degree)
+    np.testing.assert_allclose(points, ref_points, atol=1e-15)
+    np.testing.assert_allclose(weights, ref_weights, atol=1e-16)

@@ -347,3 +347,17 @@ def test_undefined_node(tmp_path):
     )
     with pytest.raises(InputError, match="undefined.msh"):
         read_mesh(path)
+
+
+def test_close_pairs_are_the_search_tree_pairs():
+    """The grid search for duplicate nodes finds exactly the pairs scipy's k-d tree finds."""
+    from scipy.spatial import cKDTree
+
+    from sidprep.mesh import close_pairs
+
+    rng = np.random.default_rng(0)
+    p = rng.random((20000, 3)) * [1.0, 0.05, 0.08]
+    p = np.vstack([p, p[:300] + rng.normal(scale=3e-10, size=(300, 3)), p[:30] + 0.9e-9, p[:5]])
+    tol = 1e-9
+    expected = cKDTree(p).query_pairs(tol, output_type="ndarray")
+    np.testing.assert_array_equal(close_pairs(p, tol), expected[np.lexsort(expected.T[::-1])])
