@@ -18,6 +18,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: examples/moving_force: steel beam 15 m, 0.1 x 0.1 m, force 981 N (issue 10)
 L, B, E, RHO, P = 15.0, 0.1, 2.1e11, 7850.0, 981.0
 EI, MU = E * B**4 / 12, RHO * B * B
+#: gravity, m/s^2
+G = 9.81
 #: critical speed c_cr = omega_1 L / pi = 31.3 m/s
 CRITICAL_SPEED = np.pi / L * np.sqrt(EI / MU)
 #: midspan deflection against the 201-mode series, fraction of its peak (issue: 1e-3; the 10
@@ -25,6 +27,20 @@ CRITICAL_SPEED = np.pi / L * np.sqrt(EI / MU)
 FRYBA_RTOL = 1e-3
 #: energy: the force's work = kinetic + strain (no damping), fraction of the largest work
 MOVING_LOAD_ENERGY_RTOL = 1e-4
+
+
+def supported_beam(gravity=G, side=B, modulus=E, modes="xz:1-10", effects=None):
+    """(System, beam): a simply supported steel Beam (length L, square section of ``side`` m, E =
+    ``modulus`` Pa, no damping) fixed to ground at its frame (x = 0), under gravity -z (m/s^2),
+    with the marker "midspan" at its node 2 (x = L / 2)."""
+    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{side},{side}", "E": modulus,
+                                            "nu": 0.3, "rho": RHO, "bc": "pinned-pinned", "modes": modes,
+                                            "frames": [0.5], "damping": 0.0}, "test"))
+    s = System(gravity=(0.0, 0.0, -gravity))
+    beam = s.add(FlexibleBody(sid, name="beam", effects=effects))
+    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
+    beam.node_marker(2, name="midspan")
+    return s, beam
 
 
 def series_midspan(t, speed, modes=201):
@@ -41,13 +57,7 @@ def series_midspan(t, speed, modes=201):
 
 
 def crossing(speed, t_end=None):
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": E, "nu": 0.3,
-                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10", "frames": [0.5],
-                                            "damping": 0.0}, "test"))
-    s = System(gravity=(0.0, 0.0, 0.0))
-    beam = s.add(FlexibleBody(sid, name="beam"))
-    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
-    beam.node_marker(2, name="midspan")
+    s, beam = supported_beam(gravity=0.0)
     load = beam.path_marker("axis", ConstantSpeed(speed, 0.0), name="load")
     s.add(PointForce(load, (0.0, 0.0, -P), name="P"))
     return s.simulate(t_end or L / speed, h=1e-3, rho_inf=1.0)
@@ -121,7 +131,7 @@ def test_a_path_marker_on_a_rigid_body_is_a_one_line_error(tmp_path):
 
 
 #: prescribed moving mass: 500 kg at 10 m/s over the same beam under gravity, started undeformed
-MOVING_MASS_KG, MOVING_MASS_SPEED, G = 500.0, 10.0, 9.81
+MOVING_MASS_KG, MOVING_MASS_SPEED = 500.0, 10.0
 #: midspan deflection against the direct integration of the modal equations, fraction of its
 #: peak (measured 1.1e-4); the convective terms alone change it by 18 %
 MOVING_MASS_RTOL = 1e-3
@@ -166,13 +176,7 @@ def moving_mass_modal_reference(t, convective=True, n=10):
 def test_prescribed_moving_mass_follows_the_modal_equations_with_convective_terms():
     from sidprep.solver import MovingMass
 
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": E, "nu": 0.3,
-                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10", "frames": [0.5],
-                                            "damping": 0.0}, "test"))
-    s = System(gravity=(0.0, 0.0, -G))
-    beam = s.add(FlexibleBody(sid, name="beam"))
-    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
-    beam.node_marker(2, name="midspan")
+    s, beam = supported_beam()
     cart = beam.path_marker("axis", ConstantSpeed(MOVING_MASS_SPEED, 0.0), name="cart")
     s.add(MovingMass(cart, MOVING_MASS_KG, name="mass"))
     r = s.simulate(L / MOVING_MASS_SPEED, h=1e-3, rho_inf=1.0)
@@ -195,12 +199,7 @@ def moving_mass_energy_drift(motion, t_end, **settings):
     under gravity, relative to the largest change of kinetic, gravity or external energy."""
     from sidprep.solver import MovingMass
 
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": E, "nu": 0.3,
-                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10",
-                                            "damping": 0.0}, "test"))
-    s = System(gravity=(0.0, 0.0, -G))
-    beam = s.add(FlexibleBody(sid, name="beam"))
-    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
+    s, beam = supported_beam()
     s.add(MovingMass(beam.path_marker("axis", motion, name="cart"), MOVING_MASS_KG, name="mass"))
     e = s.simulate(t_end, **settings).energy
     scale = max(np.ptp(e["kinetic"]), np.ptp(e["gravity"]), np.ptp(e["external"]))
@@ -237,12 +236,7 @@ ON_PATH_TOL = 1e-6
 def sliding_mass(h):
     from sidprep.solver import OnPath, RigidBody
 
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": E, "nu": 0.3,
-                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10",
-                                            "damping": 0.0}, "test"))
-    s = System(gravity=(0.0, 0.0, -G))
-    beam = s.add(FlexibleBody(sid, name="beam"))
-    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
+    s, beam = supported_beam()
     along_x = np.array([0.0, np.pi / 2, 0.0])                     # marker z along the axis
     rail = beam.path_marker("axis", rotation=along_x, name="rail")
     mass = s.add(RigidBody(100.0, inertia=[1e-2, 1e-2, 1e-2], name="mass", position=(2.0, 0.0, 0.0)))
@@ -399,13 +393,8 @@ FRICTION_ENERGY_RTOL = 1e-4
 def test_a_sliding_mass_with_coulomb_friction_stops_after_v0_squared_over_2_mu_g():
     from sidprep.solver import JointFriction, OnPath, RigidBody
 
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": 7e12, "nu": 0.3,
-                                            "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10",
-                                            "damping": 0.0}, "test"))
     v0, mu = 3.0, 0.2
-    s = System(gravity=(0.0, 0.0, -G))
-    beam = s.add(FlexibleBody(sid, name="beam", effects=["coupling", "coriolis", "centrifugal"]))   # no own weight
-    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
+    s, beam = supported_beam(modulus=7e12, effects=["coupling", "coriolis", "centrifugal"])   # no own weight
     along_x = np.array([0.0, np.pi / 2, 0.0])
     rail = beam.path_marker("axis", rotation=along_x, name="rail")
     mass = s.add(RigidBody(100.0, inertia=[1e-2, 1e-2, 1e-2], name="mass", position=(4.0, 0.0, 0.0),
@@ -464,14 +453,8 @@ def sprung_carriage_reference(t, convective=True, n=5):
 def sprung_carriage(h):
     from sidprep.solver import Prismatic, RigidBody, SpringDamper
 
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{SPRUNG_B},{SPRUNG_B}", "E": E,
-                                            "nu": 0.3, "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-5",
-                                            "frames": [0.5], "damping": 0.0}, "test"))
     k = SPRUNG_KG * (2 * np.pi * SPRUNG_HZ) ** 2
-    s = System(gravity=(0.0, 0.0, -G))
-    beam = s.add(FlexibleBody(sid, name="beam"))
-    s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
-    beam.node_marker(2, name="midspan")
+    s, beam = supported_beam(side=SPRUNG_B, modes="xz:1-5")
     guide = beam.path_marker("axis", ConstantSpeed(SPRUNG_SPEED, 0.0), name="guide")
     carriage = s.add(RigidBody(SPRUNG_KG, inertia=[10.0, 10.0, 10.0], name="carriage",
                                position=(0.0, 0.0, SPRUNG_HEIGHT)))
@@ -516,15 +499,9 @@ def test_a_rigid_body_fixed_to_a_moving_point_is_a_moving_mass():
     (measured 8e-6 and 1.7e-5)."""
     from sidprep.solver import MovingMass, RigidBody
 
-    sid = beam_sid(beam_options_from_table({"length": L, "section": f"rectangle:{SPRUNG_B},{SPRUNG_B}", "E": E,
-                                            "nu": 0.3, "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-5",
-                                            "frames": [0.5], "damping": 0.0}, "test"))
     runs = {}
     for kind in ("joint", "moving_mass"):
-        s = System(gravity=(0.0, 0.0, -G))
-        beam = s.add(FlexibleBody(sid, name="beam"))
-        s.add(Fixed(s.ground.marker(), beam.marker(), name="supports"))
-        beam.node_marker(2, name="midspan")
+        s, beam = supported_beam(side=SPRUNG_B, modes="xz:1-5")
         guide = beam.path_marker("axis", ConstantSpeed(SPRUNG_SPEED, 0.0), name="guide")
         if kind == "joint":
             rider = s.add(RigidBody(SPRUNG_KG, inertia=[1e-3] * 3, name="rider"))
