@@ -2,8 +2,9 @@
 
 Each element adds forces / torques (inertial components) at markers into ``loads`` (nmk, 6)
 and its power into ``flows`` = [power put in by applied loads, power dissipated, spring
-potential energy, power put in by drives] (W, W, J, W).  Loads along a joint coordinate act through the coordinate's
-velocity row c (constraints.joint_coordinate): F1 = Q cT1, T1 = Q cR1, F2 = Q cT2, T2 = Q cR2.
+potential energy, power put in by drives] (W, W, J, W).  Loads along a joint coordinate act
+through the coordinate's velocity row c (constraints.joint_coordinate): F1 = Q cT1,
+T1 = Q cR1, F2 = Q cT2, T2 = Q cR2.
 """
 
 from __future__ import annotations
