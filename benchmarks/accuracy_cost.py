@@ -14,7 +14,7 @@ a. ``fe``: the validation bar (1.0 x 0.05 x 0.08 m steel, E = 210 GPa, nu = 0.3,
 b. ``reduce``: the bundled piston rod (``data/meshes/piston_rod.msh``, default RBE2 interfaces,
    free frame): number of eigenmodes, FRMs on/off, cut-off factor.  Errors against the full
    FE model (same interface model): static deflection at the masters under unit loads
-   (sidprep.fe_checks.master_compliance_full) and the first elastic frequencies.  Time =
+   (sidprep.reduction.fe_checks.master_compliance_full) and the first elastic frequencies.  Time =
    ``reduce_body`` (Craig-Bampton + modal basis), body size nq.
 c. ``solve``: the 10-mode flexible pendulum of ``benchmarks/solver_speed.py`` (bundled bar,
    hinge and tip SID nodes, 1 s): fixed step sizes, step-size control tolerances, rho_inf and
@@ -103,10 +103,10 @@ def cantilever_frequencies(h: float, order: int, folder: Path) -> tuple[np.ndarr
     """Mesh, assemble and solve the clamped bar: (first N_FREQ frequencies Hz, DOF)."""
     from reduce import BAR_GEO
 
-    from sidprep.assemble import mass_matrix, stiffness_matrix
-    from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs
-    from sidprep.material import Material
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.assemble import mass_matrix, stiffness_matrix
+    from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs
+    from sidprep.fe.material import Material
+    from sidprep.fe.mesh import read_mesh
 
     geo = folder / "bar.geo"
     geo.write_text(BAR_GEO.format(h=h))
@@ -177,12 +177,12 @@ def reduced_compliance(red, loads: np.ndarray) -> np.ndarray:
 
 
 def reduce_study(repeat: int, quick: bool) -> list[dict]:
-    from sidprep.assemble import mass_matrix, stiffness_matrix
-    from sidprep.linalg import eigen_modes
-    from sidprep.material import builtin_material
-    from sidprep.mesh import read_mesh
-    from sidprep.fe_checks import master_compliance_full
-    from sidprep.job import default_interfaces, interface_from_spec, reduce_body
+    from sidprep.fe.assemble import mass_matrix, stiffness_matrix
+    from sidprep.fe.linalg import eigen_modes
+    from sidprep.fe.material import builtin_material
+    from sidprep.fe.mesh import read_mesh
+    from sidprep.reduction.fe_checks import master_compliance_full
+    from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce_body
 
     mesh = read_mesh(PISTON_ROD)
     material = builtin_material("steel")
@@ -272,7 +272,7 @@ def solve_specs(quick: bool) -> list[tuple[str, str, dict]]:
 def solve_study(repeat: int, quick: bool) -> list[dict]:
     from solver_speed import H_REF, reduced_bar
 
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     with tempfile.TemporaryDirectory() as tmp:
         sid = read_sid(reduced_bar(Path(tmp)))

@@ -2,7 +2,7 @@
 
 Measures, side by side and repeated (median): the wall time of ``run_batch`` with one worker (the
 jobs one by one) and with 2 workers (target >= 1.8x on 2 cores), and the cache-hit re-run of the
-whole batch (target < 1 s).  Each job runs with one BLAS thread (sidprep.job.reduce).
+whole batch (target < 1 s).  Each job runs with one BLAS thread (sidprep.jobs.reduce.reduce).
 
     PYTHONPATH=. python benchmarks/batch.py [--repeats 2] [--workers 2]
 """
@@ -35,7 +35,7 @@ def make_meshes(folder: Path) -> list[Path]:
 
 
 def timed_batch(jobs, outdir: Path, workers: int) -> tuple[float, object]:
-    from sidprep.batch import BatchOptions, run_batch
+    from sidprep.jobs.batch import BatchOptions, run_batch
 
     t0 = time.perf_counter()
     report = run_batch(jobs, BatchOptions(outdir=str(outdir), workers=workers))
@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--workers", type=int, default=2)
     args = p.parse_args(argv)
-    from sidprep.batch import jobs_from_meshes
+    from sidprep.jobs.batch import jobs_from_meshes
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

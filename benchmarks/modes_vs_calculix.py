@@ -101,13 +101,13 @@ def median_run(fn, repeat: int) -> dict:
 
 
 def assembly_comparison(mesh_inp: Path, repeat: int) -> dict:
-    """Median wall time of K for the P2 mesh: sidprep.assemble vs scikit-fem linear_elasticity + asm."""
+    """Median wall time of K for the P2 mesh: sidprep.fe.assemble vs scikit-fem linear_elasticity + asm."""
     from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
     from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-    from sidprep.assemble import stiffness_matrix
-    from sidprep.material import builtin_material
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.assemble import stiffness_matrix
+    from sidprep.fe.material import builtin_material
+    from sidprep.fe.mesh import read_mesh
 
     mesh = read_mesh(mesh_inp)
     steel = builtin_material("steel")

@@ -5,7 +5,7 @@
 1. ``sidprep reduce data/meshes/piston_rod.msh`` end to end (a fresh process: imports, mesh, assembly,
    reduction, checks, three files), median of --repeat runs, phases from the JSON summary.
 2. The same on a generated >= 100k-DOF bar (1.0 x 0.05 x 0.08 m, tet10, element size --big-size).
-3. Craig-Bampton alone at ~150k DOF (--cb-size): sidprep.craig_bampton.craig_bampton (CHOLMOD, K_ii
+3. Craig-Bampton alone at ~150k DOF (--cb-size): sidprep.reduction.craig_bampton.craig_bampton (CHOLMOD, K_ii
    factorised once and reused for the constraint modes and the shift-invert Lanczos) vs plain scipy
    (one SuperLU factorisation of K_ii reused the same way, ``eigsh``), same mesh, same 20 modes.
 
@@ -64,7 +64,7 @@ def run_reduce(mesh: Path, repeat: int, extra=()) -> dict:
 
 
 def bar_mesh(h: float, folder: Path):
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.mesh import read_mesh
 
     geo = folder / f"bar_h{h:g}.geo"
     geo.write_text(BAR_GEO.format(h=h))
@@ -73,9 +73,9 @@ def bar_mesh(h: float, folder: Path):
 
 def cb_inputs(mesh):
     """Model matrices of the bar with RBE2 masters on both end faces, and the boundary DOFs."""
-    from sidprep.assemble import mass_matrix, stiffness_matrix
-    from sidprep.interfaces import interface_model, make_interface
-    from sidprep.material import builtin_material
+    from sidprep.fe.assemble import mass_matrix, stiffness_matrix
+    from sidprep.reduction.interfaces import interface_model, make_interface
+    from sidprep.fe.material import builtin_material
 
     steel = builtin_material("steel")
     im = interface_model(mesh.n_nodes, [make_interface(mesh, "fixed_end"), make_interface(mesh, "free_end")],
@@ -87,7 +87,7 @@ def plain_scipy_cb(K, M, b, n_modes):
     """Craig-Bampton the textbook way: one SuperLU factorisation of K_ii, eigsh shift-invert at 0."""
     import scipy.sparse.linalg as spla
 
-    from sidprep.craig_bampton import split_dofs
+    from sidprep.reduction.craig_bampton import split_dofs
 
     b, i = split_dofs(K.shape[0], b)
     K_ii, M_ii = K[i][:, i].tocsc(), M[i][:, i].tocsr()
@@ -114,7 +114,7 @@ import json, sys
 sys.path.insert(0, {str(ROOT)!r}); sys.path.insert(0, {str(ROOT / 'benchmarks')!r})
 from pathlib import Path
 import reduce as bench
-from sidprep.craig_bampton import craig_bampton
+from sidprep.reduction.craig_bampton import craig_bampton
 geo, mesh = bench.bar_mesh({h}, Path({str(folder)!r}))
 K, M, b = bench.cb_inputs(mesh)
 if sys.argv[1] == "sidprep":
@@ -122,7 +122,7 @@ if sys.argv[1] == "sidprep":
     f = r.fixed_interface_hz
 else:
     (f, _, _), t, cpu, mem = bench.timed(bench.plain_scipy_cb, K, M, b, {CB_MODES})
-from sidprep.linalg import fast_blas
+from sidprep.fe.linalg import fast_blas
 print(json.dumps({{"dof": int(K.shape[0]), "time_s": t, "cpu_s": cpu, "peak_mb": mem, "f_hz": [float(x) for x in f],
                   "blas": Path(fast_blas()).name if sys.argv[1] == "sidprep" else "scipy-openblas (SuperLU)"}}))
 """

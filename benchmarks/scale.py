@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Scaling table: ``sidprep modes`` and ``sidprep reduce`` on gmsh-generated tet10 bars of growing
-size, with the memory estimate (sidprep.linalg.estimate_peak_memory) beside the measured peak,
+size, with the memory estimate (sidprep.fe.linalg.estimate_peak_memory) beside the measured peak,
 the backend the automatic choice took, and CalculiX 2.20 (``ccx``, if installed) on the same mesh.
 
 Each run is its own process under GNU ``/usr/bin/time -v`` (wall, peak RSS of the whole process),
@@ -88,8 +88,8 @@ def timed(cmd: list[str], cwd: Path) -> tuple[str, str, float, float]:
 def estimate_mb(mesh_path: Path, n_modes: int, clamp: bool) -> tuple[int, float]:
     import numpy as np
 
-    from sidprep.linalg import estimate_peak_memory
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.linalg import estimate_peak_memory
+    from sidprep.fe.mesh import read_mesh
 
     mesh = read_mesh(mesh_path)
     n = mesh.n_dof - (3 * int((mesh.points[:, 0] < 1e-9).sum()) if clamp else 0)
@@ -98,11 +98,11 @@ def estimate_mb(mesh_path: Path, n_modes: int, clamp: bool) -> tuple[int, float]
 
 
 def reduce_estimate_mb(mesh_path: Path) -> float:
-    """The reduction's own estimate of its peak (sidprep.craig_bampton.reduction_peak_bytes), MiB."""
+    """The reduction's own estimate of its peak (sidprep.reduction.craig_bampton.reduction_peak_bytes), MiB."""
     import numpy as np
 
-    from sidprep.craig_bampton import reduction_peak_bytes
-    from sidprep.mesh import read_mesh
+    from sidprep.reduction.craig_bampton import reduction_peak_bytes
+    from sidprep.fe.mesh import read_mesh
 
     mesh = read_mesh(mesh_path)
     return reduction_peak_bytes(mesh.n_dof, extent=np.ptp(mesh.points, axis=0)) / 2 ** 20

@@ -62,10 +62,10 @@ class Body:
 
 def reduced_bar(mesh_path: Path, nq: int) -> Body:
     """Assemble, clamp ``fixed_end``, lowest ``nq`` eigenmodes (sidprep's FE side)."""
-    from sidprep.assemble import block_pattern, mass_matrix, scalar_mass_matrix, stiffness_matrix
-    from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs
-    from sidprep.material import material_from_options
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.assemble import block_pattern, mass_matrix, scalar_mass_matrix, stiffness_matrix
+    from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs
+    from sidprep.fe.material import material_from_options
+    from sidprep.fe.mesh import read_mesh
 
     mesh = read_mesh(mesh_path)
     steel = material_from_options(name="steel")
@@ -86,7 +86,7 @@ def reduced_bar(mesh_path: Path, nq: int) -> Body:
 
 
 def sidprep_sid(body: Body):
-    from sidprep.sid import sid_invariants
+    from sidprep.sid.model import sid_invariants
 
     phi = body.Phi.reshape(-1, 3, body.Phi.shape[1])
     nodes = [(1, np.zeros(3), np.zeros((3, phi.shape[2]))), (2, body.points[body.tip], phi[body.tip])]

@@ -107,7 +107,7 @@ def main(argv=None) -> int:
     p.add_argument("--adaptive", type=float, nargs="*", default=[1e-4, 1e-5, 1e-6],
                    help="rtol values of step-size-controlled runs")
     args = p.parse_args(argv)
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     with tempfile.TemporaryDirectory() as tmp:
         sid = read_sid(reduced_bar(Path(tmp)))

@@ -20,7 +20,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from sidprep.errors import InputError
-    from sidprep.viewer import write_mechanism_movie, write_mechanism_page
+    from sidprep.view.pages import write_mechanism_movie, write_mechanism_page
 
     out = Path(args.output) if args.output else Path(args.results).with_suffix(".html")
     if out.suffix.lower() not in MOVIE_SUFFIXES:

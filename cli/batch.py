@@ -35,9 +35,9 @@ def batch_from_args(args):
     from dataclasses import replace
 
     from sidprep.cli.reduce import options_given
-    from sidprep.batch import BatchOptions, jobs_from_meshes, read_study
+    from sidprep.jobs.batch import BatchOptions, jobs_from_meshes, read_study
     from sidprep.errors import InputError
-    from sidprep.options import ReduceOptions
+    from sidprep.jobs.options import ReduceOptions
 
     given = options_given(args, BatchOptions)
     if args.outdir:
@@ -58,8 +58,8 @@ def run(args) -> int:
     import json
 
     from sidprep.cli.options import cli_flags
-    from sidprep.batch import run_batch
-    from sidprep.options import check_reduce_options
+    from sidprep.jobs.batch import run_batch
+    from sidprep.jobs.options import check_reduce_options
 
     with cli_flags():
         jobs, opts = batch_from_args(args)
@@ -87,7 +87,7 @@ def _with_progress(jobs, opts):
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from sidprep.batch import run_batch
+    from sidprep.jobs.batch import run_batch
 
     console = Console(stderr=True)
     with Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),

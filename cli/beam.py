@@ -1,4 +1,4 @@
-"""``sidprep beam``: the SID of an analytical Euler-Bernoulli beam (sidprep.beam)."""
+"""``sidprep beam``: the SID of an analytical Euler-Bernoulli beam (sidprep.reduction.beam)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import json
 
-    from sidprep.beam import beam_options_from_table, write_beam_files
+    from sidprep.reduction.beam import beam_options_from_table, write_beam_files
 
     table = {k: getattr(args, k) for k in ("length", "section", "material", "E", "nu", "rho", "bc", "modes",
                                            "damping", "frames") if getattr(args, k) not in (None, "")}

@@ -17,8 +17,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from sidprep.checks import failed_checks, format_checks, sid_checks
-    from sidprep.io import read_sid
+    from sidprep.sid.checks import failed_checks, format_checks, sid_checks
+    from sidprep.sid.io import read_sid
 
     checks = sid_checks(read_sid(args.file))
     print(format_checks(checks))

@@ -15,7 +15,7 @@ def register(subparsers) -> None:
 
 def format_table(summary: dict) -> str:
     """Human-readable form of ``body_summary``."""
-    from sidprep.checks import format_checks
+    from sidprep.sid.checks import format_checks
 
     def row(v):
         return "  ".join(f"{x: .6e}" for x in v)
@@ -48,7 +48,7 @@ def format_table(summary: dict) -> str:
 def run(args) -> int:
     import json
 
-    from sidprep.sid_summary import sid_info, strict_json
+    from sidprep.sid.summary import sid_info, strict_json
 
     summary = sid_info(args.file)
     if args.json:

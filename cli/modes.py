@@ -31,7 +31,7 @@ def register(subparsers) -> None:
 
 def modal_options(args):
     """ModalOptions from the command line."""
-    from sidprep.options import ModalOptions
+    from sidprep.jobs.options import ModalOptions
 
     return ModalOptions(size=args.size, order=args.order or 2, E=args.E, nu=args.nu, rho=args.rho,
                         material=args.material, units=args.units, count=args.count, fmax=args.fmax,
@@ -41,8 +41,8 @@ def modal_options(args):
 def run(args) -> int:
     import json
 
-    from sidprep.analysis import modal_analysis
-    from sidprep.linalg import fast_blas
+    from sidprep.jobs.modal import modal_analysis
+    from sidprep.fe.linalg import fast_blas
     from sidprep.progress import Phases, peak_memory_mb
 
     ph = Phases(verbose=not args.quiet)

@@ -63,8 +63,8 @@ def register(subparsers) -> None:
 
 def job_from_args(args):
     """The Job of the command line; a .toml MESH is a job file that the options override."""
-    from sidprep.jobfile import Job, read_job
-    from sidprep.options import OutputOptions, ReduceOptions
+    from sidprep.jobs.jobfile import Job, read_job
+    from sidprep.jobs.options import OutputOptions, ReduceOptions
 
     base = read_job(args.mesh) if args.mesh.lower().endswith(".toml") else Job(args.mesh)
     return replace(base, options=replace(base.options, **options_given(args, ReduceOptions)),
@@ -83,9 +83,9 @@ def run(args) -> int:
     import json
 
     from sidprep.cli.options import cli_flags, quiet_native_output
-    from sidprep.fe_checks import format_checks
-    from sidprep.job import reduce
-    from sidprep.output import output_paths, write_reduction
+    from sidprep.reduction.fe_checks import format_checks
+    from sidprep.jobs.reduce import reduce
+    from sidprep.jobs.output import output_paths, write_reduction
     from sidprep.progress import Phases
 
     ph = Phases(verbose=not args.quiet)

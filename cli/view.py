@@ -16,7 +16,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from sidprep.viewer import write_mode_page
+    from sidprep.view.pages import write_mode_page
 
     path = write_mode_page(args.sid, args.output, args.obj)
     print(f"wrote {path}")

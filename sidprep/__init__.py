@@ -2,7 +2,7 @@
 
 Data flows one way: mesh -> model -> reduction -> SID -> files.  Importing this package is cheap:
 the functions below import the FE modules (mesh, assemble, linalg, reduce, ...) when called.
-`sidprep.sid` and `sidprep.io` depend on numpy and h5py only, so the solver can read SID files
+`sidprep.sid.model` and `sidprep.sid.io` depend on numpy and h5py only, so the solver can read SID files
 without pulling in the FE side.
 
 The solver and the command line are the subpackages ``sidprep.solver`` and ``sidprep.cli`` (the
@@ -30,14 +30,14 @@ __all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "reduce
 
 #: names resolved on first use (module, attribute): keeps ``import sidprep`` and ``sidprep --help`` fast
 _LAZY = {
-    "ModalOptions": ("sidprep.options", "ModalOptions"),
-    "ReduceOptions": ("sidprep.options", "ReduceOptions"),
-    "OutputOptions": ("sidprep.options", "OutputOptions"),
-    "BatchOptions": ("sidprep.batch", "BatchOptions"),
-    "Job": ("sidprep.jobfile", "Job"),
-    "sid_info": ("sidprep.sid_summary", "sid_info"),
-    "BeamOptions": ("sidprep.beam", "BeamOptions"),
-    "beam": ("sidprep.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)
+    "ModalOptions": ("sidprep.jobs.options", "ModalOptions"),
+    "ReduceOptions": ("sidprep.jobs.options", "ReduceOptions"),
+    "OutputOptions": ("sidprep.jobs.options", "OutputOptions"),
+    "BatchOptions": ("sidprep.jobs.batch", "BatchOptions"),
+    "Job": ("sidprep.jobs.jobfile", "Job"),
+    "sid_info": ("sidprep.sid.summary", "sid_info"),
+    "BeamOptions": ("sidprep.reduction.beam", "BeamOptions"),
+    "beam": ("sidprep.reduction.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)
     "load_scene": ("sidprep.solver.scene", "load_scene"),   # scene TOML -> Scene (system, settings)
     "simulate": ("sidprep.solver.scene", "simulate"),       # Scene -> solver Result
 }
@@ -67,11 +67,11 @@ def read_mesh(path, *, size: float | None = None, order: int = 2, units: str = "
 
     Returns
     -------
-    sidprep.mesh.FEMesh
+    sidprep.fe.mesh.FEMesh
         points (n, 3) m, cells (e, 4|10), node sets, notes.
     """
-    from sidprep.material import unit_system
-    from sidprep.mesh import read_mesh as _read
+    from sidprep.fe.material import unit_system
+    from sidprep.fe.mesh import read_mesh as _read
 
     u = unit_system(units)
     return _read(path, size=size, order=order).in_metres(u.length_to_m, u.name)
@@ -90,12 +90,12 @@ def modal_analysis(mesh, options=None, *, phases=None):
 
     Returns
     -------
-    sidprep.analysis.ModalResult
+    sidprep.jobs.modal.ModalResult
         frequencies_hz (n,) Hz, rigid modes first; modes (n_free_dof, n) mass-normalised (1/sqrt(kg));
         residuals (n,); n_rigid; mass_kg; timings_s (s per phase); notes.
     """
-    from sidprep.analysis import modal_analysis as _modal
-    from sidprep.options import ModalOptions
+    from sidprep.jobs.modal import modal_analysis as _modal
+    from sidprep.jobs.options import ModalOptions
 
     return _modal(mesh, options or ModalOptions(), phases=phases)
 
@@ -115,18 +115,18 @@ def reduce_model(mesh, options=None, *, phases=None):
 
     Returns
     -------
-    sidprep.job.ReductionResult
+    sidprep.jobs.reduce.ReductionResult
         sid (SI units), checks (dict; ``passed``), notes, n_dof, timings_s (s), peak_memory_mb (MiB).
     """
-    from sidprep.job import reduce as _reduce
-    from sidprep.options import ReduceOptions
+    from sidprep.jobs.reduce import reduce as _reduce
+    from sidprep.jobs.options import ReduceOptions
 
     return _reduce(mesh, options or ReduceOptions(), phases=phases)
 
 
 def read_sid(path):
-    """Read a SID file by its ending: .sid.h5 / .h5 / .hdf5 or .SID_FEM; returns sidprep.sid.SID (SI)."""
-    from sidprep.io import read_sid as _read
+    """Read a SID file by its ending: .sid.h5 / .h5 / .hdf5 or .SID_FEM; returns sidprep.sid.model.SID (SI)."""
+    from sidprep.sid.io import read_sid as _read
 
     return _read(path)
 
@@ -134,14 +134,14 @@ def read_sid(path):
 def write_sid(sid, path, *, comment: str = ""):
     """Write a SID by the file ending: .sid.h5 (HDF5), .SID_FEM (ASCII), .obj (its surface); atomic.
     Returns the Path written."""
-    from sidprep.output import write_sid as _write
+    from sidprep.jobs.output import write_sid as _write
 
     return _write(sid, path, comment=comment)
 
 
 def run_batch(jobs, options=None, *, progress=None):
-    """Run many reduction jobs (process pool or Dask cluster, content-addressed cache); see sidprep.batch."""
-    from sidprep.batch import BatchOptions, run_batch as _run
+    """Run many reduction jobs (process pool or Dask cluster, content-addressed cache); see sidprep.jobs.batch."""
+    from sidprep.jobs.batch import BatchOptions, run_batch as _run
 
     return _run(jobs, options or BatchOptions(), progress=progress)
 

@@ -7,7 +7,7 @@ implementation of the body equations, constraints, force elements and energies) 
 -> ``run`` (one simulation, owning its state) -> ``postprocess`` / ``results`` (Result, files).
 
 Never imports sidprep's FE side (mesh, assemble, linalg, reduce, ...): its only inputs from
-there are SID files, read through ``sidprep.sid`` and ``sidprep.io`` (numpy/h5py only).
+there are SID files, read through ``sidprep.sid.model`` and ``sidprep.sid.io`` (numpy/h5py only).
 The public names below are imported on first use::
 
     from sidprep.solver import System, FlexibleBody, Revolute, SolverSettings

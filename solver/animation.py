@@ -20,7 +20,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_path
 
 
 #: the series holds at most this many time steps (files): every k-th output sample
@@ -41,7 +41,7 @@ class Surface:
 
 
 def sid_surface(sid) -> Surface:
-    """The animation surface of a flexible body (``sidprep.sid.SID``)."""
+    """The animation surface of a flexible body (``sidprep.sid.model.SID``)."""
     if sid.surface is not None:
         s = sid.surface
         return Surface(np.asarray(s.points, float), np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float))

@@ -40,7 +40,7 @@ from typing import Mapping
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_path
 from sidprep.solver.effects import EffectEntry, EffectsReport
 
 

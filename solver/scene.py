@@ -281,7 +281,7 @@ def _flexible_body(name: str, t: _Table, pose: dict):
     if not path.is_file():
         _missing_sid(t, path)
     t.string("make", None)
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     try:
         sid = read_sid(path)
@@ -294,8 +294,8 @@ def _flexible_body(name: str, t: _Table, pose: dict):
 
 
 def _beam_body(name: str, t: _Table, pose: dict):
-    """An analytical Euler-Bernoulli Beam declared inline (sidprep.beam: its SID in memory)."""
-    from sidprep.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
+    """An analytical Euler-Bernoulli Beam declared inline (sidprep.reduction.beam: its SID in memory)."""
+    from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
     from sidprep.solver import FlexibleBody
 
     beam = {key: t.raw(key) for key in BEAM_TABLE_KEYS if t.has(key)}

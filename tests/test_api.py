@@ -13,17 +13,17 @@ import pytest
 
 import sidprep
 from sidprep.cli.main import main
-from sidprep.io.sid_hdf5 import read_sid_hdf5
+from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"
-#: reduced vs full first elastic frequency of the bar (the FE check tolerance, sidprep.fe_checks)
+#: reduced vs full first elastic frequency of the bar (the FE check tolerance, sidprep.reduction.fe_checks)
 FREQ_RTOL = 1e-3
 
 
 def test_import_sidprep_loads_no_fe_module_and_no_solver():
     code = ("import sys, sidprep; bad = [m for m in sys.modules if m.split('.')[0] in ('solver', 'skfem', 'scipy')"
-            " or m in ('sidprep.mesh', 'sidprep.linalg', 'sidprep.job')]; print(bad)")
+            " or m in ('sidprep.fe.mesh', 'sidprep.fe.linalg', 'sidprep.jobs.reduce')]; print(bad)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                          env={"PYTHONPATH": str(ROOT), "PATH": ""}).stdout.strip()
     assert out == "[]"

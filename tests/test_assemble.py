@@ -11,11 +11,11 @@ from skfem import Basis, BilinearForm, ElementTetP1, ElementTetP2, ElementVector
 from skfem.helpers import dot
 from skfem.models.elasticity import linear_elasticity
 
-from sidprep.assemble import _keast_points, lumped_scalar_mass, mass_matrix, scalar_mass_matrix, stiffness_matrix
+from sidprep.fe.assemble import _keast_points, lumped_scalar_mass, mass_matrix, scalar_mass_matrix, stiffness_matrix
 from sidprep.errors import InputError
-from sidprep.linalg import rigid_body_modes
-from sidprep.material import Material
-from sidprep.mesh import TET10_EDGES, FEMesh
+from sidprep.fe.linalg import rigid_body_modes
+from sidprep.fe.material import Material
+from sidprep.fe.mesh import TET10_EDGES, FEMesh
 
 #: assembled matrices agree with scikit-fem's to round-off (relative Frobenius norm)
 SKFEM_RTOL = 1e-12
@@ -144,7 +144,7 @@ def test_inverted_element_is_input_error():
 
 @pytest.mark.parametrize("degree", [2, 4])
 def test_quadrature_rules_are_scikit_fems(degree):
-    """The Keast rules written out in sidprep.assemble are the ones scikit-fem gives."""
+    """The Keast rules written out in sidprep.fe.assemble are the ones scikit-fem gives."""
     from skfem.quadrature import get_quadrature
     from skfem.refdom import RefTet
 

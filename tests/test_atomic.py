@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from sidprep.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_path
 
 
 def test_file_appears_only_when_complete_and_readable(tmp_path):

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.batch import BatchOptions, jobs_from_meshes, read_study, run_batch
-from sidprep.io.sid_hdf5 import read_sid_hdf5
-from sidprep.options import ReduceOptions
+from sidprep.jobs.batch import BatchOptions, jobs_from_meshes, read_study, run_batch
+from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
+from sidprep.jobs.options import ReduceOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"
@@ -152,7 +152,7 @@ def test_a_study_with_a_wrong_type_names_file_key_and_type(tmp_path, capsys):
 
 
 def test_jobs_start_only_while_their_memory_estimate_fits(tmp_path):
-    from sidprep.batch import estimate_job_memory_mb
+    from sidprep.jobs.batch import estimate_job_memory_mb
 
     meshes = []
     for i in range(3):

@@ -1,4 +1,4 @@
-"""The analytical Beam (sidprep.beam) against independent references."""
+"""The analytical Beam (sidprep.reduction.beam) against independent references."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from sidprep.beam import BeamOptions, Section, beam_options_from_table, beam_sid, parse_modes
+from sidprep.reduction.beam import BeamOptions, Section, beam_options_from_table, beam_sid, parse_modes
 from sidprep.errors import InputError
-from sidprep.sid import inertia_matrix
+from sidprep.sid.model import inertia_matrix
 
 #: beta_n L of the first three elastic bending forms, Blevins, "Formulas for natural frequency and
 #: mode shape" (1979), table 8-1 (9 significant digits)
@@ -112,8 +112,8 @@ def test_frequency_under_axial_load_follows_the_euler_buckling_law():
 
 
 def test_hdf5_and_sid_fem_round_trips(tmp_path):
-    from sidprep.io.sid_fem import read_sid_fem, write_sid_fem
-    from sidprep.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
+    from sidprep.sid.io.sid_fem import read_sid_fem, write_sid_fem
+    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
 
     o = BeamOptions(length=1.0, bc="clamped-free", modes=parse_modes("xz:1-2,xy:1,torsion:1,axial:1"),
                     frames=(0.5,), damping=(0.01,))
@@ -155,8 +155,8 @@ def test_cli_writes_a_sid_that_info_lists_and_rejects_bad_input(tmp_path):
 
 
 def test_beam_module_does_not_import_the_fe_side():
-    code = ("import sys, sidprep.beam; bad = [m for m in sys.modules if m.startswith(('skfem', 'sidprep.mesh', "
-            "'sidprep.assemble', 'sidprep.linalg', 'sidprep.modes', 'sidprep.stiffening'))]; print(bad)")
+    code = ("import sys, sidprep.reduction.beam; bad = [m for m in sys.modules if m.startswith(('skfem', 'sidprep.fe.mesh', "
+            "'sidprep.fe.assemble', 'sidprep.fe.linalg', 'sidprep.reduction.modes', 'sidprep.reduction.stiffening'))]; print(bad)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "[]", r.stdout + r.stderr
 
@@ -191,7 +191,7 @@ def test_beam_matches_the_3d_bar_reduced_by_the_fe_route_up_to_the_timoshenko_co
     assert beam.mass == pytest.approx(fe.mass, rel=1e-10)
 
 
-#: the 3D bar's geometric stiffening (sidprep.stiffening: unit-load stress fields, tet10 K_G) and
+#: the 3D bar's geometric stiffening (sidprep.reduction.stiffening: unit-load stress fields, tet10 K_G) and
 #: the Beam's (N(x) of beam theory) differ by the bar's shear and 3D stress distribution: measured
 #: 0.2-1.3 % on the first two forms per plane of the bundled bar
 STIFFENING_3D_RTOL = 2e-2

@@ -69,7 +69,7 @@ ROTOR_FREQ_RTOL = 1e-3
 def test_helicopter_rotor_short(tmp_path):
     import numpy as np
 
-    from sidprep.io.sid_hdf5 import read_sid_hdf5
+    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
 
     prepare("helicopter_rotor", tmp_path)
     sid = read_sid_hdf5(tmp_path / "blade.sid.h5")

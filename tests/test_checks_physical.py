@@ -11,10 +11,10 @@ import sys
 import numpy as np
 import pytest
 
-from sidprep.checks import failed_checks, inertia_about_cm, physical_checks, sid_checks
+from sidprep.sid.checks import failed_checks, inertia_about_cm, physical_checks, sid_checks
 from sidprep.errors import InputError
-from sidprep.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
-from sidprep.sid import sid_invariants
+from sidprep.sid.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
+from sidprep.sid.model import sid_invariants
 
 from test_sid_fem import REF as REFERENCE, ROOT, omit_zeros, without_largest_line
 
@@ -215,8 +215,8 @@ def test_label_frequencies_against_generalized_eigenvalues():
     are the generalized eigenfrequencies of (Ke, Me); zeroing Ke's coupling entry changes them."""
     from dataclasses import replace
 
-    from sidprep.checks import modal_checks
-    from sidprep.sid import SYMMETRIC, Taylor
+    from sidprep.sid.checks import modal_checks
+    from sidprep.sid.model import SYMMETRIC, Taylor
 
     w = 2 * np.pi * np.array([3.0, 7.0])                     # rad/s
     c, s = np.cos(0.4), np.sin(0.4)

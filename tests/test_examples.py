@@ -20,8 +20,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from sidprep.cli.main import main
-from sidprep.io import read_sid
-from sidprep.sid import inertia_matrix
+from sidprep.sid.io import read_sid
+from sidprep.sid.model import inertia_matrix
 from sidprep.solver.results import read_results
 
 ROOT = Path(__file__).resolve().parents[1]

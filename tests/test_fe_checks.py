@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import sidprep.fe_checks as fe_checks
-from sidprep.assemble import mass_matrix, stiffness_matrix
-from sidprep.interfaces import make_interface
-from sidprep.job import reduce_body
-from sidprep.material import builtin_material
-from sidprep.mesh import read_mesh
-from sidprep.modes import hz
+import sidprep.reduction.fe_checks as fe_checks
+from sidprep.fe.assemble import mass_matrix, stiffness_matrix
+from sidprep.reduction.interfaces import make_interface
+from sidprep.jobs.reduce import reduce_body
+from sidprep.fe.material import builtin_material
+from sidprep.fe.mesh import read_mesh
+from sidprep.reduction.modes import hz
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 #: round-off slack of "the bound contains the full re-solve's frequency" (eigen solve tolerance)

@@ -1,4 +1,4 @@
-"""Paths on FE-reduced bodies (issue 10 item 1, sidprep.paths): curves through points or ordered
+"""Paths on FE-reduced bodies (issue 10 item 1, sidprep.reduction.paths): curves through points or ordered
 node sets, resampled at equal arc length, with the mode shapes interpolated from the full FE
 modes; against closed forms (arc lengths of a parabola and a circle, polynomial fields that P2
 elements represent exactly) and the straight-segment path."""
@@ -11,8 +11,8 @@ import pytest
 
 from sidprep.cli.main import main
 from sidprep.errors import InputError
-from sidprep.mesh import read_mesh
-from sidprep.paths import fe_path, located_paths, parse_path, path_samples, uniform_arc_length_samples
+from sidprep.fe.mesh import read_mesh
+from sidprep.reduction.paths import fe_path, located_paths, parse_path, path_samples, uniform_arc_length_samples
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 #: the parabola y = 0.025 + 0.04 x (1 - x) through 3 points (the not-a-knot spline is exactly it):

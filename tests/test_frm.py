@@ -5,14 +5,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sidprep.assemble import mass_matrix, stiffness_matrix
+from sidprep.fe.assemble import mass_matrix, stiffness_matrix
 from sidprep.errors import InputError
-from sidprep.interfaces import make_interface
-from sidprep.material import builtin_material
-from sidprep.mesh import read_mesh
-from sidprep.modes import frequency_response_modes, modal_basis, modal_damping, mode_labels
-from sidprep.fe_checks import master_compliance_full
-from sidprep.job import reduce_body
+from sidprep.reduction.interfaces import make_interface
+from sidprep.fe.material import builtin_material
+from sidprep.fe.mesh import read_mesh
+from sidprep.reduction.modes import frequency_response_modes, modal_basis, modal_damping, mode_labels
+from sidprep.reduction.fe_checks import master_compliance_full
+from sidprep.jobs.reduce import reduce_body
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 ORTHO_TOL = 1e-9

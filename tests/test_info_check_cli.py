@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.io.sid_fem import write_sid_fem
-from sidprep.io.sid_hdf5 import write_sid_hdf5
-from sidprep.sid import Taylor
+from sidprep.sid.io.sid_fem import write_sid_fem
+from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
+from sidprep.sid.model import Taylor
 
 from test_sid_fem import REF, random_sid
 
@@ -94,8 +94,8 @@ def test_missing_or_unknown_file_is_one_line_error(tmp_path, capsys, name):
 
 def test_free_body_checks():
     """Modes made M-orthogonal to the rigid-body fields St, Sr (spec 4.3) pass; raw random ones fail."""
-    from sidprep.checks import sid_checks
-    from sidprep.sid import sid_invariants, skew
+    from sidprep.sid.checks import sid_checks
+    from sidprep.sid.model import sid_invariants, skew
 
     rng = np.random.default_rng(3)
     n, nq = 8, 3

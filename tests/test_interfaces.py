@@ -5,13 +5,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sidprep.assemble import mass_matrix, stiffness_matrix
+from sidprep.fe.assemble import mass_matrix, stiffness_matrix
 from sidprep.errors import InputError
-from sidprep.interfaces import (interface_model, make_interface, nodes_on_cylinder, nodes_on_plane,
+from sidprep.reduction.interfaces import (interface_model, make_interface, nodes_on_cylinder, nodes_on_plane,
                                 rbe3_averaging, rigid_modes_model, rigid_rows)
-from sidprep.linalg import eigen_modes
-from sidprep.material import builtin_material
-from sidprep.mesh import read_mesh
+from sidprep.fe.linalg import eigen_modes
+from sidprep.fe.material import builtin_material
+from sidprep.fe.mesh import read_mesh
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 ROD = Path(__file__).resolve().parents[1] / "data" / "meshes" / "piston_rod.msh"

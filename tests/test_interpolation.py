@@ -82,7 +82,7 @@ def piston_rod_sid(tmp_path_factory):
     from pathlib import Path
 
     from sidprep.cli.main import main
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
     mesh = Path(__file__).resolve().parents[1] / "data" / "meshes" / "piston_rod.msh"
     out = tmp_path_factory.mktemp("rod") / "rod.sid.h5"
     assert main(["reduce", str(mesh), "-o", str(out), "-q", "--no-sid-fem", "--no-obj"]) == 0

@@ -3,8 +3,8 @@
 import subprocess
 import sys
 
-FE_MODULES = ("sidprep.mesh", "sidprep.assemble", "sidprep.linalg", "sidprep.craig_bampton",
-              "sidprep.modes", "sidprep.interfaces", "sidprep.stiffening", "sidprep.job", "sidprep.analysis", "skfem")
+FE_MODULES = ("sidprep.fe.mesh", "sidprep.fe.assemble", "sidprep.fe.linalg", "sidprep.reduction.craig_bampton",
+              "sidprep.reduction.modes", "sidprep.reduction.interfaces", "sidprep.reduction.stiffening", "sidprep.jobs.reduce", "sidprep.jobs.modal", "skfem")
 
 
 def test_solver_does_not_import_fe_side():

@@ -11,9 +11,9 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from sidprep.assemble import stiffness_and_mass
+from sidprep.fe.assemble import stiffness_and_mass
 from sidprep.errors import InputError
-from sidprep.linalg import (clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes,
+from sidprep.fe.linalg import (clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes,
                             spectral_scale)
 from test_assemble import MAT, femesh, skfem_box
 
@@ -115,7 +115,7 @@ def test_bad_solver_options_are_input_errors(kwargs, fragment):
 def test_interposed_blas_gives_the_reference_blas_result():
     """CHOLMOD with the optimised BLAS (if installed) vs the wheel's own reference BLAS."""
     script = ("import json, numpy as np, sys; sys.path.insert(0, 'tests'); from test_assemble import *; "
-              "from sidprep.assemble import stiffness_and_mass; from sidprep.linalg import eigen_modes, fast_blas; "
+              "from sidprep.fe.assemble import stiffness_and_mass; from sidprep.fe.linalg import eigen_modes, fast_blas; "
               "K, M = stiffness_and_mass(femesh(skfem_box(n=2), 2)[0], MAT); "
               "print(fast_blas()); print(json.dumps(eigen_modes(K, M, count=4, backend='cholmod').eigenvalues[6:].tolist()))")
     out = {}
@@ -140,7 +140,7 @@ def kane_beam_3d():
     """The soft Kane beam as a 3D tet10 bar, 2 cm square section (E, rho give EI, rho A)."""
     from skfem import MeshTet
 
-    from sidprep.material import Material
+    from sidprep.fe.material import Material
 
     a = 0.02
     mat = Material(E=KANE_EI / (a ** 4 / 12), nu=0.3, rho=KANE_RHOA / a ** 2, name="kane")
@@ -179,7 +179,7 @@ def test_soft_free_beam_has_six_rigid_modes():
     ([1e-7] * 12 + [14.5], 12, 12),                                 # two free parts
 ])
 def test_rigid_mode_count_by_gap_and_count(lam, cap, expected):
-    from sidprep.linalg import rigid_mode_count
+    from sidprep.fe.linalg import rigid_mode_count
 
     assert rigid_mode_count(np.array(lam), 1e12, cap) == expected
 

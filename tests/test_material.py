@@ -5,7 +5,7 @@ import math
 import pytest
 
 from sidprep.errors import InputError
-from sidprep.material import BUILTIN, Material, material_from_options, unit_system
+from sidprep.fe.material import BUILTIN, Material, material_from_options, unit_system
 
 
 def test_mm_t_s_input_equals_si_input():

@@ -1,4 +1,4 @@
-"""The memory estimate before a run (sidprep.linalg.estimate_peak_memory) against peaks measured in a
+"""The memory estimate before a run (sidprep.fe.linalg.estimate_peak_memory) against peaks measured in a
 fresh process, and the automatic backend choice / refusal it drives (issue 13 item 2)."""
 
 import json
@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sidprep.assemble import stiffness_and_mass
+from sidprep.fe.assemble import stiffness_and_mass
 from sidprep.errors import InputError
-from sidprep.linalg import (MemoryEstimate, available_memory_bytes, choose_backend, clamp_dofs, eigen_modes,
+from sidprep.fe.linalg import (MemoryEstimate, available_memory_bytes, choose_backend, clamp_dofs, eigen_modes,
                             estimate_peak_memory, node_dofs)
 from sidprep.progress import Phases
 from test_assemble import MAT, femesh
@@ -30,8 +30,8 @@ import numpy as np
 sys.path.insert(0, 'tests')
 from skfem import MeshTet
 from test_assemble import MAT, femesh
-from sidprep.assemble import stiffness_and_mass
-from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs
+from sidprep.fe.assemble import stiffness_and_mass
+from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs
 a, b, c, nx, ny, nz = {args}
 mesh = femesh(MeshTet.init_tensor(np.linspace(0, a, nx + 1), np.linspace(0, b, ny + 1), np.linspace(0, c, nz + 1)), 2)[0]
 K, M = stiffness_and_mass(mesh, MAT)
@@ -83,7 +83,7 @@ def test_backend_choice_and_refusal():
 def test_auto_backend_switches_to_amg_lobpcg_under_a_small_memory_limit(capsys, monkeypatch):
     """The choice wired into eigen_modes: a model whose (pretended) direct peak exceeds the limit
     goes to AMG-LOBPCG and gets the direct path's eigenvalues; a limit below both is refused."""
-    import sidprep.linalg as la
+    import sidprep.fe.linalg as la
 
     mesh = femesh(__import__("test_assemble").skfem_box(n=3), 2)[0]
     K, M = stiffness_and_mass(mesh, MAT)
@@ -112,7 +112,7 @@ def test_memory_limit_from_the_environment(monkeypatch):
 
 
 def test_reduction_refused_before_the_work_when_it_cannot_fit():
-    from sidprep.craig_bampton import craig_bampton
+    from sidprep.reduction.craig_bampton import craig_bampton
 
     mesh = femesh(__import__("test_assemble").skfem_box(n=2), 2)[0]
     K, M = stiffness_and_mass(mesh, MAT)

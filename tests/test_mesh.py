@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sidprep.errors import InputError
-from sidprep.mesh import (
+from sidprep.fe.mesh import (
     TET10_EDGES,
     boundary_faces,
     cell_volumes,
@@ -353,7 +353,7 @@ def test_close_pairs_are_the_search_tree_pairs():
     """The grid search for duplicate nodes finds exactly the pairs scipy's k-d tree finds."""
     from scipy.spatial import cKDTree
 
-    from sidprep.mesh import close_pairs
+    from sidprep.fe.mesh import close_pairs
 
     rng = np.random.default_rng(0)
     p = rng.random((20000, 3)) * [1.0, 0.05, 0.08]

@@ -11,10 +11,10 @@ Tolerances are the ones the README measured for the reference solvers on these m
 import numpy as np
 import pytest
 
-from sidprep.assemble import stiffness_and_mass
-from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs
-from sidprep.material import Material
-from sidprep.mesh import read_mesh
+from sidprep.fe.assemble import stiffness_and_mass
+from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs
+from sidprep.fe.material import Material
+from sidprep.fe.mesh import read_mesh
 
 #: CalculiX 2.20 C3D10, free-free bar h = 0.02 m, modes 7-20, Hz
 #: (../shared/validation/results/freefree.csv, mesh bar_h0.02, tool calculix)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sidprep.beam import beam_options_from_table, beam_sid
+from sidprep.reduction.beam import beam_options_from_table, beam_sid
 from sidprep.solver import ConstantSpeed, Fixed, FlexibleBody, PointForce, System
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,7 +89,7 @@ def test_a_load_off_its_path_does_no_work():
 
 
 def test_the_beam_path_survives_the_sid_file(tmp_path):
-    from sidprep.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
+    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
 
     sid = beam_sid(beam_options_from_table({"length": 2.0, "section": "rectangle:0.05,0.02", "bc": "pinned-free",
                                             "modes": "xz:1-3,xy:1"}, "test"))
@@ -257,7 +257,7 @@ def test_a_free_sliding_mass_conserves_energy_and_stays_on_the_deformed_beam():
     assert drift[1e-3] < SLIDING_ENERGY_RTOL and drift[2e-3] > 2.5 * drift[1e-3], drift
     x, z = r.bodies["mass"].position[:, 0], r.bodies["mass"].position[:, 2]
     assert x.max() > 4.0                                               # it slid towards midspan
-    from sidprep.beam import eigenforms
+    from sidprep.reduction.beam import eigenforms
 
     forms = eigenforms(beam_options_from_table({"length": L, "section": f"rectangle:{B},{B}", "E": E, "nu": 0.3,
                                                 "rho": RHO, "bc": "pinned-pinned", "modes": "xz:1-10"}, "test"))

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sidprep.material import builtin_material
-from sidprep.mesh import cell_volumes, read_mesh
-from sidprep.plausibility import unit_warnings
+from sidprep.fe.material import builtin_material
+from sidprep.fe.mesh import cell_volumes, read_mesh
+from sidprep.fe.plausibility import unit_warnings
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 STEEL = builtin_material("steel")

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from sidprep.assemble import mass_matrix, stiffness_matrix
+from sidprep.fe.assemble import mass_matrix, stiffness_matrix
 from sidprep.errors import InputError
-from sidprep.interfaces import interface_model, make_interface
-from sidprep.linalg import eigen_modes, factorize
-from sidprep.material import builtin_material
-from sidprep.mesh import read_mesh
-from sidprep.modes import eigen_pairs, hz
-from sidprep.craig_bampton import craig_bampton, guyan
+from sidprep.reduction.interfaces import interface_model, make_interface
+from sidprep.fe.linalg import eigen_modes, factorize
+from sidprep.fe.material import builtin_material
+from sidprep.fe.mesh import read_mesh
+from sidprep.reduction.modes import eigen_pairs, hz
+from sidprep.reduction.craig_bampton import craig_bampton, guyan
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 #: Guyan condensation is exact for loads at the boundary: round-off only

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.io.sid_fem import read_sid_fem
-from sidprep.checks import failed_checks
-from sidprep.io.sid_hdf5 import read_checks, read_sid_hdf5
-from sidprep.options import DEFAULT_MODES
+from sidprep.sid.io.sid_fem import read_sid_fem
+from sidprep.sid.checks import failed_checks
+from sidprep.sid.io.sid_hdf5 import read_checks, read_sid_hdf5
+from sidprep.jobs.options import DEFAULT_MODES
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 
@@ -89,7 +89,7 @@ def test_mm_t_s_units_and_a_body_without_interfaces(tmp_path, capsys):
     """The bar in mm with MPa and t/mm^3 gives the SI body; no node sets: 3-2-1 CB boundary, no FRMs."""
     import meshio
 
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.mesh import read_mesh
 
     bar = read_mesh(MESHES / "bar.msh")
     labels = {}
@@ -119,7 +119,7 @@ def test_mesh_repairs_and_the_default_material_are_reported(tmp_path, capsys):
     """What read_mesh repaired (here: an unused node dropped) reaches the user and the file."""
     import meshio
 
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.mesh import read_mesh
 
     bar = read_mesh(MESHES / "bar.msh")
     path = tmp_path / "bar_extra_node.vtu"

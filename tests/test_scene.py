@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from sidprep.errors import InputError
-from sidprep.io.sid_hdf5 import write_sid_hdf5
-from sidprep.sid import sid_invariants
+from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
+from sidprep.sid.model import sid_invariants
 from sidprep.solver.scene import load_scene, simulate
 
 #: relative error of the small-angle pendulum (amplitude 0.01 rad: nonlinearity ~ theta0^2 / 16)

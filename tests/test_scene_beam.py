@@ -7,7 +7,7 @@ from sidprep.errors import InputError
 from sidprep.solver.results import signal
 from sidprep.solver.scene import load_scene, simulate
 
-#: steel (sidprep.material "steel") and the beam-buckling example's section: L = 1.69 m, 22.9 mm square
+#: steel (sidprep.fe.material "steel") and the beam-buckling example's section: L = 1.69 m, 22.9 mm square
 E, RHO, L, SIDE = 210e9, 7850.0, 1.69, 0.0229
 
 SCENE = """

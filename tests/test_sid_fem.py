@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from sidprep.errors import InputError
-from sidprep.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
-from sidprep.sid import SYMMETRIC, Taylor, inertia_matrix, sid_invariants
+from sidprep.sid.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
+from sidprep.sid.model import SYMMETRIC, Taylor, inertia_matrix, sid_invariants
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the third-party files: ../shared/reference/sid_fem beside the checkout (or beside a worktree's folder)
@@ -278,7 +278,7 @@ def test_truncated_and_missing_files(tmp_path):
 
 def test_rigid_body_sid_without_modes(tmp_path):
     """nq = 0: a rigid body still has mass, CM and inertia; both formats carry it."""
-    from sidprep.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
+    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
     X = np.random.default_rng(4).normal(size=(6, 3))
     sid = sid_invariants(X, np.eye(6), np.zeros((18, 0)), [(1, X[0], np.zeros((3, 0)))],
                          Ke=np.zeros((0, 0)))

@@ -12,10 +12,10 @@ import pytest
 import trimesh
 
 from sidprep.errors import InputError
-from sidprep.io import read_sid
-from sidprep.io.obj import write_obj
-from sidprep.io.sid_hdf5 import read_checks, read_sid_hdf5, write_sid_hdf5
-from sidprep.sid import SurfaceModes
+from sidprep.sid.io import read_sid
+from sidprep.sid.io.obj import write_obj
+from sidprep.sid.io.sid_hdf5 import read_checks, read_sid_hdf5, write_sid_hdf5
+from sidprep.sid.model import SurfaceModes
 
 from test_sid_fem import MEMBERS, real, random_sid
 

@@ -10,7 +10,7 @@ import itertools
 import numpy as np
 import pytest
 
-from sidprep.sid import (DIAGONAL, GENERAL, IDENTITY, ZERO, ge_tensor, gr_tensor, inertia_matrix,
+from sidprep.sid.model import (DIAGONAL, GENERAL, IDENTITY, ZERO, ge_tensor, gr_tensor, inertia_matrix,
                          sid_invariants, skew)
 
 RTOL = 1e-12          # relative agreement of exact formulas evaluated two ways (round-off only)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.io.sid_hdf5 import write_sid_hdf5
+from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 from sidprep.solver.results import read_results
 from test_scene import TINY_SCENE, tiny_sid
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sidprep.sid import sid_invariants
+from sidprep.sid.model import sid_invariants
 from sidprep.solver.model.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
 from sidprep.solver.equations.constraints import marker_kinematics
 from sidprep.solver.equations.layout import body_matrices

@@ -166,7 +166,7 @@ def test_spinning_cantilever_flapwise_frequency_follows_southwell(tmp_path):
     assert main(["reduce", str(MESH), "--interface", "fixed_end:rbe2", "--frame", "fixed_end", "--modes", "4",
                  "--no-frm", "--stiffening", "--no-check-frequencies", "--no-obj", "--no-sid-fem", "-q",
                  "-o", str(out)]) == 0
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     sid = read_sid(out)
     flap = int(np.argmax(np.abs(sid.Ct.M0[:, 2])))  # the first mode moving along z
@@ -201,7 +201,7 @@ SELF_WEIGHT_RTOL = 2e-3
 def test_gravity_alone_loads_the_modes():
     """effects = ["gravity"] without "coupling" still loads the modes with Ct0 g (it used to
     drop the modal gravity force, which is assembled from the coupling matrix)."""
-    from sidprep.beam import beam_options_from_table, beam_sid
+    from sidprep.reduction.beam import beam_options_from_table, beam_sid
     from sidprep.solver import Fixed
 
     length, ei, mu = 2.0, 2.1e11 * 0.02 * 0.05**3 / 12, 7850.0 * 0.02 * 0.05

@@ -49,7 +49,7 @@ def test_constraint_rows_are_the_time_derivative_of_g(kind):
     rng = np.random.default_rng(7)
     s = System(gravity=(0, 0, 0))
     if kind == "on_path":
-        from sidprep.beam import beam_options_from_table, beam_sid
+        from sidprep.reduction.beam import beam_options_from_table, beam_sid
 
         beam = s.add(FlexibleBody(beam_sid(beam_options_from_table(
             {"length": 2.0, "section": "rectangle:0.05,0.02", "bc": "pinned-pinned", "modes": "xz:1-3,xy:1"}, "t")),
@@ -76,7 +76,7 @@ def test_rows_on_a_marker_moving_along_a_path_carry_its_motion_in_b_t(kind):
     holds the point's convective velocity s_dot dp/ds and its frame's turning rate.  (The frame's
     modal columns JR = A Psi are exact to first order in q only, like those of node markers: the
     SID's rotations are linear; here the modal rates are zero.)"""
-    from sidprep.beam import beam_options_from_table, beam_sid
+    from sidprep.reduction.beam import beam_options_from_table, beam_sid
 
     rng = np.random.default_rng(11)
     s = System(gravity=(0, 0, 0))

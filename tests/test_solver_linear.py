@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from sidprep.beam import beam_options_from_table, beam_sid
+from sidprep.reduction.beam import beam_options_from_table, beam_sid
 from sidprep.solver import Fixed, FlexibleBody, Revolute, RigidBody, System
 from sidprep.solver.linear import mechanism_modes
 

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from sidprep.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
-from sidprep.linalg import clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes
-from sidprep.material import Material, material_from_options
-from sidprep.mesh import FEMesh, read_mesh, surface_node_indices
+from sidprep.fe.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
+from sidprep.fe.linalg import clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes
+from sidprep.fe.material import Material, material_from_options
+from sidprep.fe.mesh import FEMesh, read_mesh, surface_node_indices
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"
@@ -172,7 +172,7 @@ FAR_INERTIA_RTOL = 1e-6
 
 
 def test_body_far_from_the_origin_keeps_frequencies_and_invariants():
-    from sidprep.sid import inertia_matrix, sid_invariants
+    from sidprep.sid.model import inertia_matrix, sid_invariants
 
     offset = np.array([1e3, -1e3, 1e3])
     near = read_mesh(BAR)
@@ -264,7 +264,7 @@ _Z_TO_Y = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]).T   # ma
 def reduced_bar(tmp_path, *options):
     """`sidprep reduce` of the bundled bar with an interface at fixed_end -> SID."""
     from sidprep.cli.main import main
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     out = tmp_path / "bar.sid.h5"
     assert main(["reduce", str(BAR), "--interface", "fixed_end", "--no-frm", "--damping", "0",

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from sidprep.assemble import mass_matrix, stiffness_matrix
-from sidprep.interfaces import make_interface
-from sidprep.material import builtin_material
-from sidprep.mesh import read_mesh
-from sidprep.job import reduce_body
-from sidprep.stiffening import centrifugal_fields, stiffening_parts
+from sidprep.fe.assemble import mass_matrix, stiffness_matrix
+from sidprep.reduction.interfaces import make_interface
+from sidprep.fe.material import builtin_material
+from sidprep.fe.mesh import read_mesh
+from sidprep.jobs.reduce import reduce_body
+from sidprep.reduction.stiffening import centrifugal_fields, stiffening_parts
 
 BAR = Path(__file__).resolve().parents[1] / "data" / "meshes" / "bar.msh"
 L, B, H = 1.0, 0.05, 0.08
@@ -86,7 +86,7 @@ def test_free_body_cases_superpose_to_the_equilibrated_stress_state():
     """Free bar pulled axially at the tip: a K0t_x - F K0F_x (3-2-1 supports, sid-spec 6.4) equals the
     projected K_G of the equilibrated state (F at the tip against m a, a = F/m) solved on a DIFFERENT
     support (the tip master clamped): the support reactions of the single cases cancel."""
-    from sidprep.stiffening import projected_geometric_stiffness
+    from sidprep.reduction.stiffening import projected_geometric_stiffness
 
     mesh = read_mesh(BAR)
     steel = builtin_material("steel")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.io.obj import write_obj
+from sidprep.sid.io.obj import write_obj
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver.results import write_results
 from sidprep.solver import BodyHistory, Result
@@ -37,7 +37,7 @@ def history(name, t, nq, offset):
 
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     folder = tmp_path_factory.mktemp("mech")
     box = np.array([[0, 0, 0], [0.2, 0, 0], [0, 0.1, 0], [0, 0, 0.05]])
@@ -54,7 +54,7 @@ def results(tmp_path_factory):
 
 
 def test_rigid_body_follows_closed_form(results):
-    from sidprep.viewer import body_motion, mechanism_surfaces
+    from sidprep.view.pages import body_motion, mechanism_surfaces
 
     rf, surfaces = mechanism_surfaces(results)
     b, s = rf.result.bodies["block"], surfaces["block"]

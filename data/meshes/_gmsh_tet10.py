@@ -33,7 +33,7 @@ def write_tet10(path, size: float) -> None:
 
 def read_back(path):
     """The written mesh as sidprep reads it, with a one-line summary printed."""
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.mesh import read_mesh
 
     mesh = read_mesh(path)
     print(f"{path.name}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10, {mesh.n_dof} DOF")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.sid import ge_tensor, gr_tensor, inertia_matrix
+from sidprep.sid.model import ge_tensor, gr_tensor, inertia_matrix
 from sidprep.solver.effects import MASS_MATRIX_EFFECTS
 from sidprep.solver.equations.rotations import as_rotation
 
@@ -163,7 +163,7 @@ class FlexibleBody(_MassBody):
 
     Parameters
     ----------
-    sid : sidprep.sid.SID or path of a SID file (.SID_FEM, .h5 ...; read with sidprep.io.read_sid)
+    sid : sidprep.sid.model.SID or path of a SID file (.SID_FEM, .h5 ...; read with sidprep.sid.io.read_sid)
     name : body name
     position, rotation, velocity, omega : initial pose of the body frame K (see RigidBody)
     q0, qd0 : (nq,) initial modal coordinates and velocities (default 0)
@@ -176,7 +176,7 @@ class FlexibleBody(_MassBody):
                  q0=None, qd0=None, effects=None, mode_pairs=None):
         super().__init__(name, position, rotation, velocity, omega)
         if isinstance(sid, (str, Path)):
-            from sidprep.io import read_sid
+            from sidprep.sid.io import read_sid
 
             sid = read_sid(sid)
         self.sid = sid

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from sidprep.options import OutputOptions, ReduceOptions
+from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.tables import checked_table, read_toml
 
 

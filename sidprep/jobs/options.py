@@ -22,7 +22,7 @@ DEFAULT_MODAL_COUNT = 10
 DEFAULT_DAMPING = 0.02
 #: FRM cut-off / highest frequency of interest (FEMBS default)
 DEFAULT_CUTOFF_FACTOR = 5.0
-#: the material used when none is given (sidprep.material's table: E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3)
+#: the material used when none is given (sidprep.fe.material's table: E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3)
 DEFAULT_MATERIAL = "steel"
 #: fewest fixed-interface modes of the Craig-Bampton step when ``modes`` is given
 CB_MIN_MODES = 20
@@ -45,14 +45,14 @@ class ModelOptions:
 
 @dataclass(frozen=True)
 class ReduceOptions(ModelOptions):
-    """A reduction (sidprep.job.reduce): the model plus interfaces, frame, modes and damping.
+    """A reduction (sidprep.jobs.reduce.reduce): the model plus interfaces, frame, modes and damping.
 
     interfaces : "NAME[:rbe2|rbe3]" strings or job-file tables; empty = every node set able to
     carry 6 DOF, as RBE2. frame : "free" or an interface name. modes / fmax (Hz): one of them
     (neither = ``DEFAULT_MODES``). damping : ratio in [0, 1), a per-mode tuple, or
     {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
-    dir), stored with their interpolated mode shapes (sidprep.paths).
+    dir), stored with their interpolated mode shapes (sidprep.reduction.paths).
     """
 
     interfaces: tuple = ()
@@ -79,7 +79,7 @@ class OutputOptions:
 
 @dataclass(frozen=True)
 class ModalOptions(ModelOptions):
-    """A modal analysis (sidprep.analysis.modal_analysis): ``count`` elastic modes or all up to
+    """A modal analysis (sidprep.jobs.modal.modal_analysis): ``count`` elastic modes or all up to
     ``fmax`` (Hz); ``clamp`` node sets fixed; ``backend`` auto | cholmod | superlu | lobpcg | dense."""
 
     count: int | None = None
@@ -95,7 +95,7 @@ def material_given(o: ModelOptions) -> bool:
 def check_damping(damping) -> None:
     """Damping ratios must lie in [0, 1): below 0 adds energy, 1 and above is no longer a vibration."""
     if isinstance(damping, dict):
-        from sidprep.modes import modal_damping
+        from sidprep.reduction.modes import modal_damping
         modal_damping(np.ones(1), damping)
         return
     values = np.atleast_1d(np.asarray(damping, dtype=float))

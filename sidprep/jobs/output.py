@@ -1,13 +1,13 @@
 """Files of a reduction: where they go (``output_paths``) and writing them (``write_reduction``).
 
-Every file is written atomically (sidprep.io.atomic): a killed run leaves no half-written output.
+Every file is written atomically (sidprep.sid.io.atomic): a killed run leaves no half-written output.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from sidprep.options import OutputOptions, check_output
+from sidprep.jobs.options import OutputOptions, check_output
 
 
 def output_paths(mesh, out: OutputOptions = OutputOptions()) -> dict[str, Path]:
@@ -30,13 +30,13 @@ def write_sid(sid, path, *, comment: str = "") -> Path:
     path = Path(path)
     name = path.name.lower()
     if name.endswith((".sid.h5", ".h5", ".hdf5")):
-        from sidprep.io.sid_hdf5 import write_sid_hdf5
+        from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
         return write_sid_hdf5(sid, path)
     if name.endswith(".sid_fem"):
-        from sidprep.io.sid_fem import write_sid_fem
+        from sidprep.sid.io.sid_fem import write_sid_fem
         return write_sid_fem(sid, path, comment=comment)
     if name.endswith(".obj"):
-        from sidprep.io.obj import write_obj
+        from sidprep.sid.io.obj import write_obj
         if sid.surface is None:
             raise InputError(f"{path}: this SID has no surface to write as OBJ")
         return write_obj(path, sid.surface.points, sid.surface.triangles)

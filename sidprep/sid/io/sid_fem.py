@@ -5,7 +5,7 @@ The reader accepts the dialects seen in the wild (section 7.6): ``m1(row, q, col
 ``m1(row, col, q)`` (welib, FEMBeam); J as 6x1 or 3x3; Gr/Ge in a-block or k-block column layout,
 auto-detected with the invariant relations of section 4.8; nq = 0 in order-0 blocks; structure
 codes 0-4 with symmetric mirroring; D/d/E/e exponents; omitted or written zeros; a
-``Geo_Stiff= yes`` token on line 1.  In memory, Gr/Ge are always a-block (sidprep.sid).
+``Geo_Stiff= yes`` token on line 1.  In memory, Gr/Ge are always a-block (sidprep.sid.model).
 
 Numbers are written ``%19.11E`` with a D exponent (12 significant digits).  The format carries no
 units: the writer states SI in the line-1 comment, the reader assumes SI.
@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.io.atomic import atomic_path
-from sidprep.sid import (DIAGONAL, GENERAL, IDENTITY, SID, SYMMETRIC, ZERO, SIDNode, Taylor,
+from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.model import (DIAGONAL, GENERAL, IDENTITY, SID, SYMMETRIC, ZERO, SIDNode, Taylor,
                          frequencies_from_stiffness, inertia_matrix, j6, skew)
 
 MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")

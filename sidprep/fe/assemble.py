@@ -7,7 +7,7 @@ into a node-block sparsity pattern computed once from the connectivity (no per-e
 
 Shape functions (reference tet with vertices (0,0,0), (1,0,0), (0,1,0), (0,0,1), barycentric
 L0 = 1-x-y-z, L1 = x, L2 = y, L3 = z): P1 N_a = L_a; P2 N_a = L_a (2 L_a - 1) at the vertices,
-N = 4 L_i L_j at the mid-edge nodes of ``TET10_EDGES`` (canonical VTK order, sidprep.mesh).
+N = 4 L_i L_j at the mid-edge nodes of ``TET10_EDGES`` (canonical VTK order, sidprep.fe.mesh).
 
 Quadrature: stiffness with the degree-2 (4-point) rule - exact for affine P2 (the integrand is
 quadratic) and the standard C3D10 rule; consistent mass with the degree-4 rule (exact for affine
@@ -22,8 +22,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.material import Material
-from sidprep.mesh import TET10_EDGES, FEMesh
+from sidprep.fe.material import Material
+from sidprep.fe.mesh import TET10_EDGES, FEMesh
 
 #: quadrature degree of the stiffness (exact for affine P2) and of the consistent mass
 STIFFNESS_QUAD_DEGREE = 2

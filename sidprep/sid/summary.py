@@ -5,8 +5,8 @@ from __future__ import annotations
 
 def sid_info(path) -> dict:
     """Read a SID file (.sid.h5 / .SID_FEM), run its model checks, return ``body_summary``."""
-    from sidprep.checks import sid_checks
-    from sidprep.io import read_sid
+    from sidprep.sid.checks import sid_checks
+    from sidprep.sid.io import read_sid
 
     sid = read_sid(path)
     return body_summary(sid, sid_checks(sid))
@@ -16,7 +16,7 @@ def body_summary(sid, checks: dict) -> dict:
     """JSON-ready summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes."""
     import numpy as np
 
-    from sidprep.sid import inertia_matrix
+    from sidprep.sid.model import inertia_matrix
 
     c = sid.mdCM.M0[:, 0] / sid.mass if sid.mass else np.zeros(3)
     I_o = inertia_matrix(sid.J.M0[:, 0])

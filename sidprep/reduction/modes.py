@@ -33,7 +33,7 @@ OMEGA_FRACTION = 0.5
 #: directions whose M-norm falls below this fraction of their original norm are linearly dependent
 DEPENDENCE_TOL = 1e-8
 #: an eigenvalue within this factor of the round-off level (the energy of the exact rigid-body
-#: motions, sidprep.modes.rigid_energy) is a zero-energy mode; piston rod and bar: the rigid
+#: motions, sidprep.reduction.modes.rigid_energy) is a zero-energy mode; piston rod and bar: the rigid
 #: eigenvalues sit at ~1e-13 x lambda_max, the first elastic one at ~1e-4
 ZERO_ENERGY_MARGIN = 1e4
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.assemble import CHUNK, MASS_QUAD_DEGREE, shape_gradients, quadrature_rule
-from sidprep.interfaces import best_columns, rigid_rows
+from sidprep.fe.assemble import CHUNK, MASS_QUAD_DEGREE, shape_gradients, quadrature_rule
+from sidprep.reduction.interfaces import best_columns, rigid_rows
 
 #: quadrature of K_G: degree 4 integrates grad N sigma grad N of affine tet10 (cubic) exactly
 KG_QUAD_DEGREE = MASS_QUAD_DEGREE
@@ -90,13 +90,13 @@ def support_dofs(rigid: np.ndarray, candidates: np.ndarray, held=None) -> np.nda
 
 
 def stiffening_parts(mesh, material, M_fe, im, static_solve, Phi_fe: np.ndarray) -> dict[str, np.ndarray]:
-    """The ``stiffening`` dict for sidprep.sid.sid_invariants: {slot: (ncases, nq, nq)}.
+    """The ``stiffening`` dict for sidprep.sid.model.sid_invariants: {slot: (ncases, nq, nq)}.
 
     Parameters
     ----------
     mesh, material : the FE model; M_fe : (3n, 3n) FE mass; im : InterfaceModel;
     static_solve : callable P (n_model, nc) -> u with K u = P on the supports of sid-spec 6.4
-    (sidprep.job.Reduction.static_solve); Phi_fe : (3n, nq) the final basis in FE DOFs.
+    (sidprep.jobs.reduce.Reduction.static_solve); Phi_fe : (3n, nq) the final basis in FE DOFs.
     """
     loads = unit_loads(mesh.points, M_fe, im)
     names = list(loads)

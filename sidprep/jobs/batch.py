@@ -2,7 +2,7 @@
 cache, memory-aware scheduling and failure isolation.
 
 A batch is a list of ``BatchJob`` (a name, a mesh file and ReduceOptions).  Each job runs in a
-worker process with one BLAS thread (sidprep.job.reduce) and writes OUTDIR/<name>.sid.h5 (+ .SID_FEM,
+worker process with one BLAS thread (sidprep.jobs.reduce.reduce) and writes OUTDIR/<name>.sid.h5 (+ .SID_FEM,
 .obj) atomically; the driver then writes the job's cache record OUTDIR/.cache/<key>.json, also
 atomically.  The key hashes the mesh file's bytes, the options and the sidprep version, so a re-run
 skips finished jobs and a killed batch resumes without lost or half-written outputs.
@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from sidprep.errors import InputError
-from sidprep.options import ReduceOptions
+from sidprep.jobs.options import ReduceOptions
 
 #: fraction of the available memory a batch may plan for
 MEMORY_FRACTION = 0.8
@@ -84,8 +84,8 @@ class BatchReport:
 
 def estimate_job_memory_mb(n_dof: int) -> float:
     """Planned peak memory of one reduction job (MiB) from its FE DOF count: the estimate the
-    reduction itself checks before it starts (sidprep.craig_bampton.reduction_peak_bytes)."""
-    from sidprep.craig_bampton import reduction_peak_bytes
+    reduction itself checks before it starts (sidprep.reduction.craig_bampton.reduction_peak_bytes)."""
+    from sidprep.reduction.craig_bampton import reduction_peak_bytes
 
     return reduction_peak_bytes(n_dof) / 2.0**20
 
@@ -117,7 +117,7 @@ def gmsh_node_count(path) -> int | None:
 def job_dof(job: BatchJob) -> int:
     """FE DOF of a job's mesh before it runs: 3 x the nodes of a gmsh header, else the mesh read
     (geometry files: GEOMETRY_DOF_GUESS); InputError if the file cannot be read."""
-    from sidprep.mesh import read_mesh
+    from sidprep.fe.mesh import read_mesh
 
     if job.mesh.lower().endswith(GEOMETRY_SUFFIXES):
         return GEOMETRY_DOF_GUESS
@@ -174,7 +174,7 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
     (each crossed with the sweep); [batch] : outdir (relative to the manifest), workers, scheduler,
     memory_limit_mb, sid_fem, obj.
     """
-    from sidprep.jobfile import job_from_table, split_job_table
+    from sidprep.jobs.jobfile import job_from_table, split_job_table
     from sidprep.tables import checked_table, read_toml
 
     path = Path(path)
@@ -239,9 +239,9 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
     """Run one job in the current process and write its files; never raises (failures are records)."""
     import numpy as np
 
-    from sidprep.job import reduce
-    from sidprep.options import OutputOptions
-    from sidprep.output import output_paths, write_reduction
+    from sidprep.jobs.reduce import reduce
+    from sidprep.jobs.options import OutputOptions
+    from sidprep.jobs.output import output_paths, write_reduction
     from sidprep.progress import peak_memory_mb
 
     t0 = time.perf_counter()
@@ -340,7 +340,7 @@ def _cached(record_path: Path) -> dict | None:
 
 
 def _write_json(path: Path, data) -> None:
-    from sidprep.io.atomic import atomic_path
+    from sidprep.sid.io.atomic import atomic_path
 
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(data, indent=1, default=float))
@@ -431,7 +431,7 @@ def write_report(report: BatchReport) -> dict:
     import csv
     import io
 
-    from sidprep.io.atomic import atomic_path
+    from sidprep.sid.io.atomic import atomic_path
 
     outdir = Path(report.outdir)
     data = {"outdir": report.outdir, "wall_s": report.wall_s, "jobs": report.records,
@@ -464,7 +464,7 @@ def study_plot(report: BatchReport) -> str | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sidprep.io.atomic import atomic_path
+    from sidprep.sid.io.atomic import atomic_path
 
     key = numeric[0]
     fig, ax = plt.subplots(figsize=(6, 4))

@@ -1,6 +1,6 @@
 """Modal analysis of a tetrahedral FE model: natural frequencies and modes, free or clamped.
 
-K phi = omega^2 M phi by shift-invert Lanczos (CHOLMOD / SuperLU) or AMG-LOBPCG (sidprep.linalg);
+K phi = omega^2 M phi by shift-invert Lanczos (CHOLMOD / SuperLU) or AMG-LOBPCG (sidprep.fe.linalg);
 rigid-body modes are counted by connected part and returned first.
 """
 
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.options import DEFAULT_MODAL_COUNT, ModalOptions
+from sidprep.jobs.options import DEFAULT_MODAL_COUNT, ModalOptions
 
 #: a part whose clamped nodes span a plane (rank 2 about their centroid) has no rigid-body mode
 PLANAR_RANK = 2
@@ -56,7 +56,7 @@ def clamped_nodes(mesh, groups) -> np.ndarray:
 def rigid_mode_bound(mesh, clamped) -> int:
     """Upper bound of the rigid-body mode count: 6 per free part, 0 for a part clamped at nodes that
     span a plane, 3 otherwise (a point or a line of clamped nodes leaves rotations free)."""
-    from sidprep.mesh import connected_parts
+    from sidprep.fe.mesh import connected_parts
 
     n_parts, labels = connected_parts(mesh)
     bound = 0
@@ -75,10 +75,10 @@ def modal_analysis(mesh, options: ModalOptions = ModalOptions(), *, phases=None)
     ``options.count`` elastic modes (default DEFAULT_MODAL_COUNT) or all up to ``options.fmax`` Hz;
     ``phases`` : sidprep.progress.Phases for progress and timings (default silent).
     """
-    from sidprep.assemble import stiffness_and_mass
-    from sidprep.job import load_mesh, model_material
-    from sidprep.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
-    from sidprep.plausibility import unit_warnings
+    from sidprep.fe.assemble import stiffness_and_mass
+    from sidprep.jobs.reduce import load_mesh, model_material
+    from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
+    from sidprep.fe.plausibility import unit_warnings
     from sidprep.progress import Phases
 
     o = options

@@ -7,13 +7,13 @@ the closed-form Euler-Bernoulli bending forms (planes xz and xy), Saint-Venant t
 forms, each mass-normalised.  Rotary inertia and shear are neglected in the bending forms (as in
 Euler-Bernoulli theory); the rigid-body inertia includes the cross-section's second moments.
 
-Every SID invariant is then formed by ``sidprep.sid.sid_invariants`` from a point-mass
+Every SID invariant is then formed by ``sidprep.sid.model.sid_invariants`` from a point-mass
 quadrature of the beam: composite Gauss-Legendre along x (breakpoints at the frames) times four
 section points (0, +-ry, 0), (0, 0, +-rz) with ry = sqrt(2 Iz/A), rz = sqrt(2 Iy/A), which carry
 the exact mass, first and second moments of the section.  Geometric stiffening (sid-spec.md 6):
 each unit load case gives a normal force N(x) (support of all axial loads at x = 0, the body
 frame; unified sign rule u_p = K^-1(-p)), and K0 = integral of N(x)/A sum_i du_i/dx du_i/dx dA dx
-(the foreshortening of the forms).  Only numpy and sidprep.sid/material/errors are imported: the
+(the foreshortening of the forms).  Only numpy and sidprep.sid.model/material/errors are imported: the
 solver may import this module.
 """
 
@@ -26,8 +26,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.material import Material, builtin_material, material_from_options
-from sidprep.sid import SID, BodyPath, SurfaceModes, eigen_label, sid_invariants
+from sidprep.fe.material import Material, builtin_material, material_from_options
+from sidprep.sid.model import SID, BodyPath, SurfaceModes, eigen_label, sid_invariants
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "pinned-pinned", "pinned-free",
                        "clamped-pinned", "clamped-clamped")
@@ -518,8 +518,8 @@ def write_beam_files(options: BeamOptions, output, sid_fem: bool = False) -> dic
     """Build the beam SID and write ``output`` (.sid.h5) and optionally <stem>.SID_FEM; summary dict."""
     from pathlib import Path
 
-    from sidprep.io.sid_fem import write_sid_fem
-    from sidprep.io.sid_hdf5 import write_sid_hdf5
+    from sidprep.sid.io.sid_fem import write_sid_fem
+    from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 
     sid = beam_sid(options)
     h5 = Path(output)

@@ -26,7 +26,7 @@ psi the small rotation of the material at x.  Points on a curved surface lie sli
 straight-sided (faceted) elements; a point outside every element but within
 ``SURFACE_TOL_FRACTION`` of the nearest element's longest edge takes the mode shapes of that
 element at its barycentric coordinates clamped to the element (its stored position stays the given
-one); a point farther out is an InputError.  The result is a ``sidprep.sid.BodyPath`` stored in the
+one); a point farther out is an InputError.  The result is a ``sidprep.sid.model.BodyPath`` stored in the
 SID (``SID.paths``, HDF5 ``/paths``).
 """
 
@@ -37,8 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.mesh import TET10_EDGES
-from sidprep.sid import BodyPath
+from sidprep.fe.mesh import TET10_EDGES
+from sidprep.sid.model import BodyPath
 
 #: samples of a path unless the spec gives their number
 DEFAULT_PATH_POINTS = 201

@@ -26,8 +26,8 @@ import h5py
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.io.atomic import atomic_path
-from sidprep.sid import (J_ORDER, OMEGA_HAT_ORDER, SID, BodyPath, SIDNode, SurfaceModes, Taylor,
+from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.model import (J_ORDER, OMEGA_HAT_ORDER, SID, BodyPath, SIDNode, SurfaceModes, Taylor,
                          ge_tensor, gr_tensor)
 
 FORMAT = "sidprep-sid"
@@ -92,7 +92,7 @@ def _library_versions() -> dict:
 def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
     """Write ``sid`` to ``path`` (.sid.h5) atomically; ``checks`` (sid_checks result) default computed."""
     if checks is None:
-        from sidprep.checks import sid_checks
+        from sidprep.sid.checks import sid_checks
         checks = sid_checks(sid)
     nq = sid.nq
     si = sid.units == "SI"

@@ -2,19 +2,19 @@
 
 Steps (each a phase of ``sidprep.progress.Phases``; no printing here, no files):
 
-1. read the mesh, assemble K, M, Ms (sidprep.assemble);
-2. couple every interface patch to a 6-DOF master (RBE2 / RBE3, sidprep.interfaces);
-3. first reduction: Craig-Bampton on the master DOFs (sidprep.craig_bampton), fixed-interface modes up
+1. read the mesh, assemble K, M, Ms (sidprep.fe.assemble);
+2. couple every interface patch to a 6-DOF master (RBE2 / RBE3, sidprep.reduction.interfaces);
+3. first reduction: Craig-Bampton on the master DOFs (sidprep.reduction.craig_bampton), fixed-interface modes up
    to max(2, cutoff_factor) x fmax, or max(CB_MIN_MODES, 3 x modes) of them;
-4. second step (sidprep.modes): eigenmodes of interest + frequency-response modes, cut-off,
+4. second step (sidprep.reduction.modes): eigenmodes of interest + frequency-response modes, cut-off,
    orthonormalisation; reference frame free (default) or attached to an interface master;
-5. optional geometric stiffening (sidprep.stiffening);
-6. SID invariants (sidprep.sid) and the FE-comparison checks (sidprep.fe_checks).
+5. optional geometric stiffening (sidprep.reduction.stiffening);
+6. SID invariants (sidprep.sid.model) and the FE-comparison checks (sidprep.reduction.fe_checks).
 
-Defaults (sidprep.options): steel; interfaces = every node set of the mesh that can carry 6 DOF, as
+Defaults (sidprep.jobs.options): steel; interfaces = every node set of the mesh that can carry 6 DOF, as
 RBE2; frame ``free`` (free-free elastic modes, mean axes to first order, what a SIMPACK user gets
 from FEMBS for a body connected at several points); 8 eigenmodes + FRMs at every interface master
-DOF, cut-off 5x; 2 % modal damping.  Files: sidprep.output.
+DOF, cut-off 5x; 2 % modal damping.  Files: sidprep.jobs.output.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.fe_checks import fe_checks, structured_checks
-from sidprep.paths import fe_path, located_paths
-from sidprep.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
+from sidprep.reduction.fe_checks import fe_checks, structured_checks
+from sidprep.reduction.paths import fe_path, located_paths
+from sidprep.jobs.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
                              DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
 
 
@@ -60,8 +60,8 @@ class Reduction:
 class ReductionResult:
     """What ``reduce`` returns.
 
-    sid : sidprep.sid.SID (SI units; metadata holds options, material, notes and the checks);
-    checks : dict of the FE-comparison checks (sidprep.fe_checks); notes : advice lines;
+    sid : sidprep.sid.model.SID (SI units; metadata holds options, material, notes and the checks);
+    checks : dict of the FE-comparison checks (sidprep.reduction.fe_checks); notes : advice lines;
     n_dof : FE DOF count; timings_s : wall seconds per phase; peak_memory_mb : process peak RSS (MiB).
     """
 
@@ -83,7 +83,7 @@ class ReductionResult:
 
 def parse_interface(spec: str) -> tuple[str, str]:
     """"NAME[:rbe2|rbe3]" -> (name, kind)."""
-    from sidprep.interfaces import KINDS
+    from sidprep.reduction.interfaces import KINDS
 
     name, _, kind = spec.partition(":")
     kind = (kind or "rbe2").lower()
@@ -104,7 +104,7 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
     """An Interface from "NAME[:rbe2|rbe3]" (a node set) or a job-file table {name, kind,
     master_point, node_set | type = plane|cylinder|sphere + its parameters and tol}; lengths of
     the table are in the job's unit system (``length_to_m`` converts them to the mesh's metres)."""
-    from sidprep.interfaces import SELECTIONS, SELECTORS, make_interface
+    from sidprep.reduction.interfaces import SELECTIONS, SELECTORS, make_interface
 
     if isinstance(spec, str):
         name, kind = parse_interface(spec)
@@ -122,7 +122,7 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
 
 def default_interfaces(mesh) -> list[str]:
     """Node sets that look like interfaces: patches able to carry 6 DOF, as RBE2 ("NAME:rbe2")."""
-    from sidprep.interfaces import check_patch
+    from sidprep.reduction.interfaces import check_patch
 
     out = []
     for name, nodes in mesh.node_sets.items():
@@ -139,16 +139,16 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
                 frm=True, cutoff_factor=DEFAULT_CUTOFF_FACTOR, load_nodes=(), phases=None) -> Reduction:
     """Steps 2-4 of the module docstring for an assembled FE model.
 
-    interfaces : list of sidprep.interfaces.Interface; frame : "free" or an interface name;
+    interfaces : list of sidprep.reduction.interfaces.Interface; frame : "free" or an interface name;
     load_nodes : FE node indices that get 3 unit FRM forces each, besides every master DOF.
     K_fe and M_fe are only projected: a caller that keeps no reference to them lets them be freed
     before the factorisation (peak memory).
     """
-    from sidprep.interfaces import interface_model, rigid_modes_model
-    from sidprep.modes import modal_basis
+    from sidprep.reduction.interfaces import interface_model, rigid_modes_model
+    from sidprep.reduction.modes import modal_basis
     from sidprep.progress import Phases
-    from sidprep.craig_bampton import craig_bampton
-    from sidprep.stiffening import support_dofs
+    from sidprep.reduction.craig_bampton import craig_bampton
+    from sidprep.reduction.stiffening import support_dofs
 
     ph = phases or Phases(verbose=False)
     if n_modes is None and fmax is None:
@@ -201,8 +201,8 @@ def frm_loads(im, cb, load_nodes=()) -> np.ndarray:
 
 def surface_modes(mesh, Phi_fe):
     """SurfaceModes of the outer surface (tet10 faces split into 4 linear triangles)."""
-    from sidprep.interfaces import linear_surface_triangles
-    from sidprep.sid import SurfaceModes
+    from sidprep.reduction.interfaces import linear_surface_triangles
+    from sidprep.sid.model import SurfaceModes
 
     tri = linear_surface_triangles(mesh)
     nodes, tri = np.unique(tri, return_inverse=True)
@@ -215,8 +215,8 @@ def build_sid(red: Reduction, mesh, Ms, *, damping=DEFAULT_DAMPING, stiffening=N
     """The SID of the reduced body: one node per interface master, surface modes attached."""
     from dataclasses import replace as dc_replace
 
-    from sidprep.modes import modal_damping, mode_labels
-    from sidprep.sid import sid_invariants
+    from sidprep.reduction.modes import modal_damping, mode_labels
+    from sidprep.sid.model import sid_invariants
 
     f = red.basis.frequencies_hz
     first_id = int(mesh.node_ids.max()) + 1 if len(mesh.node_ids) else 1
@@ -244,7 +244,7 @@ def check_mode_count(o: ReduceOptions, n_dof: int, n_interfaces: int) -> None:
 def check_parts_held(mesh, interfaces, source) -> None:
     """A mesh of several disconnected parts reduces only if every part carries an interface (otherwise
     its interior stiffness is singular in any frame); the advice names the parts' sizes."""
-    from sidprep.mesh import connected_parts
+    from sidprep.fe.mesh import connected_parts
 
     n_parts, labels = connected_parts(mesh)
     if n_parts < 2:
@@ -261,10 +261,10 @@ def check_parts_held(mesh, interfaces, source) -> None:
 def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> ReductionResult:
     """Reduce an FE model to a flexible body: ``mesh`` (an FEMesh or a path) -> SID and checks.
 
-    Runs with one BLAS thread (sidprep.linalg.single_threaded_blas); no printing, no files.
+    Runs with one BLAS thread (sidprep.fe.linalg.single_threaded_blas); no printing, no files.
     ``phases`` : sidprep.progress.Phases for progress lines and timings (default silent).
     """
-    from sidprep.linalg import single_threaded_blas
+    from sidprep.fe.linalg import single_threaded_blas
 
     check_reduce_options(options)
     with single_threaded_blas():
@@ -273,8 +273,8 @@ def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> Re
 
 def load_mesh(mesh, o, ph):
     """(FEMesh in metres, source name) from an FEMesh or a path, in the unit system of ``o``."""
-    from sidprep.material import unit_system
-    from sidprep.mesh import FEMesh, read_mesh
+    from sidprep.fe.material import unit_system
+    from sidprep.fe.mesh import FEMesh, read_mesh
 
     units = unit_system(o.units)
     if isinstance(mesh, FEMesh):
@@ -286,7 +286,7 @@ def load_mesh(mesh, o, ph):
 
 def model_material(o):
     """(Material in SI, notes): the given material, or the default with a note saying so."""
-    from sidprep.material import material_from_options
+    from sidprep.fe.material import material_from_options
 
     if material_given(o):
         return material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=o.material, units=o.units), []
@@ -296,12 +296,12 @@ def model_material(o):
 
 
 def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
-    from sidprep.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
-    from sidprep.interfaces import select_patch
-    from sidprep.material import unit_system
-    from sidprep.plausibility import unit_warnings
+    from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
+    from sidprep.reduction.interfaces import select_patch
+    from sidprep.fe.material import unit_system
+    from sidprep.fe.plausibility import unit_warnings
     from sidprep.progress import Phases, peak_memory_mb
-    from sidprep.stiffening import stiffening_parts
+    from sidprep.reduction.stiffening import stiffening_parts
 
     ph = phases or Phases(verbose=False)
     units = unit_system(o.units)
@@ -351,7 +351,7 @@ def rotation_warning(checks: dict, basis, cutoff_factor: float) -> list[str]:
     """A warning when the reduced body misses the 1 % promise for rotations under unit moments
     (FEMBS promises it for deflections): name the cut-off factor that keeps the dropped
     frequency-response modes (the moment FRMs are usually the ones above the cut-off)."""
-    from sidprep.fe_checks import STATIC_CHECK_TOL
+    from sidprep.reduction.fe_checks import STATIC_CHECK_TOL
 
     error = checks["static_rotation_max_rel_error"]
     if error <= STATIC_CHECK_TOL:

@@ -65,7 +65,7 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     operator is not definite or the iteration does not converge (sigma above the computed
     fixed-interface spectrum): the count cannot be certified.
     """
-    from sidprep.craig_bampton import interior_operator
+    from sidprep.reduction.craig_bampton import interior_operator
 
     cb = red.cb
     n = cb.basis.shape[0]
@@ -213,7 +213,7 @@ def full_model_frequencies(red, count: int) -> np.ndarray:
     """The ``count`` lowest elastic frequencies (Hz) of the full model (held DOFs removed) by a full
     eigen solve: the independent reference, and the fallback of :func:`fe_checks` when the bounds of
     :func:`frequency_bounds` cannot be certified."""
-    from sidprep.linalg import eigen_modes
+    from sidprep.fe.linalg import eigen_modes
 
     keep = np.setdiff1d(np.arange(red.im.n_model), [] if red.held is None else red.held)
     ev = eigen_modes(red.K_model[keep][:, keep], red.M_model[keep][:, keep], count=count)
@@ -225,7 +225,7 @@ def frequency_checks(red) -> dict:
     ``eigen_frequency_max_rel_error`` the largest relative error - a certified upper bound
     (:func:`frequency_bounds`), or, when the bounds cannot be certified, the error against a full
     eigen solve (``frequency_check`` says which); ``frequencies_full_hz_bounds`` [low, high] per mode."""
-    from sidprep.modes import hz
+    from sidprep.reduction.modes import hz
 
     f_eig = red.basis.frequencies_hz[np.array(red.basis.kinds) == "eigen"]
     lower, upper, reason = frequency_bounds(red, len(f_eig))
@@ -242,8 +242,8 @@ def frequency_checks(red) -> dict:
 def fe_checks(red, mesh, M_fe, sid, full_frequencies=True) -> dict:
     """Reduced body vs full FE model (module docstring step 6); JSON-ready dict (the frequency part:
     :func:`frequency_checks`)."""
-    from sidprep.interfaces import rigid_rows
-    from sidprep.sid import inertia_matrix
+    from sidprep.reduction.interfaces import rigid_rows
+    from sidprep.sid.model import inertia_matrix
 
     R = rigid_rows(mesh.points).reshape(-1, 6)
     A = R.T @ (M_fe @ R)                                  # sid-spec 4.3 Form A
@@ -280,7 +280,7 @@ def fe_checks(red, mesh, M_fe, sid, full_frequencies=True) -> dict:
 
 def structured_checks(checks: dict) -> dict:
     """The FE comparison as named checks {value, tolerance, passed, severity, description} for the
-    SID metadata (sidprep.checks reads this form)."""
+    SID metadata (sidprep.sid.checks reads this form)."""
     def entry(value, tol, severity, description):
         return {"value": float(value), "tolerance": tol, "severity": severity, "description": description,
                 "passed": bool(tol is None or value <= tol)}

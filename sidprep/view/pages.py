@@ -18,7 +18,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.interpolation import elastic_interpolation
-from sidprep.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_path
 
 #: the largest mode displacement is drawn as this fraction of the body's bounding-box diagonal
 DISPLAY_FRACTION = 0.1
@@ -121,7 +121,7 @@ def _table(rows: list[tuple[str, str]]) -> str:
 
 
 def _properties_rows(sid) -> list[tuple[str, str]]:
-    from sidprep.sid import inertia_matrix
+    from sidprep.sid.model import inertia_matrix
 
     cm = sid.mdCM.M0[:, 0] / sid.mass if sid.mass else np.zeros(3)
     inertia = inertia_matrix(np.asarray(sid.J.M0, float).ravel())
@@ -132,7 +132,7 @@ def _properties_rows(sid) -> list[tuple[str, str]]:
 
 
 def _checks_rows(sid) -> list[tuple[str, str]]:
-    from sidprep.checks import sid_checks
+    from sidprep.sid.checks import sid_checks
 
     rows = []
     for name, c in sid_checks(sid).items():
@@ -246,7 +246,7 @@ def write_mode_page(sid_path, out_path=None, obj_path=None) -> Path:
     obj_path : optional OBJ surface (body-frame coordinates in the SID's units); with it, or
         when the SID stores no surface modes, the surface follows the nodes by elastic interpolation.
     """
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     sid_path = Path(sid_path)
     sid = read_sid(sid_path)
@@ -302,7 +302,7 @@ def mechanism_surfaces(results_path) -> tuple[object, dict]:
     """The results (``solver.results.ResultsFile``) and {body name: BodySurface} of its bodies
     with a shape: flexible bodies from their SID (interpolated when it has few nodes), rigid
     bodies from their OBJ (no modes)."""
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
     from sidprep.solver.results import read_results
 
     results_path = Path(results_path)

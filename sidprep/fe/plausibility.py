@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.material import Material
+from sidprep.fe.material import Material
 
 #: largest bounding-box edge (m) of a machine part; beyond it the mesh was probably drawn in mm
 MAX_PART_SIZE_M = 50.0

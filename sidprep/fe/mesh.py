@@ -15,7 +15,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .errors import InputError
+from sidprep.errors import InputError
 
 #: mid-edge node k (k = 4..9 of a tet10) lies on the edge between these two vertices
 TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))

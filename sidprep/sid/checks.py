@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.sid import IDENTITY, SID, axial, ge_tensor, gr_tensor, inertia_matrix, skew
+from sidprep.sid.model import IDENTITY, SID, axial, ge_tensor, gr_tensor, inertia_matrix, skew
 
 #: relative tolerance of exact identities (covers 12-digit ASCII rounding and round-off)
 IDENTITY_RTOL = 1e-9

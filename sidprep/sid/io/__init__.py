@@ -20,7 +20,7 @@ def read_sid(path):
     if not path.is_file():
         raise InputError(f"{path}: no such file; check the path")
     if kind == "hdf5":
-        from sidprep.io.sid_hdf5 import read_sid_hdf5
+        from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
         return read_sid_hdf5(path)
-    from sidprep.io.sid_fem import read_sid_fem
+    from sidprep.sid.io.sid_fem import read_sid_fem
     return read_sid_fem(path)

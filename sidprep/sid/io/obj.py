@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_path
 
 
 def write_obj(path, points, triangles, *, length_unit: str = "m", comment: str = "") -> Path:

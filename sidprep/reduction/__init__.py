@@ -1,0 +1,3 @@
+"""From the FE model to a reduced basis: interfaces (RBE2/RBE3), Craig-Bampton, eigen- and
+frequency-response modes, geometric stiffening, paths, the analytical Beam and the checks of the
+reduction against the full model. Imports fe/ and sid/ (the SID it builds)."""
