@@ -63,7 +63,8 @@ def summary(scene, result, outputs: dict) -> dict:
 
 def animation_surfaces(scene) -> dict:
     """{body name: Surface} of every body that has a shape (flexible: SID surface; rigid: OBJ)."""
-    from sidprep.solver.animation import obj_surface, sid_surface
+    from sidprep.sid.io.obj import read_obj
+    from sidprep.sid.surface import rigid_surface, sid_surface
 
     surfaces = {}
     for b in getattr(scene.system, "bodies", ()):          # absolute-nodal beams carry no surface
@@ -71,7 +72,7 @@ def animation_surfaces(scene) -> dict:
         if src["kind"] in ("flexible", "beam"):
             surfaces[b.name] = sid_surface(b.sid)
         elif src["source"]:
-            surfaces[b.name] = obj_surface(src["source"])
+            surfaces[b.name] = rigid_surface(*read_obj(src["source"]), str(src["source"]))
     return surfaces
 
 

@@ -13,7 +13,6 @@ the bodies in scene order.  Open the ``.pvd`` in ParaView and press play.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -21,55 +20,11 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.surface import Surface, surface_motion
 
 
 #: the series holds at most this many time steps (files): every k-th output sample
 MAX_VTU_FILES = 100
-
-
-@dataclass(frozen=True)
-class Surface:
-    """Body-frame surface of one body.
-
-    points (ns, 3) m in K; triangles (nf, 3) int64 (may be empty: then the points are drawn as
-    vertices); shapes (ns, 3, nq) displacement per unit modal coordinate (nq = 0 for rigid bodies).
-    """
-
-    points: np.ndarray
-    triangles: np.ndarray
-    shapes: np.ndarray
-
-
-def sid_surface(sid) -> Surface:
-    """The animation surface of a flexible body (``sidprep.sid.model.SID``)."""
-    if sid.surface is not None:
-        s = sid.surface
-        return Surface(np.asarray(s.points, float), np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float))
-    points = np.array([n.origin.M0[:, 0] for n in sid.nodes]).reshape(-1, 3)
-    shapes = np.array([n.phi.M0 for n in sid.nodes]).reshape(-1, 3, sid.nq)
-    return Surface(points, np.zeros((0, 3), np.int64), shapes)
-
-
-def obj_surface(path: str | os.PathLike) -> Surface:
-    """The animation surface of a rigid body from a Wavefront OBJ file (body-frame coordinates, m)."""
-    import trimesh
-
-    try:
-        mesh = trimesh.load(str(path), force="mesh", process=False)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the OBJ surface ({exc}); give a triangulated Wavefront OBJ file")
-    points = np.asarray(mesh.vertices, float)
-    return Surface(points, np.asarray(mesh.faces, np.int64), np.zeros((len(points), 3, 0)))
-
-
-def deformed_points(surface: Surface, r: np.ndarray, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inertial positions (ns, 3) and elastic displacements (ns, 3) of the surface points.
-
-    x = r_O + A (c + S q); u = A S q (sid-spec section 5.2, node kinematics).
-    """
-    local_u = surface.shapes @ q if surface.shapes.shape[2] else np.zeros_like(surface.points)
-    u = local_u @ A.T
-    return r + surface.points @ A.T + u, u
 
 
 def frame_mesh(result, surfaces: dict[str, Surface], i: int):
@@ -80,9 +35,9 @@ def frame_mesh(result, surfaces: dict[str, Surface], i: int):
     offset = 0
     for k, (name, surf) in enumerate(surfaces.items()):
         b = result.bodies[name]
-        x, u = deformed_points(surf, b.position[i], b.rotation[i], b.q[i])
-        points.append(x)
-        disp.append(u)
+        x, u = surface_motion(surf, b.position[i:i + 1], b.rotation[i:i + 1], b.q[i:i + 1])
+        points.append(x[0])
+        disp.append(u[0])
         if len(surf.triangles):
             cells.append(("triangle", surf.triangles + offset))
         else:

@@ -6,7 +6,8 @@ import xml.etree.ElementTree as ET
 import meshio
 import numpy as np
 
-from sidprep.solver.animation import MAX_VTU_FILES, Surface, write_animation
+from sidprep.sid.surface import Surface
+from sidprep.solver.animation import MAX_VTU_FILES, write_animation
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver import Result
 from test_view_animate import RATE, history, rz

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from sidprep.errors import InputError
-from sidprep.solver.animation import Surface, obj_surface, write_animation
+from sidprep.sid.io.obj import read_obj
+from sidprep.sid.surface import Surface, rigid_surface
+from sidprep.solver.animation import write_animation
 from sidprep.solver.effects import EffectEntry, EffectsReport
 from sidprep.solver.results import energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
 from sidprep.solver import BodyHistory, JointHistory, Result
@@ -94,7 +96,7 @@ def test_animation_points_follow_rigid_motion_plus_modes(tmp_path):
     shapes[2, 0, 1] = 2.0        # mode 2 moves point 2 in x
     obj = tmp_path / "box.obj"
     obj.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n")
-    surfaces = {"bar": Surface(c, np.array([[0, 1, 2]]), shapes), "box": obj_surface(obj)}
+    surfaces = {"bar": Surface(c, np.array([[0, 1, 2]]), shapes), "box": rigid_surface(*read_obj(obj))}
     pvd = write_animation(res, surfaces, tmp_path / "anim.pvd")
     files = [d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet")]
     assert len(files) == NT

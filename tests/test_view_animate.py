@@ -54,11 +54,12 @@ def results(tmp_path_factory):
 
 
 def test_rigid_body_follows_closed_form(results):
-    from sidprep.view.pages import body_motion, mechanism_surfaces
+    from sidprep.sid.surface import surface_motion
+    from sidprep.view.pages import mechanism_surfaces
 
     rf, surfaces = mechanism_surfaces(results)
     b, s = rf.result.bodies["block"], surfaces["block"]
-    x, u = body_motion(s, b.position, b.rotation, b.q)
+    x, u = surface_motion(s, b.position, b.rotation, b.q)
     expected = np.array([[np.array([0, 0.3, 0]) + rz(RATE * t) @ p for p in s.points] for t in rf.result.t])
     assert np.abs(x - expected).max() < POSITION_TOL and not u.any()
 

@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.interpolation import elastic_interpolation
 from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.io.obj import read_obj
+from sidprep.sid.surface import Surface, interpolated_surface, node_points, rigid_surface, stored_surface, surface_motion
 
 #: the largest mode displacement is drawn as this fraction of the body's bounding-box diagonal
 DISPLAY_FRACTION = 0.1
@@ -29,40 +30,6 @@ PLOT_ID = "sidprep-plot"
 HULL_THICKNESS = 0.02
 #: the hull surface is refined to edges of at most body size / HULL_EDGES
 HULL_EDGES = 40
-
-
-@dataclass(frozen=True)
-class BodySurface:
-    """Surface of a body in its frame K: points (ns, 3) m, triangles (nf, 3), shapes (ns, 3, nq),
-    and how it was obtained (``source``)."""
-
-    points: np.ndarray
-    triangles: np.ndarray
-    shapes: np.ndarray
-    source: str
-
-
-def node_points(sid) -> tuple[np.ndarray, np.ndarray]:
-    """Undeformed node positions (nc, 3) and node mode shapes phi (nc, 3, nq) of a SID."""
-    points = np.array([n.origin.M0[:, 0] for n in sid.nodes], float).reshape(-1, 3)
-    phi = np.array([n.phi.M0 for n in sid.nodes], float).reshape(-1, 3, sid.nq)
-    return points, phi
-
-
-def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (n, 3) and triangles (nf, 3) of a Wavefront OBJ file."""
-    import trimesh
-
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such OBJ file; check the --obj path")
-    try:
-        mesh = trimesh.load(str(path), force="mesh", process=False)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the OBJ surface ({exc}); give a triangulated Wavefront OBJ file")
-    if not len(mesh.faces):
-        raise InputError(f"{path}: the OBJ file has no faces; give a triangulated surface")
-    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
 
 
 def hull_surface(points: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -93,22 +60,18 @@ def hull_surface(points: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]
     return np.asarray(vertices, float), np.asarray(faces, np.int64)
 
 
-def body_surface(sid, name: str, obj_path=None) -> BodySurface:
+def body_surface(sid, name: str, obj_path=None) -> Surface:
     """The surface to animate: stored FE surface modes, else an OBJ (or the hull of the nodes)
     whose points follow the nodes by the elastic interpolation."""
-    if sid.surface is not None and obj_path is None:
-        s = sid.surface
-        return BodySurface(np.asarray(s.points, float), np.asarray(s.triangles, np.int64),
-                           np.asarray(s.shapes, float), "FE surface modes stored in the SID")
-    nodes, phi = node_points(sid)
+    stored = stored_surface(sid)
+    if stored is not None and obj_path is None:
+        return stored
+    nodes, _ = node_points(sid)
     if obj_path is not None:
         points, triangles = read_obj(obj_path)
-        source = f"{Path(obj_path).name}, interpolated from {len(nodes)} nodes"
-    else:
-        points, triangles = hull_surface(nodes, name)
-        source = f"convex hull of the {len(nodes)} nodes (no OBJ given), interpolated"
-    shapes = elastic_interpolation(nodes, points)(phi)
-    return BodySurface(points, triangles, shapes, source)
+        return interpolated_surface(sid, points, triangles, f"{Path(obj_path).name}, interpolated from {len(nodes)} nodes")
+    points, triangles = hull_surface(nodes, name)
+    return interpolated_surface(sid, points, triangles, f"convex hull of the {len(nodes)} nodes (no OBJ given), interpolated")
 
 
 def _rounded(a: np.ndarray, size: float) -> list:
@@ -150,7 +113,7 @@ def _mode_names(sid) -> list[str]:
     return [f"{k + 1}: {freqs[k]:.4g} Hz {kinds[k]}".strip() for k in range(sid.nq)]
 
 
-def _figure(surface: BodySurface, nodes: np.ndarray, size: float):
+def _figure(surface: Surface, nodes: np.ndarray, size: float):
     import plotly.graph_objects as go
 
     p, t = surface.points, surface.triangles
@@ -299,7 +262,7 @@ def resolve_source(source: str, results_path: Path, scene_path: str) -> Path:
 
 
 def mechanism_surfaces(results_path) -> tuple[object, dict]:
-    """The results (``solver.results.ResultsFile``) and {body name: BodySurface} of its bodies
+    """The results (``solver.results.ResultsFile``) and {body name: Surface} of its bodies
     with a shape: flexible bodies from their SID (interpolated when it has few nodes), rigid
     bodies from their OBJ (no modes)."""
     from sidprep.sid.io import read_sid
@@ -317,22 +280,11 @@ def mechanism_surfaces(results_path) -> tuple[object, dict]:
             surfaces[name] = body_surface(read_sid(path), str(path))
         else:
             points, triangles = read_obj(path)
-            surfaces[name] = BodySurface(points, triangles, np.zeros((len(points), 3, 0)), path.name)
+            surfaces[name] = rigid_surface(points, triangles, path.name)
     if not surfaces:
         raise InputError(f"{results_path}: no body has a surface to animate; give rigid bodies an `obj` "
                          "or flexible bodies a SID file")
     return rf, surfaces
-
-
-def body_motion(surface: BodySurface, r: np.ndarray, A: np.ndarray, q: np.ndarray, scale: float = 1.0):
-    """Inertial positions (nt, ns, 3) and elastic displacement magnitudes (nt, ns) of the surface.
-
-    x = r_O + A (c + scale * S q)  (sid-spec section 5.2); |u| = |S q| (true size, m).
-    r (nt, 3), A (nt, 3, 3), q (nt, nq).
-    """
-    u = np.einsum("sak,tk->tsa", surface.shapes, q) if surface.shapes.shape[2] else np.zeros((len(r),) + surface.points.shape)
-    x = r[:, None, :] + np.einsum("tab,tsb->tsa", A, surface.points[None] + scale * u)
-    return x, np.linalg.norm(u, axis=2)
 
 
 def _samples(nt: int, limit: int) -> np.ndarray:
@@ -345,7 +297,8 @@ def exaggeration(result, surfaces: dict) -> float:
     peak, extent = 0.0, []
     for name, s in surfaces.items():
         b = result.bodies[name]
-        x, umag = body_motion(s, b.position, b.rotation, b.q)
+        x, u = surface_motion(s, b.position, b.rotation, b.q)
+        umag = np.linalg.norm(u, axis=2)
         peak = max(peak, float(umag.max()))
         extent.append(x.reshape(-1, 3))
     size = float(np.linalg.norm(np.ptp(np.vstack(extent), axis=0)))
@@ -417,7 +370,8 @@ def write_mechanism_page(results_path, out_path) -> Path:
     bodies, traces, allx, umax = [], [], [], 0.0
     for name, s in surfaces.items():
         b = result.bodies[name]
-        x, umag = body_motion(s, b.position[keep], b.rotation[keep], b.q[keep], scale)
+        x, u = surface_motion(s, b.position[keep], b.rotation[keep], b.q[keep], scale)
+        umag = np.linalg.norm(u, axis=2)
         allx.append(x.reshape(-1, 3))
         umax = max(umax, float(umag.max()))
         nq = s.shapes.shape[2]
@@ -471,8 +425,11 @@ def write_mechanism_movie(results_path, out_path, exaggerated: bool = True) -> P
     result = rf.result
     keep = _samples(len(result.t), MAX_MOVIE_FRAMES)
     scale = exaggeration(result, surfaces) if exaggerated else 1.0
-    motion = {n: body_motion(s, result.bodies[n].position[keep], result.bodies[n].rotation[keep],
-                             result.bodies[n].q[keep], scale) for n, s in surfaces.items()}
+    motion = {}
+    for n, s in surfaces.items():
+        x, u = surface_motion(s, result.bodies[n].position[keep], result.bodies[n].rotation[keep],
+                              result.bodies[n].q[keep], scale)
+        motion[n] = (x, np.linalg.norm(u, axis=2))
     cloud = np.vstack([x.reshape(-1, 3) for x, _ in motion.values()])
     umax = max(float(u.max()) for _, u in motion.values()) or 1.0
     fig = plt.figure(figsize=(6, 5), dpi=80)

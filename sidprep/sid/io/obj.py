@@ -1,4 +1,7 @@
-"""Wavefront OBJ surface export (body frame K), e.g. for the geometry of a SID body in a viewer."""
+"""Wavefront OBJ surfaces (body frame K): ``write_obj`` / ``read_obj``, the geometry of a SID body or
+of a rigid body in a scene.
+
+OBJ has no version of its own; the writer states the length unit in its header comment."""
 
 from __future__ import annotations
 
@@ -36,3 +39,21 @@ def write_obj(path, points, triangles, *, length_unit: str = "m", comment: str =
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
     return Path(path)
+
+
+def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) and triangles (nf, 3) int64 of a Wavefront OBJ file (polygons fanned)."""
+    # trimesh costs 1.8 s to import (measured, python -X importtime): only the commands that read
+    # an OBJ pay it, not every reader of SID files
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such OBJ file; check the path")
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the OBJ surface ({exc}); give a triangulated Wavefront OBJ file")
+    if not len(mesh.faces):
+        raise InputError(f"{path}: the OBJ file has no faces; give a triangulated surface")
+    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
