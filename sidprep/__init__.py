@@ -134,7 +134,7 @@ def read_sid(path):
 def write_sid(sid, path, *, comment: str = ""):
     """Write a SID by the file ending: .sid.h5 (HDF5), .SID_FEM (ASCII), .obj (its surface); atomic.
     Returns the Path written."""
-    from sidprep.jobs.output import write_sid as _write
+    from sidprep.sid.io import write_sid as _write
 
     return _write(sid, path, comment=comment)
 

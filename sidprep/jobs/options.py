@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.sid.io import HDF5_SUFFIXES
 
 #: default number of elastic eigenmodes of interest of a reduction (8: with 6 the piston rod's axial
 #: FRMs fall above the 5x cut-off and its static deflection misses the FEMBS 1 % promise: 5.8 % vs 0.48 %)
@@ -26,8 +27,6 @@ DEFAULT_CUTOFF_FACTOR = 5.0
 DEFAULT_MATERIAL = "steel"
 #: fewest fixed-interface modes of the Craig-Bampton step when ``modes`` is given
 CB_MIN_MODES = 20
-#: file endings of the HDF5 SID output
-HDF5_SUFFIXES = (".sid.h5", ".h5", ".hdf5")
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from sidprep.jobs.options import OutputOptions, check_output
+from sidprep.sid.io import write_sid
 
 
 def output_paths(mesh, out: OutputOptions = OutputOptions()) -> dict[str, Path]:
@@ -21,26 +22,6 @@ def output_paths(mesh, out: OutputOptions = OutputOptions()) -> dict[str, Path]:
     if out.obj:
         paths["obj"] = h5.with_name(stem + ".obj")
     return paths
-
-
-def write_sid(sid, path, *, comment: str = "") -> Path:
-    """Write ``sid`` by the file ending: .sid.h5 / .h5 / .hdf5 (HDF5), .SID_FEM (ASCII), .obj (surface)."""
-    from sidprep.errors import InputError
-
-    path = Path(path)
-    name = path.name.lower()
-    if name.endswith((".sid.h5", ".h5", ".hdf5")):
-        from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
-        return write_sid_hdf5(sid, path)
-    if name.endswith(".sid_fem"):
-        from sidprep.sid.io.sid_fem import write_sid_fem
-        return write_sid_fem(sid, path, comment=comment)
-    if name.endswith(".obj"):
-        from sidprep.sid.io.obj import write_obj
-        if sid.surface is None:
-            raise InputError(f"{path}: this SID has no surface to write as OBJ")
-        return write_obj(path, sid.surface.points, sid.surface.triangles)
-    raise InputError(f"{path}: unknown SID file type; use .sid.h5, .SID_FEM or .obj")
 
 
 def write_reduction(sid, paths: dict[str, Path], *, source: str = "") -> dict[str, str]:
