@@ -30,11 +30,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 from sidprep.errors import InputError
+
 
 #: sigma = -SHIFT_REL * median(diag K / diag M)
 SHIFT_REL = 1e-6
@@ -426,7 +429,6 @@ def single_threaded_blas():
     ``fast_blas`` interposes under CHOLMOD (loaded first so that the limit reaches it).  With two
     BLAS threads on the shared 2-core machine the Lanczos phase of a 17k-DOF bar took 9 s instead
     of 0.56 s and the piston rod's factorisation 20x longer (docs/performance.md)."""
-    from threadpoolctl import threadpool_limits
 
     fast_blas()
     return threadpool_limits(limits=1, user_api="blas")
@@ -448,7 +450,6 @@ def _lanczos(K, M, k, sigma, solver) -> tuple[np.ndarray, np.ndarray]:
 
 def _dense_modes(K, M) -> tuple[np.ndarray, np.ndarray]:
     """All eigenpairs of a small problem by LAPACK (generalized symmetric-definite eigh)."""
-    import scipy.linalg as sla
 
     try:
         return sla.eigh(K.toarray(), M.toarray())

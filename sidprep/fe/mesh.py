@@ -9,13 +9,21 @@ DOFs are node-interleaved: DOF 3*i + c is component c (x, y, z) of node i.
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import io
+import itertools
+import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping
 
+import meshio
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
+
 
 #: mid-edge node k (k = 4..9 of a tet10) lies on the edge between these two vertices
 TET10_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
@@ -182,7 +190,6 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
 
 
 def _file_sha256(path) -> str:
-    import hashlib
 
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -309,10 +316,7 @@ def _gmsh_arrays(gmsh, path) -> _RawMesh:
 
 def _read_meshio(path) -> _RawMesh:
     """Any volume format meshio reads; its tet10 node order is VTK's for every format."""
-    import io
-    import tempfile
 
-    import meshio
 
     suffix = path.suffix.lower()
     if suffix not in meshio.extension_to_filetypes:
@@ -520,7 +524,6 @@ def close_pairs(points: np.ndarray, tol: float) -> np.ndarray:
     costs 0.15 s to import): two points closer than h >= tol along every axis share a cell of width
     2 h in at least one of the 8 grids shifted by 0 or h along each axis; within a cell, all pairs
     are tested.  h is at least 2^-20 of the largest extent, so cell indices fit in 21 bits."""
-    import itertools
 
     lo = points.min(axis=0)
     h = max(tol, float(np.ptp(points, axis=0).max()) * 2.0 ** -20, np.finfo(float).tiny)
@@ -540,8 +543,6 @@ def close_pairs(points: np.ndarray, tol: float) -> np.ndarray:
 
 def _duplicate_node_map(points: np.ndarray) -> np.ndarray:
     """(n,) index of each node's merged node: clusters of nodes closer than the tolerance."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
     n = len(points)
     if n == 0:
@@ -702,8 +703,6 @@ def connected_parts(mesh: FEMesh) -> tuple[int, np.ndarray]:
     labels : (n_nodes,) int64
         Part number of each node (nodes used by no cell form parts of their own).
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
     c = mesh.cells
     rows = np.repeat(c[:, 0], c.shape[1] - 1)

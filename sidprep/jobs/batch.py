@@ -10,18 +10,34 @@ skips finished jobs and a killed batch resumes without lost or half-written outp
 
 from __future__ import annotations
 
+import csv
 import glob
 import hashlib
+import io
 import itertools
 import json
+import multiprocessing
 import os
 import re
 import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
+from sidprep import __version__
 from sidprep.errors import InputError
-from sidprep.jobs.options import ReduceOptions
+from sidprep.fe.mesh import read_mesh
+from sidprep.jobs.jobfile import job_from_table, split_job_table
+from sidprep.jobs.options import OutputOptions, ReduceOptions
+from sidprep.jobs.output import output_paths, write_reduction
+from sidprep.jobs.reduce import reduce
+from sidprep.progress import peak_memory_mb
+from sidprep.reduction.craig_bampton import reduction_peak_bytes
+from sidprep.sid.io.atomic import atomic_path
+from sidprep.tables import checked_table, read_toml
+
 
 #: fraction of the available memory a batch may plan for
 MEMORY_FRACTION = 0.8
@@ -85,7 +101,6 @@ class BatchReport:
 def estimate_job_memory_mb(n_dof: int) -> float:
     """Planned peak memory of one reduction job (MiB) from its FE DOF count: the estimate the
     reduction itself checks before it starts (sidprep.reduction.craig_bampton.reduction_peak_bytes)."""
-    from sidprep.reduction.craig_bampton import reduction_peak_bytes
 
     return reduction_peak_bytes(n_dof) / 2.0**20
 
@@ -93,7 +108,6 @@ def estimate_job_memory_mb(n_dof: int) -> float:
 def gmsh_node_count(path) -> int | None:
     """Node count from the $Nodes header of a gmsh .msh file (ASCII v2 / v4) without reading the
     mesh; None when the header is not found (binary, other format)."""
-    import numpy as np
 
     try:
         with open(path, "rb") as f:
@@ -117,7 +131,6 @@ def gmsh_node_count(path) -> int | None:
 def job_dof(job: BatchJob) -> int:
     """FE DOF of a job's mesh before it runs: 3 x the nodes of a gmsh header, else the mesh read
     (geometry files: GEOMETRY_DOF_GUESS); InputError if the file cannot be read."""
-    from sidprep.fe.mesh import read_mesh
 
     if job.mesh.lower().endswith(GEOMETRY_SUFFIXES):
         return GEOMETRY_DOF_GUESS
@@ -127,7 +140,6 @@ def job_dof(job: BatchJob) -> int:
 
 def job_key(job: BatchJob, opts: BatchOptions) -> str:
     """Content address: sha256 of the mesh bytes, the options, the outputs and the sidprep version."""
-    from sidprep import __version__
 
     h = hashlib.sha256()
     try:
@@ -174,8 +186,6 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
     (each crossed with the sweep); [batch] : outdir (relative to the manifest), workers, scheduler,
     memory_limit_mb, sid_fem, obj.
     """
-    from sidprep.jobs.jobfile import job_from_table, split_job_table
-    from sidprep.tables import checked_table, read_toml
 
     path = Path(path)
     doc = read_toml(path, "study file")
@@ -237,12 +247,7 @@ def failed_record(job: BatchJob, error: str) -> dict:
 
 def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) -> dict:
     """Run one job in the current process and write its files; never raises (failures are records)."""
-    import numpy as np
 
-    from sidprep.jobs.reduce import reduce
-    from sidprep.jobs.options import OutputOptions
-    from sidprep.jobs.output import output_paths, write_reduction
-    from sidprep.progress import peak_memory_mb
 
     t0 = time.perf_counter()
     record = failed_record(job, "")
@@ -281,8 +286,6 @@ class _LocalPool:
     """A process pool of ``workers`` processes (forkserver: clean workers, reused across jobs)."""
 
     def __init__(self, workers: int):
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
 
         self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
         self.workers = workers
@@ -291,7 +294,6 @@ class _LocalPool:
         return self.pool.submit(run_job, *args)
 
     def wait(self, futures):
-        from concurrent.futures import FIRST_COMPLETED, wait
         return wait(futures, return_when=FIRST_COMPLETED).done
 
     def close(self):
@@ -340,7 +342,6 @@ def _cached(record_path: Path) -> dict | None:
 
 
 def _write_json(path: Path, data) -> None:
-    from sidprep.sid.io.atomic import atomic_path
 
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(data, indent=1, default=float))
@@ -428,10 +429,7 @@ CSV_COLUMNS = ("name", "status", "error", "wall_s", "peak_memory_mb", "dof", "fr
 
 def write_report(report: BatchReport) -> dict:
     """OUTDIR/batch.json and batch.csv (atomic); returns their paths."""
-    import csv
-    import io
 
-    from sidprep.sid.io.atomic import atomic_path
 
     outdir = Path(report.outdir)
     data = {"outdir": report.outdir, "wall_s": report.wall_s, "jobs": report.records,
@@ -464,7 +462,6 @@ def study_plot(report: BatchReport) -> str | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sidprep.sid.io.atomic import atomic_path
 
     key = numeric[0]
     fig, ax = plt.subplots(figsize=(6, 4))

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+from sidprep.errors import InputError
 from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.tables import checked_table, read_toml
 
@@ -45,7 +46,6 @@ def job_from_table(data: dict) -> Job:
 
 def read_job(path) -> Job:
     """The Job of a TOML job file (one-line InputErrors: file not found, syntax, key, type)."""
-    from sidprep.errors import InputError
 
     path = Path(path)
     data = split_job_table(read_toml(path, "job file"), path, path.parent)

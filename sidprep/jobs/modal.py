@@ -11,7 +11,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.fe.assemble import stiffness_and_mass
+from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
+from sidprep.fe.mesh import connected_parts
+from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import DEFAULT_MODAL_COUNT, ModalOptions
+from sidprep.jobs.reduce import load_mesh, model_material
+from sidprep.progress import Phases
+
 
 #: a part whose clamped nodes span a plane (rank 2 about their centroid) has no rigid-body mode
 PLANAR_RANK = 2
@@ -56,7 +63,6 @@ def clamped_nodes(mesh, groups) -> np.ndarray:
 def rigid_mode_bound(mesh, clamped) -> int:
     """Upper bound of the rigid-body mode count: 6 per free part, 0 for a part clamped at nodes that
     span a plane, 3 otherwise (a point or a line of clamped nodes leaves rotations free)."""
-    from sidprep.fe.mesh import connected_parts
 
     n_parts, labels = connected_parts(mesh)
     bound = 0
@@ -75,11 +81,6 @@ def modal_analysis(mesh, options: ModalOptions = ModalOptions(), *, phases=None)
     ``options.count`` elastic modes (default DEFAULT_MODAL_COUNT) or all up to ``options.fmax`` Hz;
     ``phases`` : sidprep.progress.Phases for progress and timings (default silent).
     """
-    from sidprep.fe.assemble import stiffness_and_mass
-    from sidprep.jobs.reduce import load_mesh, model_material
-    from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
-    from sidprep.fe.plausibility import unit_warnings
-    from sidprep.progress import Phases
 
     o = options
     if o.count is not None and o.fmax is not None:

@@ -6,13 +6,16 @@ Error messages name the option as a setting (``modes = 0``), never a command-lin
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.reduction.modes import modal_damping
 from sidprep.sid.io import HDF5_SUFFIXES
+
 
 #: default number of elastic eigenmodes of interest of a reduction (8: with 6 the piston rod's axial
 #: FRMs fall above the 5x cut-off and its static deflection misses the FEMBS 1 % promise: 5.8 % vs 0.48 %)
@@ -94,7 +97,6 @@ def material_given(o: ModelOptions) -> bool:
 def check_damping(damping) -> None:
     """Damping ratios must lie in [0, 1): below 0 adds energy, 1 and above is no longer a vibration."""
     if isinstance(damping, dict):
-        from sidprep.reduction.modes import modal_damping
         modal_damping(np.ones(1), damping)
         return
     values = np.atleast_1d(np.asarray(damping, dtype=float))
@@ -119,7 +121,6 @@ def check_reduce_options(o: ReduceOptions) -> None:
 def check_output(path) -> Path:
     """The HDF5 output path, checked before the work: a .sid.h5 / .h5 / .hdf5 file name, not a folder,
     in a folder that exists or can be created and is writable."""
-    import tempfile
 
     path = Path(path)
     if path.is_dir():

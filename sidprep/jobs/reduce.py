@@ -24,10 +24,22 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.reduction.fe_checks import fe_checks, structured_checks
-from sidprep.reduction.paths import fe_path, located_paths
+from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
+from sidprep.fe.linalg import single_threaded_blas
+from sidprep.fe.material import material_from_options, unit_system
+from sidprep.fe.mesh import FEMesh, connected_parts, read_mesh
+from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
-                             DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
+    DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
+from sidprep.progress import Phases, peak_memory_mb
+from sidprep.reduction.craig_bampton import craig_bampton
+from sidprep.reduction.fe_checks import STATIC_CHECK_TOL, fe_checks, structured_checks
+from sidprep.reduction.interfaces import (KINDS, SELECTIONS, SELECTORS, check_patch, interface_model,
+    linear_surface_triangles, make_interface, rigid_modes_model, select_patch)
+from sidprep.reduction.modes import modal_basis, modal_damping, mode_labels
+from sidprep.reduction.paths import fe_path, located_paths
+from sidprep.reduction.stiffening import stiffening_parts, support_dofs
+from sidprep.sid.model import SurfaceModes, sid_invariants
 
 
 @dataclass(frozen=True)
@@ -83,7 +95,6 @@ class ReductionResult:
 
 def parse_interface(spec: str) -> tuple[str, str]:
     """"NAME[:rbe2|rbe3]" -> (name, kind)."""
-    from sidprep.reduction.interfaces import KINDS
 
     name, _, kind = spec.partition(":")
     kind = (kind or "rbe2").lower()
@@ -104,7 +115,6 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
     """An Interface from "NAME[:rbe2|rbe3]" (a node set) or a job-file table {name, kind,
     master_point, node_set | type = plane|cylinder|sphere + its parameters and tol}; lengths of
     the table are in the job's unit system (``length_to_m`` converts them to the mesh's metres)."""
-    from sidprep.reduction.interfaces import SELECTIONS, SELECTORS, make_interface
 
     if isinstance(spec, str):
         name, kind = parse_interface(spec)
@@ -122,7 +132,6 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
 
 def default_interfaces(mesh) -> list[str]:
     """Node sets that look like interfaces: patches able to carry 6 DOF, as RBE2 ("NAME:rbe2")."""
-    from sidprep.reduction.interfaces import check_patch
 
     out = []
     for name, nodes in mesh.node_sets.items():
@@ -144,11 +153,6 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
     K_fe and M_fe are only projected: a caller that keeps no reference to them lets them be freed
     before the factorisation (peak memory).
     """
-    from sidprep.reduction.interfaces import interface_model, rigid_modes_model
-    from sidprep.reduction.modes import modal_basis
-    from sidprep.progress import Phases
-    from sidprep.reduction.craig_bampton import craig_bampton
-    from sidprep.reduction.stiffening import support_dofs
 
     ph = phases or Phases(verbose=False)
     if n_modes is None and fmax is None:
@@ -201,8 +205,6 @@ def frm_loads(im, cb, load_nodes=()) -> np.ndarray:
 
 def surface_modes(mesh, Phi_fe):
     """SurfaceModes of the outer surface (tet10 faces split into 4 linear triangles)."""
-    from sidprep.reduction.interfaces import linear_surface_triangles
-    from sidprep.sid.model import SurfaceModes
 
     tri = linear_surface_triangles(mesh)
     nodes, tri = np.unique(tri, return_inverse=True)
@@ -213,10 +215,7 @@ def surface_modes(mesh, Phi_fe):
 
 def build_sid(red: Reduction, mesh, Ms, *, damping=DEFAULT_DAMPING, stiffening=None, metadata=None):
     """The SID of the reduced body: one node per interface master, surface modes attached."""
-    from dataclasses import replace as dc_replace
 
-    from sidprep.reduction.modes import modal_damping, mode_labels
-    from sidprep.sid.model import sid_invariants
 
     f = red.basis.frequencies_hz
     first_id = int(mesh.node_ids.max()) + 1 if len(mesh.node_ids) else 1
@@ -226,7 +225,7 @@ def build_sid(red: Reduction, mesh, Ms, *, damping=DEFAULT_DAMPING, stiffening=N
     sid = sid_invariants(mesh.points, Ms, red.Phi_fe, nodes, labels=labels, frequencies_hz=f,
                          mode_kinds=red.basis.kinds, Ke=np.diag((2 * np.pi * f) ** 2),
                          De=modal_damping(f, damping), stiffening=stiffening, metadata=metadata or {})
-    return dc_replace(sid, surface=surface_modes(mesh, red.Phi_fe))
+    return replace(sid, surface=surface_modes(mesh, red.Phi_fe))
 
 
 def check_mode_count(o: ReduceOptions, n_dof: int, n_interfaces: int) -> None:
@@ -244,7 +243,6 @@ def check_mode_count(o: ReduceOptions, n_dof: int, n_interfaces: int) -> None:
 def check_parts_held(mesh, interfaces, source) -> None:
     """A mesh of several disconnected parts reduces only if every part carries an interface (otherwise
     its interior stiffness is singular in any frame); the advice names the parts' sizes."""
-    from sidprep.fe.mesh import connected_parts
 
     n_parts, labels = connected_parts(mesh)
     if n_parts < 2:
@@ -264,7 +262,6 @@ def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> Re
     Runs with one BLAS thread (sidprep.fe.linalg.single_threaded_blas); no printing, no files.
     ``phases`` : sidprep.progress.Phases for progress lines and timings (default silent).
     """
-    from sidprep.fe.linalg import single_threaded_blas
 
     check_reduce_options(options)
     with single_threaded_blas():
@@ -273,8 +270,6 @@ def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> Re
 
 def load_mesh(mesh, o, ph):
     """(FEMesh in metres, source name) from an FEMesh or a path, in the unit system of ``o``."""
-    from sidprep.fe.material import unit_system
-    from sidprep.fe.mesh import FEMesh, read_mesh
 
     units = unit_system(o.units)
     if isinstance(mesh, FEMesh):
@@ -286,7 +281,6 @@ def load_mesh(mesh, o, ph):
 
 def model_material(o):
     """(Material in SI, notes): the given material, or the default with a note saying so."""
-    from sidprep.fe.material import material_from_options
 
     if material_given(o):
         return material_from_options(E=o.E, nu=o.nu, rho=o.rho, name=o.material, units=o.units), []
@@ -296,12 +290,6 @@ def model_material(o):
 
 
 def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
-    from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
-    from sidprep.reduction.interfaces import select_patch
-    from sidprep.fe.material import unit_system
-    from sidprep.fe.plausibility import unit_warnings
-    from sidprep.progress import Phases, peak_memory_mb
-    from sidprep.reduction.stiffening import stiffening_parts
 
     ph = phases or Phases(verbose=False)
     units = unit_system(o.units)
@@ -351,7 +339,6 @@ def rotation_warning(checks: dict, basis, cutoff_factor: float) -> list[str]:
     """A warning when the reduced body misses the 1 % promise for rotations under unit moments
     (FEMBS promises it for deflections): name the cut-off factor that keeps the dropped
     frequency-response modes (the moment FRMs are usually the ones above the cut-off)."""
-    from sidprep.reduction.fe_checks import STATIC_CHECK_TOL
 
     error = checks["static_rotation_max_rel_error"]
     if error <= STATIC_CHECK_TOL:

@@ -22,12 +22,16 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.material import Material, builtin_material, material_from_options
-from sidprep.sid.model import SID, BodyPath, SurfaceModes, eigen_label, sid_invariants
+from sidprep.sid.io.sid_fem import write_sid_fem
+from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
+from sidprep.sid.model import BodyPath, SID, SurfaceModes, eigen_label, sid_invariants
+
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "pinned-pinned", "pinned-free",
                        "clamped-pinned", "clamped-clamped")
@@ -516,10 +520,7 @@ def options_dict(o: BeamOptions) -> dict:
 
 def write_beam_files(options: BeamOptions, output, sid_fem: bool = False) -> dict:
     """Build the beam SID and write ``output`` (.sid.h5) and optionally <stem>.SID_FEM; summary dict."""
-    from pathlib import Path
 
-    from sidprep.sid.io.sid_fem import write_sid_fem
-    from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 
     sid = beam_sid(options)
     h5 = Path(output)

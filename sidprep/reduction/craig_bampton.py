@@ -19,7 +19,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from sidprep.errors import InputError
-from sidprep.fe.linalg import single_threaded_blas
+from sidprep.fe.linalg import (MEMORY_HEADROOM, available_memory_bytes, estimate_peak_memory, factorize,
+    single_threaded_blas)
+
 
 #: ceiling of fixed-interface modes requested when growing towards ``fmax``
 MAX_FIXED_INTERFACE_MODES = 400
@@ -145,7 +147,6 @@ REDUCE_OVER_MODES_PEAK = 1.4
 def reduction_peak_bytes(n_dof: int, nnz: int | None = None, extent=None) -> float:
     """Estimated peak memory (bytes) of a whole reduction of an n_dof model, before it runs;
     ``extent`` : the body's bounding-box edge lengths (default a cube, the densest fill)."""
-    from sidprep.fe.linalg import estimate_peak_memory
 
     return REDUCE_OVER_MODES_PEAK * estimate_peak_memory(n_dof, nnz, extent).direct_peak_bytes
 
@@ -153,7 +154,6 @@ def reduction_peak_bytes(n_dof: int, nnz: int | None = None, extent=None) -> flo
 def check_reduction_memory(n_dof: int, nnz: int, memory_limit: float | None = None, extent=None) -> None:
     """Refuse (InputError, one line) a reduction whose estimated peak exceeds the memory this run may
     use, before the factorisation starts, instead of meeting the out-of-memory killer."""
-    from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 
     need = reduction_peak_bytes(n_dof, nnz, extent)
     avail = available_memory_bytes() if memory_limit is None else float(memory_limit)
@@ -174,7 +174,6 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
     memory_limit : bytes this run may use (default ``sidprep.fe.linalg.available_memory_bytes()``)
     extent : (3,) bounding-box edge lengths of the body for the memory estimate (default a cube)
     """
-    from sidprep.fe.linalg import factorize
 
     check_reduction_memory(K.shape[0], K.nnz, memory_limit, extent)
 

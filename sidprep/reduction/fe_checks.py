@@ -4,6 +4,13 @@ deflection at the interface masters, eigenfrequencies (the checks run at export,
 from __future__ import annotations
 
 import numpy as np
+import scipy.linalg as sla
+
+from sidprep.fe.linalg import eigen_modes
+from sidprep.reduction.craig_bampton import interior_operator
+from sidprep.reduction.interfaces import rigid_rows
+from sidprep.reduction.modes import hz
+from sidprep.sid.model import inertia_matrix
 
 #: relative tolerance of the mass / CM / inertia check (spec: equal to round-off)
 MASS_CHECK_TOL = 1e-10
@@ -65,7 +72,6 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     operator is not definite or the iteration does not converge (sigma above the computed
     fixed-interface spectrum): the count cannot be certified.
     """
-    from sidprep.reduction.craig_bampton import interior_operator
 
     cb = red.cb
     n = cb.basis.shape[0]
@@ -145,7 +151,6 @@ def frequency_bounds(red, m: int) -> tuple[np.ndarray, np.ndarray, str]:
     * then |nu_true - nu_j| <= ||R_c||^2 / delta_c (quadratic residual bound for clusters, Li & Li 2013),
       delta_c the distance of the cluster to the rest of the spectrum (other intervals, 1/sigma).
     """
-    import scipy.linalg as sla
 
     cb = red.cb
     held = np.zeros(cb.K.shape[0], bool)
@@ -213,7 +218,6 @@ def full_model_frequencies(red, count: int) -> np.ndarray:
     """The ``count`` lowest elastic frequencies (Hz) of the full model (held DOFs removed) by a full
     eigen solve: the independent reference, and the fallback of :func:`fe_checks` when the bounds of
     :func:`frequency_bounds` cannot be certified."""
-    from sidprep.fe.linalg import eigen_modes
 
     keep = np.setdiff1d(np.arange(red.im.n_model), [] if red.held is None else red.held)
     ev = eigen_modes(red.K_model[keep][:, keep], red.M_model[keep][:, keep], count=count)
@@ -225,7 +229,6 @@ def frequency_checks(red) -> dict:
     ``eigen_frequency_max_rel_error`` the largest relative error - a certified upper bound
     (:func:`frequency_bounds`), or, when the bounds cannot be certified, the error against a full
     eigen solve (``frequency_check`` says which); ``frequencies_full_hz_bounds`` [low, high] per mode."""
-    from sidprep.reduction.modes import hz
 
     f_eig = red.basis.frequencies_hz[np.array(red.basis.kinds) == "eigen"]
     lower, upper, reason = frequency_bounds(red, len(f_eig))
@@ -242,8 +245,6 @@ def frequency_checks(red) -> dict:
 def fe_checks(red, mesh, M_fe, sid, full_frequencies=True) -> dict:
     """Reduced body vs full FE model (module docstring step 6); JSON-ready dict (the frequency part:
     :func:`frequency_checks`)."""
-    from sidprep.reduction.interfaces import rigid_rows
-    from sidprep.sid.model import inertia_matrix
 
     R = rigid_rows(mesh.points).reshape(-1, 6)
     A = R.T @ (M_fe @ R)                                  # sid-spec 4.3 Form A

@@ -25,6 +25,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
+from sidprep.fe.mesh import TET10_EDGES, boundary_faces
+
 
 KINDS = ("rbe2", "rbe3")
 #: a patch whose weighted second moment of lever arms has a condition number above this is
@@ -139,7 +141,6 @@ def tributary_areas(mesh, nodes: np.ndarray) -> np.ndarray:
 def linear_surface_triangles(mesh) -> np.ndarray:
     """Outer-surface triangles, outward: the corner triangles (tet4), or each 6-node face split
     into its 4 sub-triangles through the mid-edge nodes (tet10); (nf or 4nf, 3) int64."""
-    from sidprep.fe.mesh import TET10_EDGES, boundary_faces
 
     faces = boundary_faces(mesh)
     if mesh.order == 1:

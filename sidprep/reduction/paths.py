@@ -35,10 +35,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from sidprep.errors import InputError
 from sidprep.fe.mesh import TET10_EDGES
 from sidprep.sid.model import BodyPath
+
 
 #: samples of a path unless the spec gives their number
 DEFAULT_PATH_POINTS = 201
@@ -156,7 +158,6 @@ def through_points(mesh, spec: PathSpec) -> np.ndarray:
 
 def smooth_curve(points: np.ndarray):
     """The cubic spline c(t) through ``points`` (k, 3), t their cumulative chord length (module doc)."""
-    from scipy.interpolate import CubicSpline
 
     t = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
     return CubicSpline(t, points, bc_type="not-a-knot")

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
+from sidprep.sid.checks import sid_checks
+from sidprep.sid.io import read_sid
+from sidprep.sid.model import inertia_matrix
+
 
 def sid_info(path) -> dict:
     """Read a SID file (.sid.h5 / .SID_FEM), run its model checks, return ``body_summary``."""
-    from sidprep.sid.checks import sid_checks
-    from sidprep.sid.io import read_sid
 
     sid = read_sid(path)
     return body_summary(sid, sid_checks(sid))
@@ -14,9 +20,7 @@ def sid_info(path) -> dict:
 
 def body_summary(sid, checks: dict) -> dict:
     """JSON-ready summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes."""
-    import numpy as np
 
-    from sidprep.sid.model import inertia_matrix
 
     c = sid.mdCM.M0[:, 0] / sid.mass if sid.mass else np.zeros(3)
     I_o = inertia_matrix(sid.J.M0[:, 0])
@@ -44,9 +48,7 @@ def body_summary(sid, checks: dict) -> dict:
 
 def strict_json(value):
     """``value`` with numpy types as Python numbers and non-finite floats as None (valid JSON)."""
-    import math
 
-    import numpy as np
 
     if isinstance(value, dict):
         return {str(k): strict_json(v) for k, v in value.items()}

@@ -11,15 +11,21 @@ from __future__ import annotations
 
 import html
 import json
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from sidprep.errors import InputError
+from sidprep.sid.checks import sid_checks
+from sidprep.sid.io import read_sid
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.io.obj import read_obj
-from sidprep.sid.surface import Surface, interpolated_surface, node_points, rigid_surface, stored_surface, surface_motion
+from sidprep.sid.model import inertia_matrix
+from sidprep.sid.surface import (Surface, interpolated_surface, node_points, rigid_surface, stored_surface,
+    surface_motion)
+from sidprep.solver.results import read_results
+
 
 #: the largest mode displacement is drawn as this fraction of the body's bounding-box diagonal
 DISPLAY_FRACTION = 0.1
@@ -37,7 +43,6 @@ def hull_surface(points: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]
     the body size when the nodes lie in a plane or on a line, refined to ``HULL_EDGES`` edges per
     body size so that the interpolated deformation shows; (vertices, triangles)."""
     import trimesh
-    from scipy.spatial import ConvexHull, QhullError
 
     centre = points.mean(axis=0)
     _, s, vt = np.linalg.svd(points - centre, full_matrices=False)
@@ -84,7 +89,6 @@ def _table(rows: list[tuple[str, str]]) -> str:
 
 
 def _properties_rows(sid) -> list[tuple[str, str]]:
-    from sidprep.sid.model import inertia_matrix
 
     cm = sid.mdCM.M0[:, 0] / sid.mass if sid.mass else np.zeros(3)
     inertia = inertia_matrix(np.asarray(sid.J.M0, float).ravel())
@@ -95,7 +99,6 @@ def _properties_rows(sid) -> list[tuple[str, str]]:
 
 
 def _checks_rows(sid) -> list[tuple[str, str]]:
-    from sidprep.sid.checks import sid_checks
 
     rows = []
     for name, c in sid_checks(sid).items():
@@ -209,7 +212,6 @@ def write_mode_page(sid_path, out_path=None, obj_path=None) -> Path:
     obj_path : optional OBJ surface (body-frame coordinates in the SID's units); with it, or
         when the SID stores no surface modes, the surface follows the nodes by elastic interpolation.
     """
-    from sidprep.sid.io import read_sid
 
     sid_path = Path(sid_path)
     sid = read_sid(sid_path)
@@ -265,8 +267,6 @@ def mechanism_surfaces(results_path) -> tuple[object, dict]:
     """The results (``solver.results.ResultsFile``) and {body name: Surface} of its bodies
     with a shape: flexible bodies from their SID (interpolated when it has few nodes), rigid
     bodies from their OBJ (no modes)."""
-    from sidprep.sid.io import read_sid
-    from sidprep.solver.results import read_results
 
     results_path = Path(results_path)
     rf = read_results(results_path)

@@ -20,15 +20,19 @@ The schema (sid-spec.md section 8, documented in docs/sid-hdf5.md):
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from sidprep import __version__
 from sidprep.errors import InputError
+from sidprep.sid.checks import sid_checks
 from sidprep.sid.io.atomic import atomic_path
-from sidprep.sid.model import (J_ORDER, OMEGA_HAT_ORDER, SID, BodyPath, SIDNode, SurfaceModes, Taylor,
-                         ge_tensor, gr_tensor)
+from sidprep.sid.model import (BodyPath, J_ORDER, OMEGA_HAT_ORDER, SID, SIDNode, SurfaceModes, Taylor,
+    ge_tensor, gr_tensor)
+
 
 FORMAT = "sidprep-sid"
 #: 2: adds the optional /paths group (version-1 files read as before)
@@ -83,8 +87,6 @@ def _write_strings(group: h5py.Group, name: str, values) -> None:
 
 
 def _library_versions() -> dict:
-    import sys
-    from sidprep import __version__
     return {"sidprep": __version__, "numpy": np.__version__, "h5py": h5py.__version__,
             "hdf5": h5py.version.hdf5_version, "python": sys.version.split()[0]}
 
@@ -92,7 +94,6 @@ def _library_versions() -> dict:
 def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
     """Write ``sid`` to ``path`` (.sid.h5) atomically; ``checks`` (sid_checks result) default computed."""
     if checks is None:
-        from sidprep.sid.checks import sid_checks
         checks = sid_checks(sid)
     nq = sid.nq
     si = sid.units == "SI"
