@@ -341,7 +341,7 @@ def node_frame(node_id: int, position, phi_n, psi_n, *, K0F=None, K0M=None, name
 
 
 def sid_invariants(points, Ms, Phi, nodes, *, labels=None, frequencies_hz=None, mode_kinds=None,
-                   Ke=None, De=None, stiffening=None, Psi=None, metadata=None, units="SI") -> SID:
+                   Ke=None, De=None, stiffening=None, metadata=None, units="SI") -> SID:
     """The exact SID of a solid FE body from its scalar mass matrix (sid-spec.md 4.2-4.7).
 
     Parameters
@@ -364,8 +364,6 @@ def sid_invariants(points, Ms, Phi, nodes, *, labels=None, frequencies_hz=None, 
         Raw geometric-stiffness parts (sid-spec.md 6.3): "K0t" (3,nq,nq) -> Ct.M1, "K0r" (3,nq,nq)
         -> Cr.M1 (added to Kr), "K0omega" (6,nq,nq) -> Oe.M1 (added to Kom), "K0F/<i>", "K0M/<i>"
         (3,nq,nq) -> phi.M1 / psi.M1 of node i (0-based index in ``nodes``).
-    Psi : (len(nodes), 3, nq), optional
-        Node rotation shapes for node entries given without psi_n (default zero).
     metadata : dict, optional
     units : str
 
@@ -414,7 +412,7 @@ def sid_invariants(points, Ms, Phi, nodes, *, labels=None, frequencies_hz=None, 
     frames = []
     for i, entry in enumerate(nodes):
         node_id, position, phi_n = entry[:3]
-        psi_n = entry[3] if len(entry) > 3 else (np.zeros((3, nq)) if Psi is None else Psi[i])
+        psi_n = entry[3] if len(entry) > 3 else np.zeros((3, nq))
         frames.append(node_frame(node_id, position, phi_n, psi_n, K0F=stiff.get(f"K0F/{i}"),
                                  K0M=stiff.get(f"K0M/{i}"),
                                  name=str(entry[4]) if len(entry) > 4 else ""))
