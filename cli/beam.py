@@ -30,7 +30,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import json
 
-    from sidprep.reduction.beam import beam_options_from_table, write_beam_files
+    from sidprep.jobs.output import write_beam_files
+    from sidprep.reduction.beam import beam_options_from_table
 
     table = {k: getattr(args, k) for k in ("length", "section", "material", "E", "nu", "rho", "bc", "modes",
                                            "damping", "frames") if getattr(args, k) not in (None, "")}

@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from sidprep.jobs.options import OutputOptions, check_output
+from sidprep.reduction.beam import BeamOptions, beam_sid
 from sidprep.sid.io import write_sid
 
 
@@ -24,9 +25,20 @@ def output_paths(mesh, out: OutputOptions = OutputOptions()) -> dict[str, Path]:
     return paths
 
 
-def write_reduction(sid, paths: dict[str, Path], *, source: str = "") -> dict[str, str]:
-    """Write the files named by ``output_paths``; returns {kind: path string}."""
-    comment = f"sidprep reduce {Path(source).name}" if source else ""
+def write_reduction(sid, paths: dict[str, Path], *, source: str = "", command: str = "reduce") -> dict[str, str]:
+    """Write the files named by ``output_paths``; returns {kind: path string}. The SID_FEM and OBJ
+    comment names the command and its input (``sidprep reduce bar.msh``)."""
+    comment = f"sidprep {command} {Path(source).name}".strip() if source or command != "reduce" else ""
     for path in paths.values():
         write_sid(sid, path, comment=comment)
     return {k: str(v) for k, v in paths.items()}
+
+
+def write_beam_files(options: BeamOptions, output, sid_fem: bool = False) -> dict:
+    """Build the analytical beam's SID and write ``output`` (.sid.h5, checked before the work) and
+    optionally <stem>.SID_FEM; returns a summary dict (files, mass kg, nq, labels, frequencies Hz)."""
+    paths = output_paths(output, OutputOptions(output=str(output), sid_fem=sid_fem, obj=False))
+    sid = beam_sid(options)
+    files = write_reduction(sid, paths, command="beam")
+    return {"files": files, "mass_kg": sid.mass, "nq": sid.nq, "labels": list(sid.labels),
+            "frequencies_hz": sid.frequencies_hz.tolist()}

@@ -22,14 +22,11 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.material import Material, builtin_material, material_from_options
-from sidprep.sid.io.sid_fem import write_sid_fem
-from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 from sidprep.sid.model import BodyPath, SID, SurfaceModes, eigen_label, sid_invariants
 
 
@@ -517,16 +514,3 @@ def options_dict(o: BeamOptions) -> dict:
     """JSON-ready options."""
     return asdict(o)
 
-
-def write_beam_files(options: BeamOptions, output, sid_fem: bool = False) -> dict:
-    """Build the beam SID and write ``output`` (.sid.h5) and optionally <stem>.SID_FEM; summary dict."""
-
-
-    sid = beam_sid(options)
-    h5 = Path(output)
-    files = {"hdf5": str(write_sid_hdf5(sid, h5))}
-    if sid_fem:
-        stem = h5.name[:-len(".sid.h5")] if h5.name.endswith(".sid.h5") else h5.stem
-        files["sid_fem"] = str(write_sid_fem(sid, h5.with_name(stem + ".SID_FEM"), comment="sidprep beam"))
-    return {"files": files, "mass_kg": sid.mass, "nq": sid.nq, "labels": list(sid.labels),
-            "frequencies_hz": sid.frequencies_hz.tolist()}
