@@ -14,6 +14,7 @@ engineering strains).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,14 +53,22 @@ class StressModes:
         return (np.atleast_2d(q) @ S.reshape(n * 6, -1).T).reshape(-1, n, 6)
 
 
+#: rows of W: sigma_v^2 = |W sigma|^2 (the deviator in an orthonormal basis, scaled by sqrt(3/2)):
+#: ((xx - yy)^2 + (yy - zz)^2 + (zz - xx)^2) / 2 = 3/4 (xx - yy)^2 + 1/4 (xx + yy - 2 zz)^2
+DEVIATOR_ROWS = np.array([[math.sqrt(3) / 2, -math.sqrt(3) / 2, 0, 0, 0, 0],
+                          [0.5, 0.5, -1.0, 0, 0, 0],
+                          [0, 0, 0, math.sqrt(3), 0, 0],
+                          [0, 0, 0, 0, math.sqrt(3), 0],
+                          [0, 0, 0, 0, 0, math.sqrt(3)]])
+
+
 def von_mises(sigma: np.ndarray) -> np.ndarray:
     """Von Mises equivalent stress of 6-vectors in STRESS_ORDER: (..., 6) -> (...), Pa.
 
-    sigma_v = sqrt(((s_xx - s_yy)^2 + (s_yy - s_zz)^2 + (s_zz - s_xx)^2) / 2 + 3 (s_xy^2 + s_yz^2 + s_zx^2)).
+    sigma_v = sqrt(((s_xx - s_yy)^2 + (s_yy - s_zz)^2 + (s_zz - s_xx)^2) / 2 + 3 (s_xy^2 + s_yz^2 + s_zx^2))
+    = |W sigma| with W = DEVIATOR_ROWS.
     """
-    s = np.asarray(sigma)
-    xx, yy, zz, xy, yz, zx = (s[..., i] for i in range(6))
-    return np.sqrt(0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2) + 3.0 * (xy ** 2 + yz ** 2 + zx ** 2))
+    return np.linalg.norm(np.asarray(sigma) @ DEVIATOR_ROWS.T, axis=-1)
 
 
 def stress_tensor(sigma: np.ndarray) -> np.ndarray:
