@@ -40,6 +40,10 @@ def format_table(summary: dict) -> str:
         d = summary["sid_fem_dialect"]
         lines.append(f"SID_FEM dialect: {d['name']} (m1 {d['m1_index_order']}, J {d['J']}, "
                      f"Gr {d['Gr_layout']}, Ge {d['Ge_layout']})")
+    if summary.get("stress"):
+        st = summary["stress"]
+        lines.append(f"modal stresses  {st['nodes']} {st['scope']} nodes, components {','.join(st['component_order'])}, "
+                     f"max von Mises per mode {', '.join(f'{v:.3g}' for v in st['max_von_mises_per_mode'])} Pa/[q]")
     lines.append("checks:")
     lines.append(format_checks(summary["checks"]))
     return "\n".join(lines)

@@ -18,6 +18,7 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     run_batch(jobs, BatchOptions(...)) -> BatchReport
     beam(BeamOptions(...)) -> SID                           (analytical Euler-Bernoulli beam)
     load_scene(path) -> Scene;  simulate(scene) -> Result  (the solver: docs/scenes.md)
+    recover_stress(results, body=None, at=None) -> StressRecovery (hot spots, envelope, histories, Pa)
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "reduce", "read_sid", "write_sid",
-           "sid_info", "run_batch", "beam", "load_scene", "simulate",
+           "sid_info", "run_batch", "beam", "load_scene", "simulate", "recover_stress",
            "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "BeamOptions", "Job"]
 
 #: names resolved on first use (module, attribute): keeps ``import sidprep`` and ``sidprep --help`` fast
@@ -40,6 +41,7 @@ _LAZY = {
     "beam": ("sidprep.reduction.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)
     "load_scene": ("sidprep.solver.scene", "load_scene"),   # scene TOML -> Scene (system, settings)
     "simulate": ("sidprep.solver.scene", "simulate"),       # Scene -> solver Result
+    "recover_stress": ("sidprep.solver.stress", "recover_stress"),  # results file -> StressRecovery
 }
 
 

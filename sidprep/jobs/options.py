@@ -54,7 +54,8 @@ class ReduceOptions(ModelOptions):
     (neither = ``DEFAULT_MODES``). damping : ratio in [0, 1), a per-mode tuple, or
     {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
-    dir), stored with their interpolated mode shapes (sidprep.reduction.paths).
+    dir), stored with their interpolated mode shapes (sidprep.reduction.paths). stress : None,
+    "surface" or "all": modal stresses at those nodes (sidprep.reduction.stress).
     """
 
     interfaces: tuple = ()
@@ -68,6 +69,7 @@ class ReduceOptions(ModelOptions):
     stiffening: bool = False
     check_frequencies: bool = True
     paths: tuple[str, ...] = ()
+    stress: str | None = None
 
 
 @dataclass(frozen=True)
@@ -116,6 +118,8 @@ def check_reduce_options(o: ReduceOptions) -> None:
     if not o.cutoff_factor >= 1:
         raise InputError(f"cutoff_factor = {o.cutoff_factor}: must be >= 1 (FEMBS default {DEFAULT_CUTOFF_FACTOR:g})")
     check_damping(o.damping)
+    if o.stress not in (None, "surface", "all"):
+        raise InputError(f"stress = {o.stress!r}: use surface (the outer surface's nodes) or all (every node)")
 
 
 def check_output(path) -> Path:

@@ -39,6 +39,7 @@ from sidprep.reduction.interfaces import (KINDS, SELECTIONS, SELECTORS, check_pa
 from sidprep.reduction.modes import modal_basis, modal_damping, mode_labels
 from sidprep.reduction.paths import fe_path, located_paths
 from sidprep.reduction.stiffening import stiffening_parts, support_dofs
+from sidprep.reduction.stress import stress_check, stress_modes, structured_stress_check
 from sidprep.sid.model import SurfaceModes, sid_invariants
 
 
@@ -328,10 +329,16 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     sid = build_sid(red, mesh, Ms, damping=o.damping, stiffening=stiff, metadata=metadata)
     if paths:
         sid = replace(sid, paths={p.name: fe_path(mesh, red.Phi_fe, p) for p in paths})
+    if o.stress:
+        with ph("stress", f"modal stresses at the {o.stress} nodes"):
+            sid = replace(sid, stress=stress_modes(mesh, material, red.Phi_fe, o.stress))
     with ph("checks", "reduced vs full FE model"):
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
+        if sid.stress is not None:
+            checks.update(stress_check(red, mesh, material, sid.stress))
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)
-    sid = replace(sid, metadata={**sid.metadata, "checks": structured_checks(checks), "notes": notes})
+    sid = replace(sid, metadata={**sid.metadata, "notes": notes,
+                                 "checks": {**structured_checks(checks), **structured_stress_check(checks)}})
     return ReductionResult(sid, checks, tuple(notes), int(mesh.n_dof), dict(ph.timings_s), peak_memory_mb())
 
 

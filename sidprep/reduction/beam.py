@@ -28,7 +28,7 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.fe.material import Material, builtin_material, material_from_options
 from sidprep.sid.model import BodyPath, SID, SurfaceModes, eigen_label, sid_invariants
-
+from sidprep.sid.stress import STRESS_ORDER, StressModes
 
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "pinned-pinned", "pinned-free",
                        "clamped-pinned", "clamped-clamped")
@@ -259,6 +259,7 @@ class Form:
     value: object          # x (m) -> amplitude (m or rad), mass-normalised
     slope: object          # x -> d/dx
     curvature_wave: float  # wave number (1/m), for the quadrature density
+    curvature: object = None  # x -> d^2/dx^2 (bending forms), for the stress modes
 
 
 def eigenforms(o: BeamOptions) -> list[Form]:
@@ -277,7 +278,7 @@ def eigenforms(o: BeamOptions) -> list[Form]:
             xs, ws = gauss_line(L, [], beta)
             scale = 1 / math.sqrt(m.rho * A * ws @ val(xs) ** 2)
             forms.append(Form(kind, n, omega, _bending_eval(beta, L, c * scale, 0),
-                              _bending_eval(beta, L, c * scale, 1), beta))
+                              _bending_eval(beta, L, c * scale, 1), beta, _bending_eval(beta, L, c * scale, 2)))
             continue
         k, f, df = _axial_like(_held(o.bc, kind), n, L)
         inertia, stiffness = (m.rho * (Iy + Iz), G * J) if kind == "torsion" else (m.rho * A, m.E * A)
@@ -393,15 +394,63 @@ def beam_sid(options: BeamOptions) -> SID:
                          mode_kinds=("eigen",) * nq, Ke=np.diag(omega ** 2),
                          De=np.diag(2 * zeta * omega), stiffening=stiff, metadata=meta)
     depth_y, depth_z = math.sqrt(12 * Iz / A), math.sqrt(12 * Iy / A)
-    return replace(sid, paths={"axis": axis_path(forms, L)}, surface=beam_surface(forms, L, depth_y, depth_z))
+    return replace(sid, paths={"axis": axis_path(forms, L)}, surface=beam_surface(forms, L, depth_y, depth_z),
+                   stress=beam_stress(forms, L, m.E, o.section))
+
+
+def surface_stations(forms, L: float) -> np.ndarray:
+    """Stations x (m) of the animation surface and the stress points: SURFACE_STATIONS_PER_WAVE per
+    half-wave of the shortest form, at least SURFACE_MIN_STATIONS."""
+    half_waves = max(f.curvature_wave for f in forms) * L / math.pi
+    return np.linspace(0.0, L, max(SURFACE_MIN_STATIONS, int(math.ceil(SURFACE_STATIONS_PER_WAVE * half_waves)) + 1))
+
+
+def section_stress_points(section: Section) -> np.ndarray:
+    """Points (y, z) of the section's outline about its centroid, m; (m, 2).
+
+    rectangle, rectangular_tube, I: the four corners (+-b/2, +-h/2), the extreme fibres of any
+    bending; circle, tube: eight points on the outer circle every 45 deg (the largest bending stress
+    is then missed by at most 1 - cos 22.5 deg = 7.6 %); general, T, U: the corners of the
+    radius-of-gyration box +-sqrt(3 Iz / A), +-sqrt(3 Iy / A) (equal to the extreme fibres of a
+    rectangle; not the outline of these sections).
+    """
+    A, Iy, Iz, _ = section.properties
+    d = section.dims
+    if section.profile in ("circle", "tube"):
+        a = np.arange(8) * np.pi / 4
+        return 0.5 * d[0] * np.stack([np.cos(a), np.sin(a)], axis=1)
+    cy, cz = (0.5 * d[0], 0.5 * d[1]) if section.profile in ("rectangle", "rectangular_tube", "I") else \
+        (math.sqrt(3 * Iz / A), math.sqrt(3 * Iy / A))
+    return np.array([[-cy, -cz], [cy, -cz], [cy, cz], [-cy, cz]])
+
+
+def beam_stress(forms, L: float, E: float, section: Section) -> StressModes:
+    """Modal stresses of the Beam at its section's outline (section_stress_points) at the surface
+    stations: the Euler-Bernoulli normal stress sigma_xx = E (u' - y v'' - z w'') per unit q_k
+    (u axial, v along y, w along z); the shear stresses of torsion and transverse force are not
+    included (zero)."""
+    xs = surface_stations(forms, L)
+    yz = section_stress_points(section)
+    x = np.repeat(xs, len(yz))
+    y, z = np.tile(yz[:, 0], len(xs)), np.tile(yz[:, 1], len(xs))
+    modes = np.zeros((len(x), 6, len(forms)))
+    xx = STRESS_ORDER.index("xx")
+    for k, f in enumerate(forms):
+        if f.kind == "axial":
+            modes[:, xx, k] = E * f.slope(x)
+        elif f.kind == "xy":
+            modes[:, xx, k] = -E * y * f.curvature(x)
+        elif f.kind == "xz":
+            modes[:, xx, k] = -E * z * f.curvature(x)
+    return StressModes(np.arange(1, len(x) + 1, dtype=np.int64), np.stack([x, y, z], axis=1), modes, "surface",
+                       "Euler-Bernoulli sigma_xx = E (u' - y v'' - z w'') at the section outline; no shear")
 
 
 def beam_surface(forms, L: float, depth_y: float, depth_z: float) -> SurfaceModes:
     """A box along the axis for the animation, the rectangle with the section's radii of gyration
     (depths sqrt(12 I / A)); its corners move with the forms as the section's rigid motion,
     u = phi(x) + psi(x) x (0, y, z)."""
-    half_waves = max(f.curvature_wave for f in forms) * L / math.pi
-    xs = np.linspace(0.0, L, max(SURFACE_MIN_STATIONS, int(math.ceil(SURFACE_STATIONS_PER_WAVE * half_waves)) + 1))
+    xs = surface_stations(forms, L)
     corners = 0.5 * np.array([[-depth_y, -depth_z], [depth_y, -depth_z], [depth_y, depth_z], [-depth_y, depth_z]])
     points = np.array([[x, y, z] for x in xs for y, z in corners])
     shapes = np.zeros((len(points), 3, len(forms)))

@@ -320,6 +320,9 @@ def format_checks(checks: dict) -> str:
                      f"(tol {FREQUENCY_CHECK_TOL:g}; {checks['frequency_check']}); full model "
                      + ", ".join(f"{lo:.1f}" if hi - lo < 0.05 else f"{lo:.1f}-{hi:.1f}"
                                  for lo, hi in checks["frequencies_full_hz_bounds"]) + " Hz")
+    if "stress_static_max_rel_error" in checks:
+        lines.append(f"  modal stresses under unit master forces vs the full model: max rel. error "
+                     f"{100 * checks['stress_static_max_rel_error']:.3f} %")
     if not checks["static_within_fembs_promise"]:
         lines.append("  WARNING: static deflection error above 1 %: frequency-response modes above the cut-off were "
                      "dropped; raise --cutoff-factor or --modes")

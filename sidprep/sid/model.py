@@ -21,6 +21,8 @@ from typing import Mapping
 
 import numpy as np
 
+from sidprep.sid.stress import StressModes
+
 #: ASCII structure codes of M0 (sid-spec.md section 2)
 ZERO, DIAGONAL, SYMMETRIC, GENERAL, IDENTITY = 0, 1, 2, 3, 4
 
@@ -142,6 +144,8 @@ class SID:
         Mode shapes on the outer surface (HDF5 files only), for animation.
     paths : mapping name -> BodyPath
         Curves along which loads move (HDF5 files only), e.g. "axis" of an analytical Beam.
+    stress : StressModes or None
+        Stress per unit modal coordinate at nodes (HDF5 files only; ``sidprep reduce --stress``).
     """
 
     mass: float
@@ -165,6 +169,7 @@ class SID:
     metadata: Mapping[str, object] = field(default_factory=dict)
     surface: SurfaceModes | None = None
     paths: Mapping[str, BodyPath] = field(default_factory=dict)
+    stress: StressModes | None = None
 
     @property
     def nq(self) -> int:

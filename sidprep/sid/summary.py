@@ -9,6 +9,7 @@ import numpy as np
 from sidprep.sid.checks import sid_checks
 from sidprep.sid.io import read_sid
 from sidprep.sid.model import inertia_matrix
+from sidprep.sid.stress import STRESS_ORDER, von_mises
 
 
 def sid_info(path) -> dict:
@@ -42,8 +43,20 @@ def body_summary(sid, checks: dict) -> dict:
         "geometric_stiffness": sorted(sid.stiffening),
         "surface_triangles": 0 if sid.surface is None else int(len(sid.surface.triangles)),
         "sid_fem_dialect": meta.get("sid_fem_dialect"),
+        "stress": stress_summary(sid.stress),
         "checks": checks,
     }
+
+
+def stress_summary(stress) -> dict | None:
+    """The modal stresses of a SID (None without): nodes, scope, component order, and per mode the
+    largest von Mises stress over the nodes (Pa per unit q)."""
+    if stress is None:
+        return None
+
+    return {"nodes": stress.n_nodes, "scope": stress.scope, "component_order": list(STRESS_ORDER),
+            "unit": "Pa per unit modal coordinate", "method": stress.method,
+            "max_von_mises_per_mode": von_mises(stress.modes.transpose(0, 2, 1)).max(axis=0).tolist()}
 
 
 def strict_json(value):

@@ -13,6 +13,8 @@ The schema (sid-spec.md section 8, documented in docs/sid-hdf5.md):
 * ``/geometric_stiffness/<key>``: the raw parts of ``SID.stiffening``.
 * ``/fe/surface``: points, triangles, shapes, node_ids of ``SID.surface``.
 * ``/paths/<name>`` (version 2): s, points, phi, psi of ``SID.paths[name]`` (moving loads).
+* ``/stress`` (optional, its own attr ``version`` = STRESS_VERSION): node_ids, points, modes
+  (ns, 6, nq) of ``SID.stress``, attrs ``component_order``, ``scope``, ``method``, ``unit``.
 * ``/provenance`` attrs: ``metadata`` (JSON of ``SID.metadata``), writer and library versions;
   ``/checks`` attr ``json``: the model checks at write time (not part of the SID read back).
 """
@@ -32,7 +34,7 @@ from sidprep.sid.checks import sid_checks
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.model import (BodyPath, J_ORDER, OMEGA_HAT_ORDER, SID, SIDNode, SurfaceModes, Taylor,
     ge_tensor, gr_tensor)
-
+from sidprep.sid.stress import STRESS_ORDER, StressModes
 
 FORMAT = "sidprep-sid"
 #: 2: adds the optional /paths group (version-1 files read as before)
@@ -40,6 +42,8 @@ VERSION = 2
 NODE_MEMBERS = ("origin", "phi", "psi", "AP", "sigma")
 #: BodyPath members (in its field order) and their units
 PATH_MEMBERS = {"s": "m", "points": "m", "phi": "m/[q]", "psi": "rad/[q]"}
+#: version of the optional /stress group (a group of its own version: files without it read as before)
+STRESS_VERSION = 1
 MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 SI_UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "angle": "rad",
             "frequency": "Hz", "modal_coordinate": "[q] (phi in m per unit q)"}
@@ -161,10 +165,35 @@ def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
                 g.create_dataset(member, data=np.asarray(getattr(path_, member), dtype=float)).attrs["unit"] = unit
             g.attrs["axes"] = "phi[i, c, k], psi[i, c, k]: component c at s[i] per unit q_k"
 
+        if sid.stress is not None:
+            write_stress(f.create_group("stress"), sid.stress)
+
         prov = f.create_group("provenance")
         prov.attrs.update(metadata=to_json(dict(sid.metadata)), libraries=to_json(_library_versions()))
         f.create_group("checks").attrs["json"] = to_json(checks)
     return Path(path)
+
+
+def write_stress(g: h5py.Group, stress: StressModes) -> None:
+    """The /stress group of ``SID.stress`` (docs/sid-hdf5.md)."""
+    g.attrs.update(version=STRESS_VERSION, component_order=",".join(STRESS_ORDER), scope=stress.scope,
+                   method=stress.method, unit="Pa/[q]",
+                   axes="modes[s, c, k]: stress component c at node s per unit q_k")
+    g.create_dataset("node_ids", data=np.asarray(stress.node_ids, dtype=np.int64))
+    g.create_dataset("points", data=np.asarray(stress.points, dtype=float)).attrs["unit"] = "m"
+    g.create_dataset("modes", data=np.asarray(stress.modes, dtype=float)).attrs["unit"] = "Pa/[q]"
+
+
+def read_stress(g: h5py.Group) -> StressModes:
+    """SID.stress from a /stress group; a newer group version or another component order is refused."""
+    version = int(g.attrs.get("version", -1))
+    if not 1 <= version <= STRESS_VERSION:
+        raise ValueError(f"/stress version {version} (this sidprep reads 1..{STRESS_VERSION}; upgrade sidprep)")
+    order = tuple(str(g.attrs["component_order"]).split(","))
+    if order != STRESS_ORDER:
+        raise ValueError(f"/stress component_order {','.join(order)} (expected {','.join(STRESS_ORDER)})")
+    return StressModes(g["node_ids"][()], g["points"][()], g["modes"][()], str(g.attrs["scope"]),
+                       str(g.attrs["method"]))
 
 
 def _ascii_layout(sid: SID, member: str) -> str:
@@ -220,7 +249,7 @@ def _read(f: h5py.File) -> SID:
         nodes=tuple(nodes), **members, frequencies_hz=f["refmod/freq_hz"][()],
         mode_kinds=_strings(f["refmod/mode_kind"]), units=str(f.attrs["units"]),
         stiffening=stiffening, metadata=json.loads(f["provenance"].attrs["metadata"]),
-        surface=surface, paths=paths)
+        surface=surface, paths=paths, stress=read_stress(f["stress"]) if "stress" in f else None)
 
 
 def read_sid_hdf5(path) -> SID:
