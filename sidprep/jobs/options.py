@@ -52,7 +52,9 @@ class ReduceOptions(ModelOptions):
     (neither = ``DEFAULT_MODES``). damping : ratio in [0, 1), a per-mode tuple, or
     {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
-    dir), stored with their interpolated mode shapes (sidprep.reduction.paths).
+    dir), stored with their interpolated mode shapes (sidprep.reduction.paths). matrices : a file of
+    K and M written by another FE code (sidprep.fe.matrices: .sti, .mtx, .pch, .op4) used instead of
+    sidprep's own assembly; the mesh is then the deck they belong to (any solid elements).
     """
 
     interfaces: tuple = ()
@@ -66,6 +68,7 @@ class ReduceOptions(ModelOptions):
     stiffening: bool = False
     check_frequencies: bool = True
     paths: tuple[str, ...] = ()
+    matrices: str | None = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +118,9 @@ def check_reduce_options(o: ReduceOptions) -> None:
     if not o.cutoff_factor >= 1:
         raise InputError(f"cutoff_factor = {o.cutoff_factor}: must be >= 1 (FEMBS default {DEFAULT_CUTOFF_FACTOR:g})")
     check_damping(o.damping)
+    if o.matrices and o.stiffening:
+        raise InputError(f"stiffening = true: the geometric stiffening needs sidprep's own elements (stresses), "
+                         f"not imported matrices ({o.matrices}); drop stiffening or reduce a tetrahedral mesh")
 
 
 def check_output(path) -> Path:

@@ -274,13 +274,15 @@ def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> Re
 def load_mesh(mesh, o, ph):
     """(FEMesh in metres, source name) from an FEMesh or a path, in the unit system of ``o``."""
     from sidprep.fe.material import unit_system
+    from sidprep.fe.matrices.deck import read_model
     from sidprep.fe.mesh import FEMesh, read_mesh
 
     units = unit_system(o.units)
     if isinstance(mesh, FEMesh):
         return mesh, str(mesh.source)
+    read = read_model if o.matrices else read_mesh        # a deck of any solid elements when K, M are imported
     with ph("mesh", str(mesh)):
-        m = read_mesh(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
+        m = read(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
     return m, str(mesh)
 
 
@@ -297,6 +299,7 @@ def model_material(o):
 
 def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
+    from sidprep.fe.matrices.onto_model import imported_checks, imported_model
     from sidprep.reduction.interfaces import select_patch
     from sidprep.fe.material import unit_system
     from sidprep.fe.plausibility import unit_warnings
@@ -311,21 +314,28 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     paths = located_paths(mesh, o.paths, units.length_to_m)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     check_mode_count(o, mesh.n_dof, len(interfaces))
-    check_parts_held(mesh, interfaces, source)
-    with ph("assemble", f"{mesh.n_dof} DOF"):
-        pattern = block_pattern(mesh.cells, mesh.n_nodes)
-        assembled = {"K": stiffness_matrix(mesh, material, pattern)}
-        Ms = scalar_mass_matrix(mesh, material.rho, pattern)
-        assembled["M"] = vector_mass(Ms)
-        del pattern
+    if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
+        with ph("import", str(o.matrices)):
+            imported = imported_model(mesh, o.matrices, units)
+        assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
+        notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); material not used"]
+    else:
+        check_parts_held(mesh, interfaces, source)
+        with ph("assemble", f"{mesh.n_dof} DOF"):
+            pattern = block_pattern(mesh.cells, mesh.n_nodes)
+            assembled = {"K": stiffness_matrix(mesh, material, pattern)}
+            Ms = scalar_mass_matrix(mesh, material.rho, pattern)
+            assembled["M"] = vector_mass(Ms)
+            del pattern
     load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
     # K_fe and M_fe are handed over (popped), so that reduce_body frees them once projected, before
     # the factorisation (peak memory); M_fe is rebuilt from Ms afterwards
     red = reduce_body(mesh, assembled.pop("K"), assembled.pop("M"), interfaces, frame=o.frame, n_modes=o.modes,
                       fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
-    M_fe = vector_mass(Ms)
+    M_fe = imported.M if o.matrices else vector_mass(Ms)
     eigen_hz = [f for f, kind in zip(red.basis.frequencies_hz, red.basis.kinds) if kind == "eigen" and f > 0]
-    notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0), min(eigen_hz, default=None))
+    notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0),
+                           None if o.matrices else min(eigen_hz, default=None))
     stiff = None
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
@@ -342,6 +352,8 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
         sid = replace(sid, paths={p.name: fe_path(mesh, red.Phi_fe, p) for p in paths})
     with ph("checks", "reduced vs full FE model"):
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
+        if o.matrices:
+            checks.update(imported_checks(imported, red.basis))
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)
     sid = replace(sid, metadata={**sid.metadata, "checks": structured_checks(checks), "notes": notes})
     return ReductionResult(sid, checks, tuple(notes), int(mesh.n_dof), dict(ph.timings_s), peak_memory_mb())

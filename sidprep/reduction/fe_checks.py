@@ -319,6 +319,9 @@ def format_checks(checks: dict) -> str:
                      f"(tol {FREQUENCY_CHECK_TOL:g}; {checks['frequency_check']}); full model "
                      + ", ".join(f"{lo:.1f}" if hi - lo < 0.05 else f"{lo:.1f}-{hi:.1f}"
                                  for lo, hi in checks["frequencies_full_hz_bounds"]) + " Hz")
+    if "rigid_energy_ratio" in checks:
+        lines.append(f"  imported matrices ({checks['matrices_format']}): rigid-body strain energy ratio "
+                     f"{checks['rigid_energy_ratio']:.1e} (tol {checks['rigid_energy_tol']:g})")
     if not checks["static_within_fembs_promise"]:
         lines.append("  WARNING: static deflection error above 1 %: frequency-response modes above the cut-off were "
                      "dropped; raise --cutoff-factor or --modes")
