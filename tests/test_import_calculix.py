@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
+from sidprep.errors import InputError
 from sidprep.fe.material import unit_system
 from sidprep.fe.matrices import read_matrices
 from sidprep.fe.matrices.calculix import read_eigenvalues
@@ -145,3 +146,27 @@ def test_units_mm_t_s_scale_k_and_m_to_si(block):
     si = imported_model(mesh, block / "block.sti", unit_system("si"))
     mm = imported_model(mesh.scaled(1e-3), block / "block.sti", unit_system("mm-t-s"))
     assert abs(mm.K - 1e3 * si.K).max() == 0 and abs(mm.M - 1e3 * si.M).max() == 0
+
+
+#: K and M of the .eig (binary) vs MATRIXSTORAGE's 13-digit ASCII of the same run's deck
+EIG_VS_STI_RTOL = 1e-12
+
+
+def test_eig_matrices_equal_matrixstorage_ones(block, tmp_path):
+    """The .eig holds K and M without their structure; rebuilt from the deck it gives the .sti's matrices."""
+    sti, eig = read_matrices(block / "block.sti"), read_matrices(block / "block_eig.eig")
+    np.testing.assert_array_equal(eig.dofs, sti.dofs)
+    for a, b in ((eig.K, sti.K), (eig.M, sti.M)):
+        assert abs(a - b).max() <= EIG_VS_STI_RTOL * abs(b).max()
+    assert len(eig.eigenvalues) == 12
+    cut = tmp_path / "block_eig.eig"
+    cut.write_bytes((block / "block_eig.eig").read_bytes()[:-100])
+    shutil.copy(block / "block_eig.inp", tmp_path)
+    shutil.copy(block / "block_mesh.inp", tmp_path)
+    with pytest.raises(InputError, match="truncated"):
+        read_matrices(cut)
+    held = tmp_path / "held.inp"
+    held.write_text((block / "block_eig.inp").read_text().replace("*STEP", "*BOUNDARY\nEND_A, 1, 3\n*STEP"))
+    (tmp_path / "held.eig").write_bytes((block / "block_eig.eig").read_bytes())
+    with pytest.raises(InputError, match=r"\*BOUNDARY.*SOLVER=MATRIXSTORAGE"):
+        read_matrices(tmp_path / "held.eig")

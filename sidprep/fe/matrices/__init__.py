@@ -10,12 +10,11 @@ ending         written by                                      module
 =============  ==============================================  =======================
 ``.sti``       CalculiX ``*FREQUENCY, SOLVER=MATRIXSTORAGE``    ``calculix``
                (``.sti`` K, ``.mas`` M, ``.dof`` DOF map)
-``.eig``       CalculiX ``*FREQUENCY, STORAGE=YES``             ``calculix`` (eigenvalues;
-                                                               K, M need ``.sti``)
+``.eig``       CalculiX ``*FREQUENCY, STORAGE=YES``             ``calculix`` (K, M, eigenvalues;
+                                                               structure from the deck)
 ``.mtx``       Abaqus ``*MATRIX GENERATE`` +                   ``abaqus``
                ``*MATRIX OUTPUT, FORMAT=MATRIX INPUT``
 ``.pch``       Nastran DMIG punch (``PARAM,EXTOUT,DMIGPCH``)   ``nastran``
-``.op4``       Nastran ``OUTPUT4`` (ASCII)                      ``op4``
 =============  ==============================================  =======================
 """
 
@@ -77,7 +76,6 @@ READERS = {
     ".eig": ("calculix", "CalculiX *FREQUENCY, STORAGE=YES"),
     ".mtx": ("abaqus", "Abaqus *MATRIX GENERATE"),
     ".pch": ("nastran", "Nastran DMIG punch, PARAM,EXTOUT,DMIGPCH"),
-    ".op4": ("op4", "Nastran OUTPUT4, ASCII"),
 }
 
 

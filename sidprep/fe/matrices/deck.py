@@ -135,3 +135,11 @@ def _node_ids(m, path) -> np.ndarray:
         if len(ids) == len(m.points):
             return ids
     return np.arange(1, len(m.points) + 1, dtype=np.int64)
+
+
+def deck_elements(path) -> list[np.ndarray]:
+    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type."""
+    path = Path(path)
+    m = _meshio(path)
+    ids = _node_ids(m, path)
+    return [ids[b.data] for b in m.cells if b.type in FAMILY]
