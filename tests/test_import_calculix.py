@@ -12,14 +12,15 @@ import pytest
 import scipy.linalg as sla
 
 from sidprep.errors import InputError
-from sidprep.fe.material import unit_system
+from sidprep.fe.material import builtin_material, unit_system
 from sidprep.fe.matrices import read_matrices
-from sidprep.fe.matrices.calculix import read_eigenvalues
+from sidprep.fe.matrices.calculix import read_eigenvalues, tet_deck
 from sidprep.fe.matrices.deck import read_model
 from sidprep.fe.matrices.onto_model import imported_model
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.reduce import reduce
+from sidprep.sid.model import inertia_matrix
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "import_calculix"
@@ -58,21 +59,6 @@ def block(tmp_path_factory):
     return tmp
 
 
-def ccx_deck(mesh, path: Path, step: str = "*FREQUENCY, SOLVER=MATRIXSTORAGE\n10") -> None:
-    """A CalculiX deck of a tet10 FEMesh: C3D10 (Abaqus node order = sidprep's), its node sets, steel."""
-    lines = ["*NODE, NSET=NALL"]
-    # 13 significant digits: ccx truncates coordinate fields longer than 20 characters
-    lines += [f"{i}, {x:.12e}, {y:.12e}, {z:.12e}" for i, (x, y, z) in zip(mesh.node_ids, mesh.points)]
-    lines.append("*ELEMENT, TYPE=C3D10, ELSET=EALL")
-    lines += [f"{e}, " + ", ".join(map(str, row)) for e, row in enumerate(mesh.node_ids[mesh.cells], 1)]
-    for name, nodes in mesh.node_sets.items():
-        ids = mesh.node_ids[nodes]
-        lines += [f"*NSET, NSET={name}"] + [", ".join(map(str, ids[s:s + 12])) for s in range(0, len(ids), 12)]
-    lines += ["*MATERIAL, NAME=STEEL", "*ELASTIC", "210e9, 0.3", "*DENSITY", "7850",
-              "*SOLID SECTION, ELSET=EALL, MATERIAL=STEEL", "*STEP", step, "*END STEP"]
-    path.write_text("\n".join(lines) + "\n")
-
-
 def elastic(eigenvalues):
     lam = np.sort(eigenvalues)
     return lam[lam > 1e-6 * lam.max()]
@@ -96,6 +82,13 @@ def test_sid_of_c3d20_block_matches_ccx_and_a_tet10_mesh(block, tmp_path):
     f_ccx = np.sqrt(elastic(read_eigenvalues(block / "block_eig.eig"))[:3]) / (2 * np.pi)
     np.testing.assert_allclose(f_sid, f_ccx, rtol=SID_VS_CCX_RTOL)
     assert result.sid.mass == pytest.approx(7850 * 0.2 * 0.05 * 0.05, rel=1e-12)
+    # mass, first moment and inertia of the box [0, a] x [0, b] x [0, c] about the origin, closed form
+    # (C3D20's consistent mass integrates these quadratics exactly): C = int x x^T dm, I = tr(C) E - C
+    a, m = np.array([0.2, 0.05, 0.05]), 7850 * 0.2 * 0.05 * 0.05
+    C = m * np.outer(a, a) / 4
+    C[np.diag_indices(3)] = m * a ** 2 / 3
+    np.testing.assert_allclose(result.sid.mdCM.M0.ravel(), m * a / 2, rtol=1e-12)
+    np.testing.assert_allclose(inertia_matrix(result.sid.J.M0), np.trace(C) * np.eye(3) - C, rtol=1e-12)
     # the SID keeps CalculiX's node numbers: its interface masters are numbered after the deck's nodes
     assert result.sid.nodes[0].node_id == read_matrices(block / "block.sti").dofs[:, 0].max() + 1
     tet = reduce(tet10_block(tmp_path / "block.msh"), ReduceOptions(interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3))
@@ -127,7 +120,7 @@ def tet10_block(path: Path) -> Path:
 
 def test_piston_rod_from_ccx_matrices_matches_sidprep_assembly(tmp_path):
     deck = tmp_path / "rod.inp"
-    ccx_deck(read_mesh(ROD), deck)
+    tet_deck(read_mesh(ROD), deck, builtin_material("steel"))
     run_ccx(deck)
     own = reduce(deck, ReduceOptions(modes=6, check_frequencies=False))
     imported = reduce(deck, ReduceOptions(modes=6, check_frequencies=False, matrices=str(deck.with_suffix(".sti"))))

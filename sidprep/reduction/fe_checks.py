@@ -299,6 +299,10 @@ def structured_checks(checks: dict) -> dict:
         "FE static rotation": entry(checks["static_rotation_max_rel_error"], None, "info",
                                     "largest relative error of a master's rotation under a unit moment"),
     }
+    if "rigid_energy_ratio" in checks:
+        out["FE rigid-body energy"] = entry(checks["rigid_energy_ratio"], checks["rigid_energy_tol"], "error",
+                                            "imported K: strain energy of the six rigid motions / the same "
+                                            "without cancellation (zero for a free model)")
     if "eigen_frequency_max_rel_error" in checks:
         out["FE eigenfrequencies"] = entry(checks["eigen_frequency_max_rel_error"], FREQUENCY_CHECK_TOL, "error",
                                            "eigen-kind coordinates vs the full model, relative (certified bound or full eigen solve)")

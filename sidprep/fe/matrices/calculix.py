@@ -163,3 +163,20 @@ def lower_structure(elements, nodes) -> tuple[np.ndarray, np.ndarray]:
     col, row = col[keep], row[keep]
     order = np.lexsort((row, col))
     return col[order], row[order]
+
+
+def tet_deck(mesh, path, material, step: str = "*FREQUENCY, SOLVER=MATRIXSTORAGE\n10") -> None:
+    """Write a CalculiX deck of a tetrahedral FEMesh (SI): its nodes with their numbers, C3D4/C3D10
+    elements (Abaqus node order = sidprep's), its node sets, ``material`` (sidprep.fe.material) and
+    one step (default: write the matrices).  Coordinates with 13 significant digits: ccx truncates
+    fields longer than 20 characters."""
+    lines = ["*NODE, NSET=NALL"]
+    lines += [f"{i}, {x:.12e}, {y:.12e}, {z:.12e}" for i, (x, y, z) in zip(mesh.node_ids, mesh.points)]
+    lines.append(f"*ELEMENT, TYPE={'C3D10' if mesh.order == 2 else 'C3D4'}, ELSET=EALL")
+    lines += [f"{e}, " + ", ".join(map(str, row)) for e, row in enumerate(mesh.node_ids[mesh.cells], 1)]
+    for name, nodes in mesh.node_sets.items():
+        ids = mesh.node_ids[nodes]
+        lines += [f"*NSET, NSET={name}"] + [", ".join(map(str, ids[s:s + 12])) for s in range(0, len(ids), 12)]
+    lines += ["*MATERIAL, NAME=M", "*ELASTIC", f"{material.E:.12g}, {material.nu:.12g}", "*DENSITY",
+              f"{material.rho:.12g}", "*SOLID SECTION, ELSET=EALL, MATERIAL=M", "*STEP", step, "*END STEP"]
+    Path(path).write_text("\n".join(lines) + "\n")
