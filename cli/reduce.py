@@ -41,6 +41,10 @@ def add_reduce_arguments(p) -> None:
     p.add_argument("--stress", nargs="?", const="surface", choices=("surface", "all"), default=None,
                    help="store the modal stresses (Pa per unit modal coordinate) at the outer surface's nodes "
                         "(--stress) or at every node (--stress all), for `sidprep stress` after a simulation")
+    p.add_argument("--matrices", metavar="FILE",
+                   help="K and M written by another FE code instead of sidprep's own assembly: CalculiX .sti "
+                        "(*FREQUENCY, SOLVER=MATRIXSTORAGE), Abaqus .mtx, Nastran DMIG .pch or OP4 .op4; MESH is "
+                        "then the deck they come from (any solid elements); values in --units (docs/import.md)")
     p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
                    help="compare with a full-model eigen solve (default on; the costliest check)")
 

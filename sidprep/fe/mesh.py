@@ -53,6 +53,9 @@ class FEMesh:
         One-line notes about repairs made while reading (merged duplicates, dropped nodes, ...).
     length_unit : str
         "m" unless scaled otherwise.
+    surface : (nt, 3) int64 or None
+        Outer-surface triangles given by the model (imported decks of other elements,
+        sidprep.fe.matrices.deck); None: the boundary faces of ``cells``.
     """
 
     points: np.ndarray
@@ -64,6 +67,7 @@ class FEMesh:
     sha256: str = ""
     notes: tuple[str, ...] = ()
     length_unit: str = "m"
+    surface: np.ndarray | None = None
 
     @property
     def order(self) -> int:

@@ -55,7 +55,9 @@ class ReduceOptions(ModelOptions):
     {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
     dir), stored with their interpolated mode shapes (sidprep.reduction.paths). stress : None,
-    "surface" or "all": modal stresses at those nodes (sidprep.reduction.stress).
+    "surface" or "all": modal stresses at those nodes (sidprep.reduction.stress). matrices : a file of
+    K and M written by another FE code (sidprep.fe.matrices: .sti, .mtx, .pch, .op4) used instead of
+    sidprep's own assembly; the mesh is then the deck they belong to (any solid elements).
     """
 
     interfaces: tuple = ()
@@ -70,6 +72,7 @@ class ReduceOptions(ModelOptions):
     check_frequencies: bool = True
     paths: tuple[str, ...] = ()
     stress: str | None = None
+    matrices: str | None = None
 
 
 @dataclass(frozen=True)
@@ -120,6 +123,9 @@ def check_reduce_options(o: ReduceOptions) -> None:
     check_damping(o.damping)
     if o.stress not in (None, "surface", "all"):
         raise InputError(f"stress = {o.stress!r}: use surface (the outer surface's nodes) or all (every node)")
+    if o.matrices and o.stiffening:
+        raise InputError(f"stiffening = true: the geometric stiffening needs sidprep's own elements (stresses), "
+                         f"not imported matrices ({o.matrices}); drop stiffening or reduce a tetrahedral mesh")
 
 
 def check_output(path) -> Path:

@@ -27,6 +27,8 @@ from sidprep.errors import InputError
 from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
 from sidprep.fe.linalg import single_threaded_blas
 from sidprep.fe.material import material_from_options, unit_system
+from sidprep.fe.matrices.deck import read_model
+from sidprep.fe.matrices.onto_model import imported_checks, imported_model
 from sidprep.fe.mesh import FEMesh, connected_parts, read_mesh
 from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
@@ -275,8 +277,9 @@ def load_mesh(mesh, o, ph):
     units = unit_system(o.units)
     if isinstance(mesh, FEMesh):
         return mesh, str(mesh.source)
+    read = read_model if o.matrices else read_mesh        # a deck of any solid elements when K, M are imported
     with ph("mesh", str(mesh)):
-        m = read_mesh(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
+        m = read(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
     return m, str(mesh)
 
 
@@ -300,21 +303,28 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     paths = located_paths(mesh, o.paths, units.length_to_m)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     check_mode_count(o, mesh.n_dof, len(interfaces))
-    check_parts_held(mesh, interfaces, source)
-    with ph("assemble", f"{mesh.n_dof} DOF"):
-        pattern = block_pattern(mesh.cells, mesh.n_nodes)
-        assembled = {"K": stiffness_matrix(mesh, material, pattern)}
-        Ms = scalar_mass_matrix(mesh, material.rho, pattern)
-        assembled["M"] = vector_mass(Ms)
-        del pattern
+    if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
+        with ph("import", str(o.matrices)):
+            imported = imported_model(mesh, o.matrices, units)
+        assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
+        notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); material not used"]
+    else:
+        check_parts_held(mesh, interfaces, source)
+        with ph("assemble", f"{mesh.n_dof} DOF"):
+            pattern = block_pattern(mesh.cells, mesh.n_nodes)
+            assembled = {"K": stiffness_matrix(mesh, material, pattern)}
+            Ms = scalar_mass_matrix(mesh, material.rho, pattern)
+            assembled["M"] = vector_mass(Ms)
+            del pattern
     load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
     # K_fe and M_fe are handed over (popped), so that reduce_body frees them once projected, before
     # the factorisation (peak memory); M_fe is rebuilt from Ms afterwards
     red = reduce_body(mesh, assembled.pop("K"), assembled.pop("M"), interfaces, frame=o.frame, n_modes=o.modes,
                       fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
-    M_fe = vector_mass(Ms)
+    M_fe = imported.M if o.matrices else vector_mass(Ms)
     eigen_hz = [f for f, kind in zip(red.basis.frequencies_hz, red.basis.kinds) if kind == "eigen" and f > 0]
-    notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0), min(eigen_hz, default=None))
+    notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0),
+                           None if o.matrices else min(eigen_hz, default=None))
     stiff = None
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
@@ -336,6 +346,8 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
         if sid.stress is not None:
             checks.update(stress_check(red, mesh, material, sid.stress))
+        if o.matrices:
+            checks.update(imported_checks(imported, red.basis))
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)
     sid = replace(sid, metadata={**sid.metadata, "notes": notes,
                                  "checks": {**structured_checks(checks), **structured_stress_check(checks)}})

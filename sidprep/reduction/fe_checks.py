@@ -300,6 +300,10 @@ def structured_checks(checks: dict) -> dict:
         "FE static rotation": entry(checks["static_rotation_max_rel_error"], None, "info",
                                     "largest relative error of a master's rotation under a unit moment"),
     }
+    if "rigid_energy_ratio" in checks:
+        out["FE rigid-body energy"] = entry(checks["rigid_energy_ratio"], checks["rigid_energy_tol"], "error",
+                                            "imported K: strain energy of the six rigid motions / the same "
+                                            "without cancellation (zero for a free model)")
     if "eigen_frequency_max_rel_error" in checks:
         out["FE eigenfrequencies"] = entry(checks["eigen_frequency_max_rel_error"], FREQUENCY_CHECK_TOL, "error",
                                            "eigen-kind coordinates vs the full model, relative (certified bound or full eigen solve)")
@@ -323,6 +327,9 @@ def format_checks(checks: dict) -> str:
     if "stress_static_max_rel_error" in checks:
         lines.append(f"  modal stresses under unit master forces vs the full model: max rel. error "
                      f"{100 * checks['stress_static_max_rel_error']:.3f} %")
+    if "rigid_energy_ratio" in checks:
+        lines.append(f"  imported matrices ({checks['matrices_format']}): rigid-body strain energy ratio "
+                     f"{checks['rigid_energy_ratio']:.1e} (tol {checks['rigid_energy_tol']:g})")
     if not checks["static_within_fembs_promise"]:
         lines.append("  WARNING: static deflection error above 1 %: frequency-response modes above the cut-off were "
                      "dropped; raise --cutoff-factor or --modes")

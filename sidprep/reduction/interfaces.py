@@ -140,8 +140,11 @@ def tributary_areas(mesh, nodes: np.ndarray) -> np.ndarray:
 
 def linear_surface_triangles(mesh) -> np.ndarray:
     """Outer-surface triangles, outward: the corner triangles (tet4), or each 6-node face split
-    into its 4 sub-triangles through the mid-edge nodes (tet10); (nf or 4nf, 3) int64."""
+    into its 4 sub-triangles through the mid-edge nodes (tet10), or the model's own ``surface``
+    (imported decks of other elements); (nf or 4nf, 3) int64."""
 
+    if mesh.surface is not None:
+        return mesh.surface
     faces = boundary_faces(mesh)
     if mesh.order == 1:
         return faces

@@ -1,0 +1,129 @@
+"""Stiffness and mass matrices written by other FE codes: one reader module per format.
+
+Every reader takes the file path and returns :class:`FEMatrices` (sparse K and M in the file's
+units, the FE code's DOF map: node number and DOF 1..6 per row), streaming the file into sparse
+form (no dense copy).  :func:`read_matrices` picks the reader by the file ending; the mapping onto
+the model's nodes, the unit conversion and the checks live in ``sidprep.fe.matrices.onto_model``.
+
+=============  ==============================================  =======================
+ending         written by                                      module
+=============  ==============================================  =======================
+``.sti``       CalculiX ``*FREQUENCY, SOLVER=MATRIXSTORAGE``    ``calculix``
+               (``.sti`` K, ``.mas`` M, ``.dof`` DOF map)
+``.eig``       CalculiX ``*FREQUENCY, STORAGE=YES``             ``calculix`` (K, M, eigenvalues;
+                                                               structure from the deck)
+``.mtx``       Abaqus ``*MATRIX GENERATE`` +                   ``abaqus``
+               ``*MATRIX OUTPUT, FORMAT=MATRIX INPUT``
+``.pch``       Nastran DMIG punch (``PARAM,EXTOUT,DMIGPCH``)   ``nastran``
+=============  ==============================================  =======================
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from sidprep.errors import InputError
+from sidprep.fe.matrices.numbers import number_blocks
+
+
+@dataclass(frozen=True)
+class FEMatrices:
+    """K and M of a whole FE model as its code wrote them.
+
+    K, M : (nd, nd) scipy CSR, symmetric, in the file's unit system (force / length, mass);
+    dofs : (nd, 2) int64, node number of the FE code and DOF 1..6 (x, y, z, rx, ry, rz) of each row;
+    source : the file read; fmt : format name and the reader's format version;
+    eigenvalues : (k,) the FE code's own eigenvalues (rad/s)^2 when the file carries them, else None.
+    """
+
+    K: sp.csr_matrix
+    M: sp.csr_matrix
+    dofs: np.ndarray
+    source: str
+    fmt: str
+    eigenvalues: np.ndarray | None = None
+
+
+def reader_for(path):
+    """The reader function of the file ending of ``path`` (registry: :data:`READERS`)."""
+    path = Path(path)
+    name = path.name.lower()
+    for suffix, (module, _) in READERS.items():
+        if name.endswith(suffix):
+            # by name: the reader modules import FEMatrices from this package
+            return getattr(importlib.import_module(f"sidprep.fe.matrices.{module}"), "read")
+    raise InputError(f"{path}: unknown matrix file ending '{path.suffix}'; use one of "
+                     + ", ".join(f"{s} ({what})" for s, (_, what) in READERS.items()))
+
+
+def read_matrices(path) -> FEMatrices:
+    """K, M and the DOF map of ``path`` through the reader of its ending; InputError when the file is
+    missing, truncated or not what its ending says."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"--matrices {path}: file not found; check the path")
+    return reader_for(path)(path)
+
+
+#: file ending -> (reader module, what writes it)
+READERS = {
+    ".sti": ("calculix", "CalculiX *FREQUENCY, SOLVER=MATRIXSTORAGE"),
+    ".eig": ("calculix", "CalculiX *FREQUENCY, STORAGE=YES"),
+    ".mtx": ("abaqus", "Abaqus *MATRIX GENERATE"),
+    ".pch": ("nastran", "Nastran DMIG punch, PARAM,EXTOUT,DMIGPCH"),
+}
+
+
+#: |A - A^T| / max |A| above this: the file's matrix is not symmetric
+SYMMETRY_RTOL = 1e-8
+
+
+def symmetric_matrix(rows, cols, values, n: int, path, what: str) -> sp.csr_matrix:
+    """The symmetric (n, n) CSR matrix of triplets (0-based) that hold one triangle (mirrored) or
+    both (checked to ``SYMMETRY_RTOL``); duplicates are summed."""
+    rows, cols, values = (np.asarray(a) for a in (rows, cols, values))
+    lower, upper = rows > cols, rows < cols
+    if lower.any() and upper.any():
+        A = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+        scale = max(float(np.abs(A.data).max(initial=0.0)), np.finfo(float).tiny)
+        asym = float(np.abs(A - A.T).max()) / scale
+        if asym > SYMMETRY_RTOL:
+            raise InputError(f"{path}: {what} is not symmetric (|A - A^T| / max|A| = {asym:.1e}); "
+                             "export the symmetric matrix of a linear elastic model (no friction, "
+                             "follower loads or unsymmetric solver)")
+        return A
+    return mirrored_triangle(np.maximum(rows, cols), np.minimum(rows, cols), values, n)
+
+
+def mirrored_triangle(i, j, values, n: int) -> sp.csr_matrix:
+    """L + L^T - diag(L) of the lower-triangle triplets (i >= j), built row by row without a
+    general sort when the rows come in order (CalculiX, Nastran write them so)."""
+    if len(i) and not np.all(i[1:] >= i[:-1]):
+        order = np.argsort(i, kind="stable")
+        i, j, values = i[order], j[order], values[order]
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(i, minlength=n), out=indptr[1:])
+    L = sp.csr_matrix((values, j, indptr), shape=(n, n))
+    L.sum_duplicates()
+    A = (L + L.T.tocsr()).tocsr()
+    A.setdiag(L.diagonal())
+    return A
+
+
+def text_blocks(path, columns: int, what: str):
+    """Yield (k, columns) float64 blocks of the numbers of an ASCII file (blank- or comma-separated,
+    ``*``/``$`` comment lines), streamed (sidprep.fe.matrices.numbers); an unreadable byte or a
+    short last line is an InputError (a truncated or foreign file)."""
+    try:
+        for block, _ in number_blocks(path, columns):
+            yield block
+    except ValueError as exc:
+        offset, rows = exc.args
+        raise InputError(f"{path}: unreadable or incomplete line near byte {offset} (after {rows} complete "
+                         f"lines of {columns} numbers); the file is truncated or not a {what} file: "
+                         "write it again or check its ending") from None

@@ -1,0 +1,145 @@
+"""MODEL of an import: nodes, node sets and outer surface of an FE deck of any solid elements.
+
+Tetrahedral models are read by sidprep.fe.mesh.read_mesh (all of sidprep's features).  Decks with
+hexahedra, wedges or pyramids (linear or quadratic; ``.inp``, ``.bdf`` and the other formats meshio
+reads) become an FEMesh whose ``surface`` holds the outer faces of the FE code's elements (corner
+nodes, quadrilaterals split in two), for the OBJ surface, the surface mode shapes and RBE3 weights,
+and whose ``cells`` are a split of each element's corner nodes into tetrahedra (6 per hexahedron,
+3 per wedge, 2 per pyramid): used only to locate path points, which are then interpolated
+linearly between corner nodes.  Nodes on no solid element are dropped (the FE code gives them no
+DOF).  Stiffness and mass come from the FE code (sidprep.fe.matrices), never from these cells.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import tempfile
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from sidprep.errors import InputError
+from sidprep.fe.mesh import FEMesh, TET_FACES, _abaqus_ids, _abaqus_lines, _file_sha256, read_mesh
+
+
+#: corner-node tetrahedra of one element, per meshio cell type (VTK node order)
+TETS = {"tetra": [(0, 1, 2, 3)],
+        "hexahedron": [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)],
+        "wedge": [(0, 1, 2, 3), (1, 2, 3, 4), (2, 3, 4, 5)],
+        "pyramid": [(0, 1, 2, 4), (0, 2, 3, 4)]}
+#: corner-node faces of one element, outward for a positive element (VTK node order)
+FACES = {"tetra": [tuple(f) for f in TET_FACES],
+         "hexahedron": [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)],
+         "wedge": [(0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5)],
+         "pyramid": [(0, 3, 2, 1), (0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4)]}
+#: corner nodes of each family
+CORNERS = {"tetra": 4, "hexahedron": 8, "wedge": 6, "pyramid": 5}
+#: meshio cell type -> its linear family
+FAMILY = {"tetra": "tetra", "tetra10": "tetra", "hexahedron": "hexahedron", "hexahedron20": "hexahedron",
+          "hexahedron27": "hexahedron", "wedge": "wedge", "wedge15": "wedge", "pyramid": "pyramid",
+          "pyramid13": "pyramid"}
+
+
+def read_model(path, *, size=None, order: int = 2) -> FEMesh:
+    """MODEL of ``sidprep reduce MODEL --matrices FILE`` (module docstring); lengths as in the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: file not found; check the path")
+    if path.suffix.lower() in (".msh", ".geo", ".step", ".stp", ".brep", ".iges", ".igs"):
+        return read_mesh(path, size=size, order=order)
+    m = _meshio(path)
+    if {b.type for b in m.cells if b.type in FAMILY} <= {"tetra", "tetra10"}:
+        return read_mesh(path)
+    return solid_model(m, path)
+
+
+def _meshio(path):
+
+    text = "".join(_abaqus_lines(path)) if path.suffix.lower() == ".inp" else None
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            if text is None:
+                return meshio.read(path)
+            with tempfile.TemporaryDirectory() as tmp:      # *INCLUDE resolved (sidprep.fe.mesh)
+                flat = Path(tmp) / path.name
+                flat.write_text(text)
+                return meshio.read(flat, file_format="abaqus")
+    except (Exception, SystemExit) as exc:
+        raise InputError(f"{path}: meshio could not read it ({type(exc).__name__}: "
+                         f"{(str(exc).strip().splitlines() or [''])[0]}); check that the file is complete") from None
+
+
+def solid_model(m, path) -> FEMesh:
+    """The FEMesh of a meshio mesh of solid elements of any type (module docstring)."""
+    blocks = [b for b in m.cells if b.type in FAMILY]
+    if not blocks:
+        raise InputError(f"{path}: no solid elements (tetrahedra, hexahedra, wedges, pyramids); sidprep "
+                         "reduces solid models: give the deck with the volume elements")
+    points = np.asarray(m.points, dtype=float)
+    node_ids = _node_ids(m, path)
+    used = np.zeros(len(points), bool)
+    for b in blocks:
+        used[b.data] = True
+    keep = np.flatnonzero(used)
+    renumber = np.cumsum(used) - 1
+    tets, faces = [], []
+    for b in blocks:
+        family = FAMILY[b.type]
+        corners = renumber[b.data[:, :CORNERS[family]]]                 # VTK: corner nodes first
+        t = corners[:, np.array(TETS[family])]                          # (ne, k, 4)
+        x = points[keep][t]
+        vol = np.einsum("eki,eki->ek", np.cross(x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :]),
+                        x[..., 3, :] - x[..., 0, :])
+        sign = np.sign(vol.sum(axis=1))
+        t[vol < 0] = t[vol < 0][:, [0, 2, 1, 3]]
+        tets.append(t.reshape(-1, 4))
+        for f in FACES[family]:
+            face = corners[:, list(f)]
+            faces.append(np.where(sign[:, None] < 0, face[:, ::-1], face))
+    node_sets = {name: np.unique(renumber[idx][used[idx]]) for name, idx in m.point_sets.items()}
+    for name, per_block in m.cell_sets.items():          # sets of surface elements: their nodes
+        nodes = [m.cells[k].data[np.asarray(idx, np.int64)].ravel() for k, idx in enumerate(per_block)
+                 if idx is not None and len(idx) and m.cells[k].type not in FAMILY]
+        if nodes and name not in node_sets:
+            nodes = np.concatenate(nodes)
+            node_sets[name] = np.unique(renumber[nodes[used[nodes]]])
+    return FEMesh(points=points[keep], cells=np.concatenate(tets), node_ids=node_ids[keep], node_sets=node_sets,
+                  source=str(path), sha256=_file_sha256(path), surface=outer_surface(faces),
+                  notes=(f"{path}: {', '.join(sorted({b.type for b in blocks}))} elements: K and M from the "
+                         "FE code; paths interpolate linearly between corner nodes",))
+
+
+def outer_surface(faces) -> np.ndarray:
+    """(nt, 3) triangles of the faces that belong to one element only (quadrilaterals split in two);
+    ``faces``: list of (ne, 3) and (ne, 4) corner-node arrays."""
+    out = []
+    for k in (3, 4):
+        group = [f for f in faces if f.shape[1] == k]
+        if not group:
+            continue
+        f = np.concatenate(group)
+        _, inverse, counts = np.unique(np.sort(f, axis=1), axis=0, return_inverse=True, return_counts=True)
+        f = f[counts[inverse.ravel()] == 1]
+        out.append(f if k == 3 else np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]))
+    return np.concatenate(out).astype(np.int64)
+
+
+def _node_ids(m, path) -> np.ndarray:
+    """The deck's node numbers (Nastran through meshio, Abaqus/CalculiX from the *NODE lines)."""
+    if hasattr(m, "points_id"):
+        return np.asarray(m.points_id, np.int64)
+    if path.suffix.lower() == ".inp":
+        ids, _ = _abaqus_ids(_abaqus_lines(path))
+        if len(ids) == len(m.points):
+            return ids
+    return np.arange(1, len(m.points) + 1, dtype=np.int64)
+
+
+def deck_elements(path) -> list[np.ndarray]:
+    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type."""
+    path = Path(path)
+    m = _meshio(path)
+    ids = _node_ids(m, path)
+    return [ids[b.data] for b in m.cells if b.type in FAMILY]

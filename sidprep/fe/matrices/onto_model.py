@@ -1,0 +1,178 @@
+"""Imported K and M on the model's nodes: DOF map, units, and the checks made before a reduction.
+
+The reduction works on 3 translational DOFs per node, node-interleaved (DOF 3 i + c of node row i,
+sidprep.fe.mesh).  The FE code's rows (node number, DOF 1..6) are permuted onto that numbering
+through the model's node numbers (``FEMesh.node_ids``, kept in the SID).  What is accepted:
+
+* every translational DOF of every model node has a row (a DOF the FE code removed by an SPC or
+  made dependent by an MPC has none: InputError; export the free, unconstrained model);
+* rotational DOFs 4-6 (beam and shell nodes) only when they carry neither stiffness nor mass
+  (CalculiX writes none for solids); otherwise InputError (not supported: the interface
+  coupling and the SID invariants are built on translations);
+* the translational mass is isotropic, M = Ms (x) E3 (any solid element's consistent or lumped
+  mass, point masses): the SID invariants are computed from Ms (sid-spec 4.2).
+
+Checks (InputError, before the reduction): symmetry (reader), a positive diagonal of K and
+K_ii K_jj >= K_ij^2 for every stored entry (necessary for a positive semi-definite K), a
+non-negative mass diagonal, and the rigid-body energy: the six rigid motions of the free model
+must give no strain energy (:func:`rigid_energy_ratio` below ``RIGID_ENERGY_TOL``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from sidprep.errors import InputError
+from sidprep.fe.linalg import rigid_body_modes
+from sidprep.fe.matrices import FEMatrices, read_matrices
+
+#: K_ij^2 > K_ii K_jj (1 + this) for a stored entry: K is indefinite
+MINOR_RTOL = 1e-9
+#: |M_xx - M_yy|, |M_xy| ... / max |M| above this: the translational mass is not Ms (x) E3
+ISOTROPIC_MASS_RTOL = 1e-9
+#: strain energy of a rigid motion / the same energy without cancellation (|r|^T |K| |r|) above
+#: this: K is not free-free (grounded springs, SPCs folded in) or the file lost digits.  CalculiX
+#: writes 13 digits: its free models give 1e-14 - 1e-12
+RIGID_ENERGY_TOL = 1e-8
+
+
+@dataclass(frozen=True)
+class ImportedModel:
+    """K (3n, 3n) N/m and M (3n, 3n) kg of the model's nodes (DOF 3 i + c), the scalar mass Ms
+    (n, n) kg with M = Ms (x) E3, the FE code's eigenvalues (rad/s)^2 or None, the reader's format
+    and version, and the rigid-body energy ratio of K."""
+
+    K: sp.csr_matrix
+    M: sp.csr_matrix
+    Ms: sp.csr_matrix
+    eigenvalues: np.ndarray | None
+    fmt: str
+    rigid_energy_ratio: float
+
+
+def imported_model(mesh, path, units) -> ImportedModel:
+    """Read ``path`` (any format of sidprep.fe.matrices), map it onto ``mesh`` (an FEMesh in metres
+    whose ``node_ids`` are the FE code's node numbers) and convert it to SI with ``units``
+    (sidprep.fe.material.UnitSystem); every check of the module docstring, InputError on failure."""
+    fe = read_matrices(path)
+    K, M = model_dofs(fe, mesh, path)
+    K = K * (units.force_to_n / units.length_to_m)
+    M = M * units.mass_to_kg
+    check_stiffness(K, path)
+    check_mass(M, path)
+    Ms = scalar_mass(M, path)
+    ratio = rigid_energy_ratio(K, mesh.points)
+    if ratio > RIGID_ENERGY_TOL:
+        raise InputError(f"{path}: the six rigid-body motions of the model give strain energy (ratio "
+                         f"{ratio:.1e} > {RIGID_ENERGY_TOL:g}): K is not that of the free model or does not "
+                         "belong to MODEL's coordinates; export it without *BOUNDARY/SPC or springs to ground, "
+                         "with the same nodes and --units as MODEL")
+    return ImportedModel(K, M, Ms, fe.eigenvalues, fe.fmt, ratio)
+
+
+def model_dofs(fe: FEMatrices, mesh, path) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """K and M permuted onto the model's DOFs 3 i + c (module docstring); rows of rotational DOFs
+    are dropped when empty."""
+    node, dof = fe.dofs[:, 0], fe.dofs[:, 1]
+    ids = np.asarray(mesh.node_ids, dtype=np.int64)
+    sorter = np.argsort(ids)
+    pos = np.clip(np.searchsorted(ids, node, sorter=sorter), 0, len(ids) - 1)
+    row = sorter[pos]
+    unknown = ids[row] != node
+    if unknown.any():
+        raise InputError(f"{path}: {int(len(np.unique(node[unknown])))} node(s) of the matrices are not in MODEL "
+                         f"{mesh.source} (first: node {int(node[unknown][0])}); give the deck or mesh the "
+                         "matrices were written from")
+    rotation = dof > 3
+    if rotation.any():
+        loaded = np.flatnonzero(rotation)
+        used = np.asarray(abs(fe.K)[loaded].sum(axis=1)).ravel() + np.asarray(abs(fe.M)[loaded].sum(axis=1)).ravel()
+        if (used > 0).any():
+            first = loaded[used > 0][0]
+            raise InputError(f"{path}: {int((used > 0).sum())} rotational DOF(s) (beam/shell nodes, first: node "
+                             f"{int(node[first])} DOF {int(dof[first])}) carry stiffness or mass; sidprep reduces "
+                             "models with translational DOFs only: model the part with solid elements")
+    keep = np.flatnonzero(~rotation)
+    target = 3 * row[keep] + dof[keep] - 1
+    n = 3 * mesh.n_nodes
+    present = np.zeros(n, bool)
+    present[target] = True
+    if len(np.unique(target)) != len(target):
+        raise InputError(f"{path}: a node DOF appears twice in the DOF map; the file is damaged: write it again")
+    if not present.all():
+        missing = np.flatnonzero(~present)
+        raise InputError(f"{path}: {len(missing)} of the {n} translational DOFs of MODEL {mesh.source} have no row "
+                         f"(first: node {int(ids[missing[0] // 3])} DOF {missing[0] % 3 + 1}): removed by an SPC/"
+                         "*BOUNDARY or an MPC, or the matrices come from another model; export the free, "
+                         "unconstrained model (sidprep adds its own interfaces)")
+    if len(keep) == fe.K.shape[0] and np.array_equal(target, np.arange(n)):
+        return fe.K, fe.M                                 # the FE code numbered the DOFs as MODEL does
+    P = sp.csr_matrix((np.ones(len(keep)), (target, keep)), shape=(n, fe.K.shape[0]))
+    return (P @ fe.K @ P.T).tocsr(), (P @ fe.M @ P.T).tocsr()
+
+
+def check_stiffness(K: sp.csr_matrix, path) -> None:
+    """InputError unless K's diagonal is positive and K_ij^2 <= K_ii K_jj on every stored entry."""
+    d = K.diagonal()
+    if not (d > 0).all():
+        i = int(np.flatnonzero(~(d > 0))[0])
+        raise InputError(f"{path}: the stiffness matrix has a non-positive diagonal entry (DOF {i // 3 + 1}.{i % 3 + 1} "
+                         f"of MODEL's node order: {d[i]:.3g}); K is indefinite or the file is damaged: write it again")
+    C = K.tocoo()
+    bad = C.data ** 2 > d[C.row] * d[C.col] * (1 + MINOR_RTOL)
+    if bad.any():
+        raise InputError(f"{path}: the stiffness matrix is indefinite ({int(bad.sum())} entries with "
+                         "K_ij^2 > K_ii K_jj); export the stiffness of a stable linear elastic model")
+
+
+def check_mass(M: sp.csr_matrix, path) -> None:
+    """InputError when a diagonal entry of M is negative or all of them are zero."""
+    d = M.diagonal()
+    if (d < 0).any() or not (d > 0).any():
+        i = int(np.argmin(d))
+        raise InputError(f"{path}: the mass matrix has a {'negative' if d[i] < 0 else 'zero'} diagonal "
+                         f"({d[i]:.3g} at DOF {i}); export a physical mass matrix (density set on every element)")
+
+
+def scalar_mass(M: sp.csr_matrix, path) -> sp.csr_matrix:
+    """Ms (n, n) with M = Ms (x) E3, checked to ISOTROPIC_MASS_RTOL (module docstring)."""
+    Ms = M[0::3, 0::3].tocsr()
+    scale = float(np.abs(M.data).max())
+    worst = 0.0
+    for a in range(3):
+        for b in range(3):
+            block = M[a::3, b::3] - Ms if a == b else M[a::3, b::3]
+            worst = max(worst, float(abs(block).max()) / scale)
+    if worst > ISOTROPIC_MASS_RTOL:
+        raise InputError(f"{path}: the translational mass is not the same in x, y and z (relative difference "
+                         f"{worst:.1e}): rotary inertia or offsets couple the directions; sidprep reduces "
+                         "solid models (consistent or lumped solid mass, point masses)")
+    return Ms
+
+
+def rigid_energy_ratio(K: sp.spmatrix, points: np.ndarray) -> float:
+    """max over the 6 rigid motions r about the centroid of |r^T K r| / (|r|^T |K| |r|): zero for the
+    K of a free model up to the digits of the file, O(1) for a grounded or foreign K."""
+    R = rigid_body_modes(points - points.mean(axis=0))
+    absK = abs(K)
+    energy = np.abs(np.einsum("ik,ik->k", R, K @ R))
+    scale = np.einsum("ik,ik->k", np.abs(R), absK @ np.abs(R))
+    return float(np.max(energy / scale))
+
+
+def imported_checks(model: ImportedModel, basis) -> dict:
+    """The import's own checks for the check table, JSON-ready: the format read, K's rigid-body energy
+    ratio (tolerance ``RIGID_ENERGY_TOL``) and, when the file carries the FE code's eigenvalues, the
+    largest relative difference of the basis' elastic eigen-kind frequencies from the FE code's."""
+    out = {"matrices_format": model.fmt, "rigid_energy_ratio": model.rigid_energy_ratio,
+           "rigid_energy_tol": RIGID_ENERGY_TOL}
+    if model.eigenvalues is not None:
+        fe_hz = np.sqrt(np.clip(np.sort(model.eigenvalues), 0, None)) / (2 * np.pi)
+        ours = basis.frequencies_hz[np.array(basis.kinds) == "eigen"]
+        elastic = fe_hz[fe_hz > 1e-3 * fe_hz.max()][:len(ours)]
+        out["fe_code_frequencies_hz"] = elastic.tolist()
+        out["fe_code_frequency_max_rel_error"] = float(np.max(np.abs(ours[:len(elastic)] / elastic - 1)))
+    return out
