@@ -4,7 +4,8 @@ Each module ``cli/<name>.py`` that defines ``register(subparsers)`` adds one sub
 parser it adds must set ``func=run`` with ``run(args) -> int``.  Modules import their heavy
 dependencies inside ``run`` so that ``sidprep --help`` stays fast.
 Errors: ``InputError`` -> one line on stderr, exit 2; anything else -> one line naming the
-internal error, exit 3 (``--debug`` shows the traceback).
+internal error, exit 3 (``--debug`` shows the traceback); SIGINT -> exit 130, SIGTERM -> exit 143,
+both after the temporary files are removed.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import sys
 
 from sidprep import cli
 from sidprep import __version__
-from sidprep.errors import InputError
+from sidprep.errors import InputError, Terminated, terminate_on_sigterm
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,6 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    terminate_on_sigterm()
     try:
         return int(args.func(args) or 0)
     except InputError as exc:
@@ -50,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("sidprep: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print("sidprep: terminated", file=sys.stderr)
+        return Terminated.exit_code
     except Exception as exc:  # an internal error, not bad input
         if args.debug:
             raise

@@ -40,7 +40,7 @@ from typing import Mapping
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_hdf5, atomic_path
 from sidprep.solver.effects import EffectEntry, EffectsReport
 
 
@@ -236,13 +236,11 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
 
     scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
     """
-    import h5py
-
     from sidprep import __version__
 
     path = Path(path)
     bodies = bodies or {}
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_hdf5(path) as f:
         f.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, units="SI", sidprep_version=__version__,
                        created_utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
         _put(f, "time", result.t, "s")

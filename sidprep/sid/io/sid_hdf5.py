@@ -29,7 +29,7 @@ import numpy as np
 from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.sid.checks import sid_checks
-from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_hdf5
 from sidprep.sid.model import (BodyPath, J_ORDER, OMEGA_HAT_ORDER, SID, SIDNode, SurfaceModes, Taylor,
     ge_tensor, gr_tensor)
 
@@ -97,7 +97,7 @@ def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
         checks = sid_checks(sid)
     nq = sid.nq
     si = sid.units == "SI"
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_hdf5(path) as f:
         f.attrs.update(format=FORMAT, version=VERSION, units=sid.units)
         units = f.create_group("units")
         units.attrs.update(system=sid.units, **(SI_UNITS if si else {}))
