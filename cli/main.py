@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
+import os
 import pkgutil
 import sys
+import warnings
 
 from sidprep import cli
 from sidprep import __version__
@@ -37,6 +40,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line on stderr, ``sidprep: warning: ...`` (no source line, no location)."""
+    print(f"sidprep: warning: {message}", file=sys.stderr)
+
+
+def check_finite_options(args) -> None:
+    """Every number option is finite: argparse's float() accepts "nan" and "inf"."""
+    for key, value in vars(args).items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"--{key.replace('_', '-')} {value}: must be a finite number")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -44,11 +59,16 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     terminate_on_sigterm()
+    warnings.showwarning = one_line_warning
     try:
+        check_finite_options(args)
         return int(args.func(args) or 0)
     except InputError as exc:
         print(f"sidprep: error: {exc}", file=sys.stderr)
         return InputError.exit_code
+    except BrokenPipeError:            # stdout closed early (``sidprep info X | head``): not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print("sidprep: interrupted", file=sys.stderr)
         return 130

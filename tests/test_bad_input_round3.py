@@ -87,10 +87,13 @@ def leftovers(folder: Path) -> list[Path]:
 
 def check_outcome(proc, code: int, pattern: str) -> None:
     assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, proc.stderr[-3000:]
+    assert "RuntimeWarning" not in proc.stderr, proc.stderr[-3000:]
     assert proc.returncode == code, (proc.returncode, proc.stderr[-3000:])
-    if pattern:
+    if code == 2:   # one line: the error, last
         last = proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else ""
-        assert re.search(pattern, last), proc.stderr[-3000:]
+        assert last.startswith("sidprep: error: ") and re.search(pattern, last), proc.stderr[-3000:]
+    elif pattern:
+        assert re.search(pattern, proc.stderr, re.M), proc.stderr[-3000:]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -170,6 +173,205 @@ def full_disk_reduce(tmp):
 def full_disk_view(tmp):
     return (["view", PENDULUM / "bar.sid.h5", "-o", tmp / "full" / "bar.html"], 2,
             r"full/bar\.html: could not be written")
+
+
+# ------------------------------------------------------------------------------------------------
+# 2. hangs: every size of work is bounded before the work
+# ------------------------------------------------------------------------------------------------
+
+def pendulum(tmp: Path, replace: dict | None = None, append: str = "") -> Path:
+    """The flexible pendulum example copied to ``tmp``; ``replace`` edits lines of its scene file."""
+    folder = tmp / "pendulum"
+    if not folder.exists():
+        shutil.copytree(PENDULUM, folder)
+    text = (PENDULUM / "scene.toml").read_text()
+    for old, new in (replace or {}).items():
+        assert old in text, old
+        text = text.replace(old, new)
+    (folder / "scene.toml").write_text(text + append)
+    return folder / "scene.toml"
+
+
+@case("hang")
+def path_with_1e8_samples(tmp):
+    return (["reduce", BAR, "--modes", 2, "-q", "--path", "p:0,0.025,0.04:1,0.025,0.04:100000000", "-o",
+             tmp / "b.sid.h5"], 2, r"2 <= n <= 100000 samples")
+
+
+@case("hang")
+def beam_with_100000_modes(tmp):
+    return (["beam", "--length", 1, "--section", "circle:0.02", "--modes", "xz:1-100000", "-o", tmp / "b.sid.h5"],
+            2, r"xz:1-100000 is not a range 1 <= first <= last <= 100")
+
+
+@case("hang")
+def scene_t_end_1e300(tmp):
+    return (["simulate", pendulum(tmp, {"t_end = 1.0 ": "t_end = 1e300 "}), "-q", "-o", tmp / "r.h5"], 2,
+            r"t_end = 1e\+300 s with step = 0.001 s: 1e\+303 steps")
+
+
+@case("hang")
+def scene_t_end_1e300_absolute_nodal(tmp):
+    scene = tmp / "an.toml"
+    scene.write_text((ROOT / "examples" / "two_link_manipulator" / "scene.toml").read_text())
+    text = re.sub(r"(?m)^t_end\s*=.*$", "t_end = 1e300", scene.read_text())
+    scene.write_text(text)
+    return ["simulate", scene, "-q", "-o", tmp / "r.h5"], 2, r"steps, more than"
+
+
+# ------------------------------------------------------------------------------------------------
+# 3. internal errors: every number that enters is finite and in range
+# ------------------------------------------------------------------------------------------------
+
+def study(tmp: Path, batch: str) -> Path:
+    path = tmp / "study.toml"
+    path.write_text(f'[job]\nmesh = "{BAR}"\nmodes = 2\n\n[batch]\n{batch}\n')
+    return path
+
+
+@case("internal")
+def batch_workers_minus_2(tmp):
+    return ["batch", study(tmp, "workers = -2"), "-q"], 2, r"study\.toml: \[batch\] workers = -2: must be >= 1"
+
+
+@case("silent")
+def batch_memory_limit_minus_5(tmp):
+    return ["batch", BAR, "--memory-limit", -5, "-q", "-o", tmp / "out"], 2, r"memory_limit_mb = -5.0: must be a positive"
+
+
+@case("internal")
+def study_nan_memory_limit(tmp):
+    return ["batch", study(tmp, "memory_limit_mb = nan"), "-q"], 2, r"memory_limit_mb = nan: numbers must be finite"
+
+
+@case("internal")
+def path_with_nan_point(tmp):
+    return (["reduce", BAR, "--modes", 2, "-q", "--path", "p:0,nan,0.04:1,0.025,0.04", "-o", tmp / "b.sid.h5"],
+            2, r"coordinates must be finite")
+
+
+@case("internal")
+def beam_length_nan(tmp):
+    return ["beam", "--length", "nan", "--section", "circle:0.02", "--modes", "xz:1", "-o", tmp / "b.sid.h5"], 2, \
+        r"--length nan: must be a finite number"
+
+
+@case("internal")
+def scene_step_1e_300(tmp):
+    return (["simulate", pendulum(tmp, {"step = 1e-3 ": "step = 1e-300 "}), "-q", "-o", tmp / "r.h5"], 2,
+            r"step = 1e-300 s: shorter than 1e-12 s")
+
+
+@case("internal")
+def simulate_t_end_inf_option(tmp):
+    return ["simulate", pendulum(tmp), "--t-end", "inf", "-q", "-o", tmp / "r.h5"], 2, r"--t-end inf: must be a finite"
+
+
+# ------------------------------------------------------------------------------------------------
+# 4. damaged SID files: validated at read (errors for simulate, one-line warnings for info / view)
+# ------------------------------------------------------------------------------------------------
+
+def damaged_hdf5(tmp: Path, edit: str) -> Path:
+    """The pendulum's bar.sid.h5 with one damage: "nan_mass", "neg_mass", "nan_J", "neg_Jyy", "inf_Ke"."""
+    import h5py
+    import numpy as np
+
+    path = tmp / f"bar_{edit}.sid.h5"
+    shutil.copy(PENDULUM / "bar.sid.h5", path)
+    member, index, value = {"nan_mass": (None, None, np.nan), "neg_mass": (None, None, -2.0),
+                            "nan_J": ("modal/J/M0", (1, 0), np.nan), "neg_Jyy": ("modal/J/M0", (1, 0), -1.0),
+                            "inf_Ke": ("modal/Ke/M0", (0, 0), np.inf)}[edit]
+    with h5py.File(path, "r+") as f:
+        if member is None:
+            f["refmod"].attrs["mass"] = value
+        else:
+            a = f[member][()]
+            a[index] = value
+            f[member][...] = a
+    return path
+
+
+def damaged_sid_fem(tmp: Path, mass: str) -> Path:
+    """A Beam's .SID_FEM with the mass line set to ``mass`` (e.g. "1.0D+999", "NaN")."""
+    if not (tmp / "beam.SID_FEM").exists():
+        assert sidprep("beam", "--length", 1, "--section", "circle:0.02", "--modes", "xz:1-2", "--sid-fem",
+                       "-o", tmp / "beam.sid.h5").returncode == 0
+    path = tmp / f"beam_{mass.replace('+', '')}.SID_FEM"
+    path.write_text(re.sub(r"(mass\s+=\s*)\S+", lambda m: m.group(1) + mass,
+                           (tmp / "beam.SID_FEM").read_text(), count=1))
+    return path
+
+
+WARNING = r"^sidprep: warning: .*{}.*sidprep check"
+for _edit, _needle in (("nan_mass", "entries finite fails.*mass"), ("neg_mass", "mass > 0 fails"),
+                       ("nan_J", "entries finite fails.*J.M0"), ("neg_Jyy", "inertia about CM positive definite fails"),
+                       ("inf_Ke", "entries finite fails.*Ke.M0")):
+    CASES[f"info_{_edit}"] = Case(f"info_{_edit}", "sid-check", lambda tmp, e=_edit, n=_needle: (
+        ["info", damaged_hdf5(tmp, e)], 0, WARNING.format(n)))
+    CASES[f"simulate_{_edit}"] = Case(f"simulate_{_edit}", "sid-check", lambda tmp, e=_edit, n=_needle: (
+        ["simulate", pendulum(tmp, {'sid = "bar.sid.h5"': f'sid = "{damaged_hdf5(tmp, e)}"'}), "-q",
+         "-o", tmp / "r.h5"], 2, r"not a physically possible body: " + n))
+for _mass in ("1.0D+999", "NaN"):
+    CASES[f"info_sid_fem_mass_{_mass}"] = Case(f"info_sid_fem_mass_{_mass}", "sid-check", lambda tmp, m=_mass: (
+        ["info", damaged_sid_fem(tmp, m)], 0, WARNING.format("entries finite fails.*mass")))
+    CASES[f"simulate_sid_fem_mass_{_mass}"] = Case(f"simulate_sid_fem_mass_{_mass}", "sid-check", lambda tmp, m=_mass: (
+        ["simulate", pendulum(tmp, {'sid = "bar.sid.h5"': f'sid = "{damaged_sid_fem(tmp, m)}"'}), "-q",
+         "-o", tmp / "r.h5"], 2, r"not a physically possible body: entries finite fails.*mass"))
+CASES["view_nan_J"] = Case("view_nan_J", "sid-check", lambda tmp: (
+    ["view", damaged_hdf5(tmp, "nan_J"), "-o", tmp / "v.html"], 0, WARNING.format("entries finite fails.*J.M0")))
+
+
+@case("internal")
+def animate_empty_file(tmp):
+    (tmp / "empty.h5").write_bytes(b"")
+    return ["animate", tmp / "empty.h5"], 2, r"empty\.h5: not a readable HDF5 file"
+
+
+# ------------------------------------------------------------------------------------------------
+# 5. security: a SID or results file reads no file the user did not name
+# ------------------------------------------------------------------------------------------------
+
+def foreign_hdf5(tmp: Path, kind: str, source: Path = PENDULUM / "bar.sid.h5", member: str = "modal/Ke/M0") -> Path:
+    """A copy of ``source`` whose ``member`` is replaced by an external link / external storage /
+    virtual dataset reading ``tmp/secret.*``."""
+    import h5py
+    import numpy as np
+
+    path = tmp / f"{kind}{''.join(source.suffixes)}"
+    shutil.copy(source, path)
+    with h5py.File(path, "r+") as f:
+        shape = f[member].shape
+        del f[member]
+        if kind == "external_link":
+            with h5py.File(tmp / "secret.h5", "w") as g:
+                g["data"] = np.ones(shape)
+            f[member] = h5py.ExternalLink(str(tmp / "secret.h5"), "data")
+        elif kind == "external_storage":
+            (tmp / "secret.txt").write_bytes(b"password" * int(np.prod(shape)))
+            f.create_dataset(member, shape=shape, dtype="<f8", external=[(str(tmp / "secret.txt"), 0, h5py.h5f.UNLIMITED)])
+        else:
+            with h5py.File(tmp / "secret.h5", "w") as g:
+                g["data"] = np.ones(shape)
+            layout = h5py.VirtualLayout(shape=shape, dtype="f8")
+            layout[...] = h5py.VirtualSource(str(tmp / "secret.h5"), "data", shape=shape)
+            f.create_virtual_dataset(member, layout)
+    return path
+
+
+for _kind, _needle in (("external_link", "is an external link to"), ("external_storage", "stores its data in the external file"),
+                       ("virtual", "is a virtual dataset mapped from")):
+    CASES[f"info_{_kind}"] = Case(f"info_{_kind}", "security", lambda tmp, k=_kind, n=_needle: (
+        ["info", foreign_hdf5(tmp, k)], 2, rf"/modal/Ke/M0 {n} .*secret.*refused"))
+    CASES[f"simulate_{_kind}"] = Case(f"simulate_{_kind}", "security", lambda tmp, k=_kind, n=_needle: (
+        ["simulate", pendulum(tmp, {'sid = "bar.sid.h5"': f'sid = "{foreign_hdf5(tmp, k)}"'}), "-q",
+         "-o", tmp / "r.h5"], 2, rf"{n} .*secret.*refused"))
+
+
+@case("security")
+def animate_results_with_external_link(tmp):
+    proc = sidprep("simulate", pendulum(tmp), "--t-end", 0.01, "-q", "-o", tmp / "r.h5")
+    assert proc.returncode == 0, proc.stderr
+    return ["animate", foreign_hdf5(tmp, "external_link", tmp / "r.h5", "time")], 2, r"/time is an external link"
 
 
 # ------------------------------------------------------------------------------------------------
