@@ -49,8 +49,6 @@ def batch_from_args(args):
         return jobs, BatchOptions(**{**settings, **given})
     if any(i.lower().endswith(".toml") for i in args.inputs):
         raise InputError("batch: give one study .toml file, or mesh files; not both")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers}: must be >= 1")
     return jobs_from_meshes(args.inputs, ReduceOptions(**options_given(args, ReduceOptions))), BatchOptions(**given)
 
 

@@ -20,7 +20,7 @@ def run(args) -> int:
     from sidprep.sid.checks import failed_checks, format_checks, sid_checks
     from sidprep.sid.io import read_sid
 
-    checks = sid_checks(read_sid(args.file))
+    checks = sid_checks(read_sid(args.file, physical="off"))
     print(format_checks(checks))
     failed = failed_checks(checks)
     if failed:

@@ -18,7 +18,7 @@ def format_table(summary: dict) -> str:
     from sidprep.sid.checks import format_checks
 
     def row(v):
-        return "  ".join(f"{x: .6e}" for x in v)
+        return "  ".join(f"{float('nan') if x is None else x: .6e}" for x in v)
 
     lines = [f"mass            {summary['mass_kg']:.6g} kg   (units {summary['units']})",
              f"centre of mass  {row(summary['center_of_mass'])} m",

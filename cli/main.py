@@ -4,19 +4,23 @@ Each module ``cli/<name>.py`` that defines ``register(subparsers)`` adds one sub
 parser it adds must set ``func=run`` with ``run(args) -> int``.  Modules import their heavy
 dependencies inside ``run`` so that ``sidprep --help`` stays fast.
 Errors: ``InputError`` -> one line on stderr, exit 2; anything else -> one line naming the
-internal error, exit 3 (``--debug`` shows the traceback).
+internal error, exit 3 (``--debug`` shows the traceback); SIGINT -> exit 130, SIGTERM -> exit 143,
+both after the temporary files are removed.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import math
+import os
 import pkgutil
 import sys
+import warnings
 
 from sidprep import cli
 from sidprep import __version__
-from sidprep.errors import InputError
+from sidprep.errors import InputError, Terminated, terminate_on_sigterm
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,20 +40,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line on stderr, ``sidprep: warning: ...`` (no source line, no location)."""
+    print(f"sidprep: warning: {message}", file=sys.stderr)
+
+
+def check_finite_options(args) -> None:
+    """Every number option is finite: argparse's float() accepts "nan" and "inf"."""
+    for key, value in vars(args).items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"--{key.replace('_', '-')} {value}: must be a finite number")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    terminate_on_sigterm()
+    warnings.showwarning = one_line_warning
     try:
+        check_finite_options(args)
         return int(args.func(args) or 0)
     except InputError as exc:
         print(f"sidprep: error: {exc}", file=sys.stderr)
         return InputError.exit_code
+    except BrokenPipeError:            # stdout closed early (``sidprep info X | head``): not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print("sidprep: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print("sidprep: terminated", file=sys.stderr)
+        return Terminated.exit_code
     except Exception as exc:  # an internal error, not bad input
         if args.debug:
             raise

@@ -19,3 +19,21 @@ class SimulationFailed(InputError):
     def __init__(self, message: str, result=None):
         super().__init__(message)
         self.result = result
+
+
+class Terminated(BaseException):
+    """SIGTERM received (``terminate_on_sigterm``): unwinds like KeyboardInterrupt, so that
+    temporary files are removed; the CLI exits 143 (128 + SIGTERM)."""
+
+    exit_code = 143
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+def terminate_on_sigterm() -> None:
+    """Turn SIGTERM into a ``Terminated`` exception in the main thread (the CLI installs it)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, _raise_terminated)

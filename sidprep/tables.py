@@ -6,6 +6,7 @@ of the wrong type give one-line InputErrors naming the file, the key and the exp
 
 from __future__ import annotations
 
+import math
 import types
 import typing
 from dataclasses import MISSING, fields
@@ -54,6 +55,17 @@ def _matches(value, hint) -> bool:
     return isinstance(value, hint)
 
 
+def _finite(value) -> bool:
+    """No nan / inf anywhere in ``value`` (numbers, lists and tables of them)."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, (list, tuple)):
+        return all(_finite(v) for v in value)
+    if isinstance(value, dict):
+        return all(_finite(v) for v in value.values())
+    return True
+
+
 def _describe(hint) -> str:
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
@@ -89,6 +101,8 @@ def checked_table(table: dict, cls, source, *, context: str = "") -> dict:
     for key, value in table.items():
         if not _matches(value, hints[key]):
             raise InputError(f"{where}{key} = {value!r}: expected {_describe(hints[key])}")
+        if not _finite(value):
+            raise InputError(f"{where}{key} = {value!r}: numbers must be finite (TOML nan / inf are not)")
     return {k: _frozen(v) for k, v in table.items()}
 
 

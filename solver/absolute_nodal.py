@@ -38,6 +38,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.solver.integrators.runge_kutta import rk4_fixed
+from sidprep.solver.integrators.settings import check_run_size
 
 #: Baumgarte stabilisation of the driver constraints, Phi'' + 2 a Phi' + a^2 Phi = 0 (1/s)
 BAUMGARTE_RATE = 20.0
@@ -133,6 +134,9 @@ class AbsoluteNodalSettings:
     t_end: float = 1.0
     step: float = 2.5e-4
     rate: float | None = None
+
+    def __post_init__(self):
+        check_run_size(self.t_end, self.step, None if self.rate is None else 1.0 / self.rate, True)
 
 
 # ---------------------------------------------------------------------------------------------

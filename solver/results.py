@@ -40,7 +40,8 @@ from typing import Mapping
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_hdf5, atomic_path
+from sidprep.sid.io.hdf5 import open_hdf5
 from sidprep.solver.effects import EffectEntry, EffectsReport
 
 
@@ -236,13 +237,11 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
 
     scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
     """
-    import h5py
-
     from sidprep import __version__
 
     path = Path(path)
     bodies = bodies or {}
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_hdf5(path) as f:
         f.attrs.update(format=FORMAT, format_version=FORMAT_VERSION, units="SI", sidprep_version=__version__,
                        created_utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
         _put(f, "time", result.t, "s")
@@ -283,12 +282,8 @@ def _effects_from_dict(d: Mapping) -> EffectsReport:
 
 def read_results(path: str | os.PathLike) -> ResultsFile:
     """Read a results file written by ``write_results``."""
-    import h5py
-
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such results file; run `sidprep simulate SCENE -o {path}` first")
-    with h5py.File(path, "r") as f:
+    with open_hdf5(path, "results file", f"run `sidprep simulate SCENE -o {path}` first") as f:
         if f.attrs.get("format") != FORMAT:
             raise InputError(f"{path}: not a sidprep results file (no format={FORMAT!r} attribute); "
                              "pass the file written by `sidprep simulate`")

@@ -10,6 +10,7 @@ same Result.
 from __future__ import annotations
 
 import copy
+import math
 import sys
 import threading
 import time
@@ -26,6 +27,7 @@ from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
                                                 independent_rows, length_weights, project_velocities, quasi_static_elastic)
 from sidprep.solver.integrators.planar import planar_coordinates
+from sidprep.solver.integrators.settings import check_run_size
 from sidprep.solver.model.bodies import RigidBody
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
@@ -81,8 +83,9 @@ class Run:
     """One simulation of ``system`` to ``t_end`` (s) with ``settings`` (SolverSettings)."""
 
     def __init__(self, system, t_end: float, settings):
-        if not t_end > 0:
-            raise InputError(f"simulate: t_end = {t_end} s must be > 0; fix the [solver] value")
+        if not (t_end > 0 and math.isfinite(t_end)):
+            raise InputError(f"simulate: t_end = {t_end} s must be > 0 and finite; fix the [solver] value")
+        check_run_size(t_end, settings.h, settings.output_dt, settings.tolerance is None, settings.max_steps)
         try:
             system.check()
         except ValueError as exc:

@@ -284,7 +284,7 @@ def _flexible_body(name: str, t: _Table, pose: dict):
     from sidprep.sid.io import read_sid
 
     try:
-        sid = read_sid(path)
+        sid = read_sid(path, physical="error")
     except InputError as exc:
         t.fail("sid", f"cannot read {path} ({exc})", "regenerate the SID file")
     q0 = t.array("q0", None, shape=(sid.nq,))

@@ -12,6 +12,8 @@ import contextlib
 import hashlib
 import io
 import itertools
+import re
+import struct
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -260,6 +262,8 @@ def _read_gmsh(path, *, size, order) -> _RawMesh:
         options.update({"Mesh.MeshSizeFromPoints": 0.0, "Mesh.MeshSizeMax": float(size)})
     with _gmsh_session(options) as gmsh:
         try:
+            if suffix == ".msh":
+                _refuse_mixed_volume_entities(gmsh, path)
             gmsh.merge(str(path))
             if suffix != ".msh" and not _gmsh_volume_types(gmsh):
                 gmsh.model.mesh.generate(3)
@@ -273,6 +277,76 @@ def _read_gmsh(path, *, size, order) -> _RawMesh:
                 f"{path}: gmsh could not {what} it ({str(exc).strip() or 'unknown error'}); "
                 "check that the file is complete and valid"
             ) from None
+
+
+def _refuse_mixed_volume_entities(gmsh, path) -> None:
+    """Refuse a .msh file with two kinds of volume element in one entity, before gmsh reads it.
+
+    gmsh keeps all tetrahedra of a volume entity in one list and sizes its output arrays by the
+    type of the first (``getElementsByType``): a tet10 after a tet4 writes past the array and
+    aborts the process in malloc.  So the element types per entity are counted from the file's
+    ``$Elements`` section first (``msh_volume_types``).
+    """
+    for entity, types in msh_volume_types(path, gmsh.model.mesh.getElementProperties).items():
+        if len(types) > 1:
+            names = ", ".join(sorted(gmsh.model.mesh.getElementProperties(t)[0] for t in types))
+            raise InputError(f"{path}: volume {entity} mixes element types ({names}); re-mesh it with one "
+                             "element order (all tet4 or all tet10)")
+
+
+def msh_volume_types(path, properties) -> dict[int, set[int]]:
+    """{volume entity tag: gmsh element types of dimension 3 in it}, from a .msh file (2.2 / 4.x,
+    ASCII or binary).  ``properties(type)`` is gmsh's ``getElementProperties`` (name, dim, order,
+    number of nodes, ...).  Unknown layouts return {} (gmsh then reads and judges the file)."""
+    data = path.read_bytes()
+    head = re.search(rb"\$MeshFormat\s+(\S+)\s+(\d)\s+(\d)", data)
+    start = data.find(b"$Elements")
+    if head is None or start < 0:
+        return {}
+    version, binary = float(head.group(1)), head.group(2) == b"1"
+    body = data[data.index(b"\n", start) + 1:]
+    census: dict[int, set[int]] = {}
+    try:
+        for entity, etype in _msh_element_blocks(body, version, binary, properties):
+            if properties(etype)[1] == 3:
+                census.setdefault(entity, set()).add(etype)
+    except Exception:  # noqa: BLE001  struct / index / gmsh errors: a broken section, which
+        return {}      # gmsh's own reader then reports
+    return census
+
+
+def _msh_element_blocks(body: bytes, version: float, binary: bool, properties):
+    """(entity tag, element type) pairs of an $Elements section (after its header line)."""
+    if version < 3:                                   # 2.2: per element, entity = second tag
+        count, _, rest = body.partition(b"\n")
+        if not binary:
+            for line in rest.split(b"\n", int(count))[:int(count)]:
+                f = line.split()
+                yield (int(f[4]) if int(f[2]) >= 2 else 0), int(f[1])
+            return
+        pos, seen = 0, 0
+        while seen < int(count):
+            etype, n, ntags = struct.unpack_from("<3i", rest, pos)
+            width = 1 + ntags + properties(etype)[3]
+            rows = np.frombuffer(rest, "<i4", n * width, pos + 12).reshape(n, width)
+            for entity in np.unique(rows[:, 2]) if ntags >= 2 else (0,):
+                yield int(entity), etype
+            pos, seen = pos + 12 + 4 * n * width, seen + n
+        return
+    if not binary:                                    # 4.x: per block of one entity
+        lines = body.split(b"\n")
+        k = 1
+        for _ in range(int(lines[0].split()[0])):
+            f = [int(v) for v in lines[k].split()]
+            yield (f[1] if version >= 4.1 else f[0]), f[2]
+            k += 1 + f[3]
+        return
+    pos = 32
+    for _ in range(struct.unpack_from("<Q", body, 0)[0]):
+        first, second, etype = struct.unpack_from("<3i", body, pos)
+        n = struct.unpack_from("<Q", body, pos + 12)[0]
+        yield (second if version >= 4.1 else first), etype
+        pos += 20 + 8 * n * (1 + properties(etype)[3])
 
 
 def _gmsh_volume_types(gmsh) -> list[int]:

@@ -16,6 +16,7 @@ import hashlib
 import io
 import itertools
 import json
+import math
 import multiprocessing
 import os
 import re
@@ -63,6 +64,13 @@ class BatchOptions:
     memory_limit_mb: float | None = None
     sid_fem: bool = True
     obj: bool = True
+
+    def __post_init__(self):
+        if self.workers is not None and not self.workers >= 1:
+            raise InputError(f"workers = {self.workers}: must be >= 1 (or left out: one per core)")
+        if self.memory_limit_mb is not None and not (self.memory_limit_mb > 0 and math.isfinite(self.memory_limit_mb)):
+            raise InputError(f"memory_limit_mb = {self.memory_limit_mb}: must be a positive number of MiB "
+                             "(or left out: a share of the available memory)")
 
 
 @dataclass(frozen=True)
@@ -229,6 +237,10 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             name = _safe(Path(job.mesh).name.split(".")[0] + (f"-{label}" if label else ""))
             jobs.append(BatchJob(name, job.mesh, job.options, tuple(sorted(shown.items()))))
     settings = checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")
+    try:
+        BatchOptions(**settings)
+    except InputError as exc:
+        raise InputError(f"{path}: [batch] {exc}") from None
     if "outdir" in settings and not Path(settings["outdir"]).is_absolute():
         settings["outdir"] = str(path.parent / settings["outdir"])
     return unique_names(jobs), settings

@@ -33,6 +33,9 @@ from sidprep.sid.stress import STRESS_ORDER, StressModes
 BOUNDARY_CONDITIONS = ("free-free", "clamped-free", "pinned-pinned", "pinned-free",
                        "clamped-pinned", "clamped-clamped")
 KINDS = ("xz", "xy", "torsion", "axial")
+#: highest eigenform number of a kind: beyond, the half-wavelength falls far below any section
+#: height (Euler-Bernoulli theory no longer holds) and the surface / path sampling grows with it
+MAX_MODE_NUMBER = 100
 PROFILES = {"general": ("A", "Iy", "Iz", "J"), "rectangle": ("b", "h"), "circle": ("d",),
             "tube": ("D", "d"), "rectangular_tube": ("b", "h", "t"), "I": ("b", "h", "tw", "tf"),
             "T": ("b", "h", "tw", "tf"), "U": ("b", "h", "tw", "tf")}
@@ -162,8 +165,9 @@ def check_beam_options(o: BeamOptions) -> None:
     if not o.modes:
         raise InputError("beam: no modes selected; give e.g. modes xz:1-3,xy:1")
     for kind, n in o.modes:
-        if kind not in KINDS or int(n) < 1:
-            raise InputError(f"beam: mode {kind}:{n} invalid; kinds are {', '.join(KINDS)}, ordinals from 1")
+        if kind not in KINDS or not 1 <= int(n) <= MAX_MODE_NUMBER:
+            raise InputError(f"beam: mode {kind}:{n} invalid; kinds are {', '.join(KINDS)}, ordinals from 1 "
+                             f"to {MAX_MODE_NUMBER}")
     if len(set(o.modes)) != len(o.modes):
         raise InputError("beam: a mode is selected twice; list each kind:ordinal once")
     if len(o.damping) not in (1, len(o.modes)) or not all(0 <= z < 1 for z in o.damping):
@@ -493,6 +497,9 @@ def parse_modes(spec: str) -> tuple[tuple[str, int], ...]:
             raise InputError(f"modes {spec!r}: expected e.g. xz:1-7,xy:1-2,torsion:1,axial:1 "
                              f"(kinds {', '.join(KINDS)})")
         a, b = int(mt[1]), int(mt[2] or mt[1])
+        if not 1 <= a <= b <= MAX_MODE_NUMBER:
+            raise InputError(f"modes {spec!r}: {kind}:{tok} is not a range 1 <= first <= last <= "
+                             f"{MAX_MODE_NUMBER}; ask for the eigenforms of interest, e.g. {kind}:1-7")
         out += [(kind, n) for n in range(a, b + 1)]
     return tuple(out)
 

@@ -44,6 +44,8 @@ from sidprep.sid.model import BodyPath
 
 #: samples of a path unless the spec gives their number
 DEFAULT_PATH_POINTS = 201
+#: most samples of a path (each holds 6 nq mode-shape values; 1e8 samples ran past 4 GB)
+MAX_PATH_POINTS = 100_000
 #: a point belongs to an element when its barycentric coordinates are >= -this
 INSIDE_TOL = 1e-9
 #: a point outside every element is accepted (as on the body's surface) when it lies within this
@@ -93,14 +95,16 @@ def parse_path(spec: str, length_to_m: float = 1.0) -> PathSpec:
     name, *fields = str(spec).split(":")
     try:
         n = int(fields.pop()) if fields and fields[-1].strip().lstrip("+-").isdigit() else DEFAULT_PATH_POINTS
-        if not name or n < 2:
-            raise ValueError("needs a name and n >= 2 samples")
+        if not name or not 2 <= n <= MAX_PATH_POINTS:
+            raise ValueError(f"needs a name and 2 <= n <= {MAX_PATH_POINTS} samples")
         keyed = dict(f.split("=", 1) for f in fields if "=" in f)
         if keyed:
             return node_path_spec(name, n, keyed, len(fields))
         points = np.array([[float(v) for v in f.split(",")] for f in fields]) * length_to_m
         if len(points) < 2 or points.shape[1:] != (3,):
             raise ValueError("needs two or more points of 3 coordinates")
+        if not np.isfinite(points).all():
+            raise ValueError("coordinates must be finite numbers")
         if (np.linalg.norm(np.diff(points, axis=0), axis=1) == 0.0).any():
             raise ValueError("two consecutive points are the same")
     except ValueError as exc:

@@ -281,6 +281,50 @@ def inertia_about_cm(sid: SID) -> np.ndarray:
     return inertia_matrix(sid.J.M0) - sid.mass * (c @ c * np.eye(3) - np.outer(c, c))
 
 
+def numeric_arrays(sid: SID):
+    """(name, array) of every number of a SID that enters the equations: mass, the Taylor members
+    of the modal part and of each node, the stiffening parts, the path tables (not the label
+    frequencies, which are NaN where a coordinate has none)."""
+    yield "mass", np.asarray(sid.mass, dtype=float)
+    members = [(m, getattr(sid, m)) for m in ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")]
+    members += [(f"node {n.node_id} {m}", getattr(n, m)) for n in sid.nodes
+                for m in ("origin", "phi", "psi", "AP", "sigma") if getattr(n, m) is not None]
+    for name, T in members:
+        yield f"{name}.M0", np.asarray(T.M0, dtype=float)
+        if T.M1 is not None:
+            yield f"{name}.M1", np.asarray(T.M1, dtype=float)
+    for key, value in sid.stiffening.items():
+        yield f"stiffening {key}", np.asarray(value, dtype=float)
+    for name, path in sid.paths.items():
+        for member in ("s", "points", "phi", "psi"):
+            yield f"path {name} {member}", np.asarray(getattr(path, member), dtype=float)
+
+
+def finite_entries(sid: SID) -> dict:
+    """Every number of the SID is finite (a NaN or inf makes every other check meaningless)."""
+    bad = [name for name, a in numeric_arrays(sid) if not np.isfinite(a).all()]
+    shown = f" ({', '.join(bad[:4])}{' ...' if len(bad) > 4 else ''})" if bad else ""
+    return {"entries finite": _entry(len(bad), 0, f"members with NaN or inf entries{shown}; value = their number")}
+
+
+#: the checks whose failure makes a SID physically impossible: ``simulate`` refuses it, ``info`` and
+#: ``view`` warn (``physical_problems``)
+PHYSICAL = ("entries finite", "mass > 0", "inertia about CM positive definite", "inertia triangle inequalities",
+            "Ke positive semidefinite", "node orientations AP0 are rotations", "Me symmetric positive definite")
+
+
+def physical_problems(sid: SID) -> list[str]:
+    """One line per failed PHYSICAL check of ``sid``: "NAME (description)"; empty when it is a body
+    that can exist.  Non-finite entries are reported alone (nothing else can be judged then)."""
+    with np.errstate(all="ignore"):
+        checks = finite_entries(sid)
+        if checks["entries finite"]["passed"]:
+            checks.update(physical_checks(sid))
+            checks.update(modal_checks(sid))
+    return [f"{name} fails ({checks[name]['description']})" for name in PHYSICAL
+            if name in checks and not checks[name]["passed"]]
+
+
 def physical_checks(sid: SID) -> dict:
     """Is the SID physically possible?  Mass, inertia about the CM, Ke, node orientations (any SID,
     any generator).
@@ -388,11 +432,19 @@ def normalise_external(checks) -> dict:
 
 
 def sid_checks(sid: SID) -> dict:
-    """All checks of ``sid``: identities, modal data, free-body checks, and the FE comparisons."""
+    """All checks of ``sid``: identities, modal data, free-body checks, and the FE comparisons.
+
+    A SID with NaN or inf entries gets only "entries finite" (and the file notes): the other
+    checks would compare NaNs.  Overflow in a check makes its value inf (a failure), silently.
+    """
     meta = sid.metadata if isinstance(sid.metadata, dict) else {}
-    return {**file_notes(sid), **physical_checks(sid), **node_identities(sid), **inertia_identities(sid),
-            **zeroed_entry_checks(sid), **modal_checks(sid), **free_body_checks(sid),
-            **normalise_external(meta.get("checks"))}
+    finite = finite_entries(sid)
+    if not finite["entries finite"]["passed"]:
+        return {**file_notes(sid), **finite}
+    with np.errstate(all="ignore"):
+        return {**file_notes(sid), **finite, **physical_checks(sid), **node_identities(sid),
+                **inertia_identities(sid), **zeroed_entry_checks(sid), **modal_checks(sid),
+                **free_body_checks(sid), **normalise_external(meta.get("checks"))}
 
 
 def failed_checks(checks: dict) -> list[str]:

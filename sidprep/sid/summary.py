@@ -14,15 +14,17 @@ from sidprep.sid.stress import STRESS_ORDER, von_mises
 
 def sid_info(path) -> dict:
     """Read a SID file (.sid.h5 / .SID_FEM), run its model checks, return ``body_summary``."""
-
     sid = read_sid(path)
     return body_summary(sid, sid_checks(sid))
 
 
 def body_summary(sid, checks: dict) -> dict:
     """JSON-ready summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes."""
+    with np.errstate(all="ignore"):    # a damaged SID (NaN, inf, m = 0) is summarised as it is; checks flag it
+        return _summary(sid, checks)
 
 
+def _summary(sid, checks: dict) -> dict:
     c = sid.mdCM.M0[:, 0] / sid.mass if sid.mass else np.zeros(3)
     I_o = inertia_matrix(sid.J.M0[:, 0])
     I_cm = I_o - sid.mass * (c @ c * np.eye(3) - np.outer(c, c))     # parallel-axis theorem

@@ -13,6 +13,32 @@ METHODS = ("genalpha", "rk4", "rk45", "dop853")
 ADAPTIVE_ONLY = ("rk45", "dop853")
 #: rtol of RK45 / DOP853 when none is given
 ADAPTIVE_RTOL = 1e-8
+#: most steps of a run (t_end / step of a fixed-step run is checked before the work): 1e7
+#: generalised-alpha steps of a small scene already take hours
+MAX_STEPS = 10_000_000
+#: most result samples kept (t_end * rate, or the steps when every step is kept): memory
+MAX_SAMPLES = 1_000_000
+#: shortest step, s: no mechanical time scale is shorter, and h^2 underflows near 1e-160
+MIN_STEP_S = 1e-12
+
+
+def check_run_size(t_end: float, h: float, output_dt: float | None, fixed_step: bool,
+                   max_steps: int = MAX_STEPS) -> None:
+    """Refuse, before the work, a run whose step count or result samples exceed the limits above.
+
+    t_end, h, output_dt : end time, step, sampling interval (None: every step), s.
+    """
+    if not MIN_STEP_S <= h:
+        raise InputError(f"step = {h:g} s: shorter than {MIN_STEP_S:g} s; give a step of the scene's time "
+                         "scale (e.g. 1e-3 s)")
+    steps = t_end / h
+    if fixed_step and steps > max_steps:
+        raise InputError(f"t_end = {t_end:g} s with step = {h:g} s: {steps:.3g} steps, more than {max_steps:g}; "
+                         "shorten t_end or lengthen the step")
+    samples = t_end / output_dt if output_dt else (steps if fixed_step else 0.0)
+    if samples > MAX_SAMPLES:
+        raise InputError(f"t_end = {t_end:g} s: {samples:.3g} result samples, more than {MAX_SAMPLES:g}; "
+                         "lower [output] rate or shorten t_end")
 
 
 @dataclass(frozen=True)
@@ -45,7 +71,7 @@ class SolverSettings:
     static_start: bool = False
     newton_tol: float = 1e-8
     deformation_limit: float = 0.2
-    max_steps: int = 10_000_000
+    max_steps: int = MAX_STEPS
     baumgarte: float = 20.0
     effects: object = None
 

@@ -178,7 +178,7 @@ class FlexibleBody(_MassBody):
         if isinstance(sid, (str, Path)):
             from sidprep.sid.io import read_sid
 
-            sid = read_sid(sid)
+            sid = read_sid(sid, physical="error")
         self.sid = sid
         self.nq = sid.nq
         self.q0 = np.zeros(self.nq) if q0 is None else np.asarray(q0, float).copy()

@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from sidprep.errors import InputError
+from sidprep.sid.checks import physical_problems
 from sidprep.sid.io.obj import write_obj
 from sidprep.sid.io.sid_fem import read_sid_fem, write_sid_fem
 from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
@@ -56,9 +58,31 @@ def sid_format(path) -> SIDFormat | None:
     return next((f for f in FORMATS if name.endswith(f.suffixes)), None)
 
 
-def read_sid(path):
-    """Read a SID file chosen by its ending: ``.sid.h5``/``.h5``/``.hdf5`` or ``.SID_FEM``."""
-    path = Path(path)
+class SIDWarning(UserWarning):
+    """A SID that was read but is not physically possible (``physical="warn"``)."""
+
+
+def read_sid(path, physical: str = "warn"):
+    """Read a SID file chosen by its ending: ``.sid.h5``/``.h5``/``.hdf5`` or ``.SID_FEM``.
+
+    physical : what a SID that fails the physical checks (``sidprep.sid.checks.physical_problems``:
+        finite entries, mass, inertia, Me, Ke, node orientations) gives: "error" an InputError
+        (``simulate``), "warn" one SIDWarning per problem (``info``, ``view``), "off" nothing
+        (``check``, which lists every check itself).
+    """
+    sid = _read(Path(path))
+    if physical != "off":
+        problems = physical_problems(sid)
+        fix = f"regenerate the SID (sidprep check {path} lists every check)"
+        if problems and physical == "error":
+            more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+            raise InputError(f"{path}: not a physically possible body: {problems[0]}{more}; {fix}")
+        for problem in problems if physical == "warn" else ():
+            warnings.warn(f"{path}: {problem}; {fix}", SIDWarning, stacklevel=2)
+    return sid
+
+
+def _read(path: Path):
     fmt = sid_format(path)
     if fmt is None or fmt.read is None:
         raise InputError(f"{path}: unknown SID file type; use a .sid.h5 or .SID_FEM file")

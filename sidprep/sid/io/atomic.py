@@ -1,4 +1,11 @@
-"""Write files atomically: to a temporary name in the target folder, renamed when complete."""
+"""Write files atomically: to a temporary name in the target folder, renamed when complete.
+
+Every output of sidprep goes through :func:`atomic_path` (text, OBJ, HTML, CSV) or
+:func:`atomic_hdf5` (.sid.h5, results .h5): a full disk or another I/O error becomes one
+InputError naming the file, the temporary file is removed on every exit path (exceptions,
+KeyboardInterrupt, and SIGTERM once ``sidprep.errors.terminate_on_sigterm`` is installed), and
+no final-named file is ever partial.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +13,8 @@ import contextlib
 import os
 import tempfile
 from pathlib import Path
+
+import h5py
 
 from sidprep.errors import InputError
 
@@ -15,7 +24,8 @@ def atomic_path(path: str | os.PathLike):
     """Yield a temporary path next to ``path``; rename it to ``path`` only if the block succeeds.
 
     A failure (exception, interrupt) removes the temporary file, so no half-written output
-    is ever left under the final name.
+    is ever left under the final name; an OSError in the block (disk full, quota, I/O error)
+    becomes an InputError naming ``path``.
     """
     path = Path(path)
     try:
@@ -24,14 +34,44 @@ def atomic_path(path: str | os.PathLike):
     except OSError as exc:
         raise InputError(f"{path}: cannot write here ({exc.strerror}); choose a writable folder") from None
     os.close(fd)
-    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
     try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
         yield Path(tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        _remove(tmp)
+        raise InputError(f"{path}: could not be written ({exc.strerror or exc}); free disk space or "
+                         "choose another folder") from None
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        _remove(tmp)
         raise
+
+
+@contextlib.contextmanager
+def atomic_hdf5(path: str | os.PathLike):
+    """Yield a new, empty ``h5py.File`` held in memory; written to ``path`` atomically when the
+    block succeeds (through :func:`atomic_path`).
+
+    HDF5 itself never writes to the disk.  Why: when HDF5 (2.0, h5py 3.16) fails to write
+    (ENOSPC, EFBIG, EIO) while closing a file whose groups or datasets are still open, the
+    failed flush leaves the file half closed: h5py's remaining object ids fail to decrement
+    ("Can't decrement id ref count", printed as "Exception ignored" tracebacks) and the final
+    ``H5Fclose`` touches the freed file structure: a segmentation fault.  Building the file in
+    memory (core driver, no backing store) and writing its image with an ordinary Python write
+    turns any I/O error into an OSError, hence one InputError.
+    """
+    with atomic_path(path) as tmp:
+        with h5py.File(f"{tmp}.in-memory", "w", driver="core", backing_store=False) as f:
+            yield f
+            f.flush()
+            image = f.id.get_file_image()
+        with open(tmp, "wb") as out:
+            out.write(image)
+
+
+def _remove(tmp) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
 
 
 def _umask() -> int:

@@ -31,7 +31,8 @@ import numpy as np
 from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.sid.checks import sid_checks
-from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.io.atomic import atomic_hdf5
+from sidprep.sid.io.hdf5 import open_hdf5
 from sidprep.sid.model import (BodyPath, J_ORDER, OMEGA_HAT_ORDER, SID, SIDNode, SurfaceModes, Taylor,
     ge_tensor, gr_tensor)
 from sidprep.sid.stress import STRESS_ORDER, StressModes
@@ -101,7 +102,7 @@ def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
         checks = sid_checks(sid)
     nq = sid.nq
     si = sid.units == "SI"
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_hdf5(path) as f:
         f.attrs.update(format=FORMAT, version=VERSION, units=sid.units)
         units = f.create_group("units")
         units.attrs.update(system=sid.units, **(SI_UNITS if si else {}))
@@ -255,14 +256,7 @@ def _read(f: h5py.File) -> SID:
 def read_sid_hdf5(path) -> SID:
     """Read a ``.sid.h5`` file written by ``write_sid_hdf5``; bad files raise InputError."""
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file; check the path") from None
-    except OSError as exc:
-        raise InputError(f"{path}: not a readable HDF5 file ({exc}); give a .sid.h5 file "
-                         f"written by sidprep") from None
-    with f:
+    with open_hdf5(path, "SID file", "give a .sid.h5 file written by sidprep") as f:
         if f.attrs.get("format") != FORMAT:
             raise InputError(f"{path}: HDF5 file is not a sidprep SID (attribute format != "
                              f"{FORMAT!r}); give a .sid.h5 file written by sidprep")
@@ -278,5 +272,5 @@ def read_sid_hdf5(path) -> SID:
 
 def read_checks(path) -> dict:
     """The model checks stored in a ``.sid.h5`` file at write time."""
-    with h5py.File(path, "r") as f:
+    with open_hdf5(path, "SID file", "give a .sid.h5 file written by sidprep") as f:
         return json.loads(f["checks"].attrs["json"]) if "checks" in f else {}
