@@ -1,5 +1,7 @@
 """User-facing errors: one line naming the file, the problem and the fix."""
 
+import signal
+
 
 class InputError(Exception):
     """Bad input (file, option, model).  The CLI prints ``sidprep: error: <message>`` and exits 2.
@@ -34,6 +36,5 @@ def _raise_terminated(signum, frame):
 
 def terminate_on_sigterm() -> None:
     """Turn SIGTERM into a ``Terminated`` exception in the main thread (the CLI installs it)."""
-    import signal
 
     signal.signal(signal.SIGTERM, _raise_terminated)
