@@ -7,7 +7,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "check", help="re-run the model checks of a SID file (.sid.h5 or .SID_FEM); exit 1 on failure",
         description="Checks physical possibility (mass, inertia about the CM, Me, Ke, node orientations), "
-                    "the self-consistency identities of sid-spec.md 4.8 (also entry by entry, which finds "
+                    "the self-consistency identities of docs/sid-spec.md 4.8 (also entry by entry, which finds "
                     "deleted lines of SID_FEM files that omit zeros), the modal matrices and the label "
                     "frequencies, plus the FE comparisons stored by 'sidprep reduce'. Exit status 0: "
                     "all checks of severity 'error' pass; 1: one fails; 2: the file cannot be read "

@@ -37,7 +37,7 @@ def add_reduce_arguments(p) -> None:
     d.add_argument("--rayleigh", type=float, nargs=2, metavar=("ALPHA", "BETA"),
                    help="Rayleigh damping De = alpha Me + beta Ke instead (1/s, s)")
     p.add_argument("--stiffening", action="store_true", default=None,
-                   help="compute the geometric-stiffening unit load cases (sid-spec 6)")
+                   help="compute the geometric-stiffening unit load cases (docs/sid-spec.md 6)")
     p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
                    help="compare with a full-model eigen solve (default on; the costliest check)")
 

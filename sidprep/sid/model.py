@@ -1,6 +1,6 @@
 """The SID data model (Standard Input Data, Wallrapp 1994): Taylor objects, nodes, the body.
 
-Conventions (../shared/design/sid-spec.md sections 1-3, 8):
+Conventions (docs/sid-spec.md sections 1-3, 8):
 
 * everything resolved in the body frame K, SI units unless ``SID.units`` says otherwise;
 * a Taylor object is M(q) = M0 + sum_k M1[:, k, :] q_k, with M1 stored (nrow, nq, ncol)

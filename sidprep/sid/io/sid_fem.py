@@ -1,6 +1,6 @@
 """The ASCII ``.SID_FEM`` format (Wallrapp's Standard Input Data): reader and writer.
 
-Grammar, writer and reader rules and the dialect table: ../shared/design/sid-spec.md section 7.
+Grammar, writer and reader rules and the dialect table: docs/sid-spec.md section 7.
 The reader accepts the dialects seen in the wild (section 7.6): ``m1(row, q, col)`` (native) or
 ``m1(row, col, q)`` (welib, FEMBeam); J as 6x1 or 3x3; Gr/Ge in a-block or k-block column layout,
 auto-detected with the invariant relations of section 4.8; nq = 0 in order-0 blocks; structure
