@@ -17,14 +17,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from sidprep.sid.checks import failed_checks, format_checks, sid_checks
+    from sidprep.sid.checks import checks_summary, failed_checks, format_checks, sid_checks
     from sidprep.sid.io import read_sid
 
     checks = sid_checks(read_sid(args.file))
     print(format_checks(checks))
-    failed = failed_checks(checks)
-    if failed:
-        print(f"{args.file}: {len(failed)} check(s) failed: {', '.join(failed)}")
-        return 1
-    print(f"{args.file}: all {sum(c['severity'] == 'error' for c in checks.values())} checks passed")
-    return 0
+    print(f"{args.file}: {checks_summary(checks)}")
+    return 1 if failed_checks(checks) else 0

@@ -307,6 +307,26 @@ def eigen_label(mode_number: int, frequency_hz: float) -> str:
     return f"Eigen Mode {mode_number:4d} : {frequency_hz:12.3f} Hz"
 
 
+#: what the ielastq label of a non-eigen coordinate adds behind "Hz": readers take the frequency
+#: between ":" and "Hz" and some require the prefix "Eigen Mode" (sid-spec.md 3.1, 10 item 7), so
+#: the kind goes last; a .SID_FEM file keeps it only there
+KIND_LABEL_SUFFIX = {"frm": " (frequency response mode)"}
+
+
+def mode_label(mode_number: int, frequency_hz: float, kind: str = "eigen") -> str:
+    """The ielastq label of one coordinate: ``eigen_label`` plus the kind's suffix."""
+    return eigen_label(mode_number, frequency_hz) + KIND_LABEL_SUFFIX.get(kind, "")
+
+
+def kind_of_label(label: str) -> str:
+    """"eigen", "frm", ... from an ielastq label written by ``mode_label``; "other" for free text."""
+    text = label.strip().lower()
+    for kind, suffix in KIND_LABEL_SUFFIX.items():
+        if text.endswith(suffix.strip().lower()):
+            return kind
+    return "eigen" if text.startswith("eigen mode") else "other"
+
+
 def frequencies_from_stiffness(Me: np.ndarray, Ke: np.ndarray) -> np.ndarray:
     """sqrt(Ke_kk / Me_kk) / 2 pi for an M- and K-diagonal basis, NaN elsewhere; (nq,) Hz."""
     nq = len(Ke)

@@ -23,7 +23,7 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.model import (DIAGONAL, GENERAL, IDENTITY, SID, SYMMETRIC, ZERO, SIDNode, Taylor,
-                         frequencies_from_stiffness, inertia_matrix, j6, skew)
+                         frequencies_from_stiffness, inertia_matrix, j6, kind_of_label, skew)
 
 MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 NODE_MEMBERS = ("origin", "phi", "psi", "AP", "sigma")
@@ -671,8 +671,7 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
     return SID(
         mass=raw["mass"][1], labels=labels, nodes=tuple(nodes), **members,
         frequencies_hz=frequencies,
-        mode_kinds=tuple("eigen" if s.strip().lower().startswith("eigen mode") else "other"
-                         for s in labels),
+        mode_kinds=tuple(kind_of_label(s) for s in labels),
         units="SI", metadata=metadata)
 
 
