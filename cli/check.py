@@ -7,7 +7,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "check", help="re-run the model checks of a SID file (.sid.h5 or .SID_FEM); exit 1 on failure",
         description="Checks physical possibility (mass, inertia about the CM, Me, Ke, node orientations), "
-                    "the self-consistency identities of sid-spec.md 4.8 (also entry by entry, which finds "
+                    "the self-consistency identities of docs/sid-spec.md 4.8 (also entry by entry, which finds "
                     "deleted lines of SID_FEM files that omit zeros), the modal matrices and the label "
                     "frequencies, plus the FE comparisons stored by 'sidprep reduce'. Exit status 0: "
                     "all checks of severity 'error' pass; 1: one fails; 2: the file cannot be read "
@@ -17,14 +17,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from sidprep.sid.checks import failed_checks, format_checks, sid_checks
+    from sidprep.sid.checks import checks_summary, failed_checks, format_checks, sid_checks
     from sidprep.sid.io import read_sid
 
     checks = sid_checks(read_sid(args.file, physical="off"))
     print(format_checks(checks))
-    failed = failed_checks(checks)
-    if failed:
-        print(f"{args.file}: {len(failed)} check(s) failed: {', '.join(failed)}")
-        return 1
-    print(f"{args.file}: all {sum(c['severity'] == 'error' for c in checks.values())} checks passed")
-    return 0
+    print(f"{args.file}: {checks_summary(checks)}")
+    return 1 if failed_checks(checks) else 0

@@ -37,7 +37,7 @@ def add_reduce_arguments(p) -> None:
     d.add_argument("--rayleigh", type=float, nargs=2, metavar=("ALPHA", "BETA"),
                    help="Rayleigh damping De = alpha Me + beta Ke instead (1/s, s)")
     p.add_argument("--stiffening", action="store_true", default=None,
-                   help="compute the geometric-stiffening unit load cases (sid-spec 6)")
+                   help="compute the geometric-stiffening unit load cases (docs/sid-spec.md 6)")
     p.add_argument("--stress", nargs="?", const="surface", choices=("surface", "all"), default=None,
                    help="store the modal stresses (Pa per unit modal coordinate) at the outer surface's nodes "
                         "(--stress) or at every node (--stress all), for `sidprep stress` after a simulation")

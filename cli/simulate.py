@@ -76,6 +76,15 @@ def animation_surfaces(scene) -> dict:
     return surfaces
 
 
+def not_a_scene_hint(path: str) -> str:
+    """What to do with a file that is not a scene: a SID is a body a scene names, a mesh is reduced first."""
+    name = Path(path).name.lower()
+    if name.endswith((".sid.h5", ".sid_fem", ".h5")):
+        return (f"a SID file is one body: write a scene that names it ([bodies.NAME] type = \"flexible\", "
+                f"sid = \"{Path(path).name}\"; docs/scenes.md, e.g. examples/flexible_pendulum/scene.toml)")
+    return f"write a scene (docs/scenes.md); a mesh is reduced first: sidprep reduce {path}"
+
+
 def run(args) -> int:
     from sidprep.progress import Phases
     from sidprep.tables import require_toml
@@ -83,8 +92,7 @@ def run(args) -> int:
     from sidprep.solver.scene import load_scene, simulate
     from sidprep.errors import InputError, SimulationFailed
 
-    require_toml(args.scene, "scene file", "write a scene (docs/scenes.md); a mesh is reduced first: "
-                 f"sidprep reduce {args.scene}")
+    require_toml(args.scene, "scene file", not_a_scene_hint(args.scene))
     phases = Phases(verbose=not args.quiet)
     with phases("scene", args.scene):
         scene = load_scene(args.scene, t_end=args.t_end)

@@ -38,8 +38,8 @@ class Phases:
         finally:
             dt = time.perf_counter() - t0
             self.timings_s[name] = self.timings_s.get(name, 0.0) + dt
-            if self.verbose:
-                print(f"  {name} done in {dt:.2f} s", file=self.stream, flush=True)
+        if self.verbose:              # only when the phase succeeded: an error line follows otherwise
+            print(f"  {name} done in {dt:.2f} s", file=self.stream, flush=True)
 
 
 def peak_memory_mb() -> float:

@@ -1,7 +1,7 @@
 """Which terms of the FFR equations (sid-spec 5.2) a simulation assembles, and what was left out.
 
 A scene names the effects it wants, or ``"auto"``.  Each effect switches a group of SID terms
-(sid-spec 5.4); only the switched-on terms are assembled.  Every run ends with an
+(docs/sid-spec.md 5.4); only the switched-on terms are assembled.  Every run ends with an
 :class:`EffectsReport`: what was included, what was left out, and for each left-out effect an
 estimate of its relative size measured along the simulated motion, with a WARNING above
 :data:`WARN_LEVEL`.
@@ -209,13 +209,13 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
     pick("preload", True, "the SID has ksigma")
     stiff_ok = f["can_rotate"] and not kom_only
     pick("centrifugal_stiffening", stiff_ok,
-         "Oe.M1 holds only Kom (softening) without K0omega: both left out (sid-spec 5.4)" if kom_only
+         "Oe.M1 holds only Kom (softening) without K0omega: both left out (docs/sid-spec.md 5.4)" if kom_only
          else ("body can rotate: Kom + K0omega kept together" if f["can_rotate"]
                else "body is fixed to ground"))
     pick("inertia_change", f["can_rotate"],
          "body can rotate: J.M1 keeps Gr0 / Oe0 energy-consistent (first-order Lagrangian)"
          if f["can_rotate"] else "body is fixed to ground")
-    pick("second_order_inertia", False, "second order, usually dropped (sid-spec 5.4)")
+    pick("second_order_inertia", False, "second order, usually dropped (docs/sid-spec.md 5.4)")
     accel = f["gravity"] or f["can_rotate"]
     pick("acceleration_stiffening", accel, "gravity / body accelerations present" if accel
          else "no gravity and body fixed")

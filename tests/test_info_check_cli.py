@@ -53,7 +53,10 @@ def test_info_table_and_check_pass(tmp_path, capsys):
     code, out, _ = run(capsys, "info", path)
     assert code == 0 and "centre of mass" in out and "checks:" in out
     code, out, _ = run(capsys, "check", path)
-    assert code == 0 and "checks passed" in out
+    lines = out.splitlines()
+    ok, info = sum(line.startswith("  ok ") for line in lines), sum(line.startswith("  info ") for line in lines)
+    summary = f"all {ok} checks passed" + (f" ({info} info line{'s' * (info != 1)})" if info else "")
+    assert code == 0 and lines[-1] == f"{path}: {summary}"       # the count is the count of the lines
     code, out, _ = run(capsys, "check", write_sid_fem(random_sid(), tmp_path / "body.SID_FEM"))
     assert code == 0 and re.search(r"info SID_FEM entries not written +0 ", out)
 
@@ -115,3 +118,19 @@ def test_free_body_checks():
     five = sid_checks(sid_invariants(X, Ms, free_phi, [], Ke=np.eye(nq),
                                      metadata={"free_body": True, "n_rigid_modes": 5}))
     assert not five["6 zero-energy modes"]["passed"]
+
+
+def test_sid_fem_keeps_the_kind_of_every_mode(tmp_path, capsys):
+    """A reduction with frequency-response modes: `info` of the .SID_FEM labels them as the
+    .sid.h5 does (issue 27: all 20 were "eigen")."""
+    from pathlib import Path
+
+    from sidprep.sid.io import read_sid
+
+    mesh = Path(__file__).resolve().parents[1] / "data/meshes/bar.msh"
+    assert main(["reduce", str(mesh), "-o", str(tmp_path / "bar.sid.h5"), "--modes", "4", "--no-obj", "-q"]) == 0
+    capsys.readouterr()
+    h5, fem = read_sid(tmp_path / "bar.sid.h5"), read_sid(tmp_path / "bar.SID_FEM")
+    assert "frm" in h5.mode_kinds and fem.mode_kinds == h5.mode_kinds
+    code, out, _ = run(capsys, "info", tmp_path / "bar.SID_FEM", "--json")
+    assert code == 0 and json.loads(out)["mode_kinds"] == list(h5.mode_kinds)

@@ -289,7 +289,7 @@ def test_rigid_body_sid_without_modes(tmp_path):
         assert again.Gr.M0.shape == (3, 0)
 
 
-#: the SID_FEM skeleton of ../shared/design/sid-spec.md section 7.3 (its code block, copied verbatim)
+#: the SID_FEM skeleton of docs/sid-spec.md section 7.3 (its code block, copied verbatim)
 SPEC_SKELETON = Path(__file__).resolve().parent / "data" / "sid_spec_7_3_skeleton.txt"
 SPEC_DIGITS = 3e-10    # the skeleton's numbers are accurate to about 10 digits
 

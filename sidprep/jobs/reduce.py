@@ -224,7 +224,7 @@ def build_sid(red: Reduction, mesh, Ms, *, damping=DEFAULT_DAMPING, stiffening=N
     first_id = int(mesh.node_ids.max()) + 1 if len(mesh.node_ids) else 1
     nodes = [(first_id + i, itf.master_point, red.Phi_model[m[:3]], red.Phi_model[m[3:]], itf.name)
              for i, (itf, m) in enumerate(zip(red.im.interfaces, red.im.master_dofs))]
-    labels = mode_labels(f, first=7 if red.held is None else 1)
+    labels = mode_labels(f, first=7 if red.held is None else 1, kinds=red.basis.kinds)
     sid = sid_invariants(mesh.points, Ms, red.Phi_fe, nodes, labels=labels, frequencies_hz=f,
                          mode_kinds=red.basis.kinds, Ke=np.diag((2 * np.pi * f) ** 2),
                          De=modal_damping(f, damping), stiffening=stiffening, metadata=metadata or {})

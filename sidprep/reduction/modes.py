@@ -25,6 +25,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from sidprep.errors import InputError
+from sidprep.sid.model import mode_label
 
 #: default cut-off of the FRM selection, as a multiple of the highest frequency of interest (FEMBS)
 CUTOFF_FACTOR = 5.0
@@ -59,7 +60,7 @@ class ModalBasis:
 
     @property
     def labels(self) -> tuple[str, ...]:
-        return mode_labels(self.frequencies_hz)
+        return mode_labels(self.frequencies_hz, kinds=self.kinds)
 
 
 def hz(lam: np.ndarray) -> np.ndarray:
@@ -67,9 +68,11 @@ def hz(lam: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi)
 
 
-def mode_labels(frequencies_hz, first: int = 1) -> tuple[str, ...]:
-    """SIMPACK-style ielastq labels ``Eigen Mode    n :     f Hz`` (sid-spec 3.1)."""
-    return tuple(f"Eigen Mode {first + k:4d} : {f:12.3f} Hz" for k, f in enumerate(frequencies_hz))
+def mode_labels(frequencies_hz, first: int = 1, kinds=None) -> tuple[str, ...]:
+    """SIMPACK-style ielastq labels ``Eigen Mode    n :     f Hz`` (sid-spec 3.1), the kind of a
+    frequency-response mode behind them (``mode_label``)."""
+    kinds = kinds or ("eigen",) * len(frequencies_hz)
+    return tuple(mode_label(first + k, f, kind) for k, (f, kind) in enumerate(zip(frequencies_hz, kinds)))
 
 
 def m_orthogonalize(V: np.ndarray, A: np.ndarray, M: np.ndarray) -> np.ndarray:

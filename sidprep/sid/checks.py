@@ -452,6 +452,21 @@ def failed_checks(checks: dict) -> list[str]:
     return [name for name, c in checks.items() if not c["passed"] and c["severity"] == "error"]
 
 
+def checks_summary(checks: dict) -> str:
+    """One line counting the lines of ``format_checks``: "all 30 checks passed (and 1 info line)",
+    or the failed checks (errors) and the warnings by name."""
+    tested = {n: c for n, c in checks.items() if c["severity"] != "info"}
+    failed = failed_checks(checks)
+    warned = [n for n, c in tested.items() if not c["passed"] and c["severity"] != "error"]
+    info = len(checks) - len(tested)
+    notes = f" ({info} info line{'s' * (info != 1)})" if info else ""
+    if failed:
+        return f"{len(failed)} of {len(tested)} checks failed: {', '.join(failed)}{notes}"
+    if warned:
+        return f"{len(tested) - len(warned)} of {len(tested)} checks passed, {len(warned)} warned: {', '.join(warned)}{notes}"
+    return f"all {len(tested)} checks passed{notes}"
+
+
 def format_checks(checks: dict) -> str:
     """One line per check: status, name, value, tolerance (counts as integers, none as '-')."""
     def number(v):

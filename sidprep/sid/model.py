@@ -1,6 +1,6 @@
 """The SID data model (Standard Input Data, Wallrapp 1994): Taylor objects, nodes, the body.
 
-Conventions (../shared/design/sid-spec.md sections 1-3, 8):
+Conventions (docs/sid-spec.md sections 1-3, 8):
 
 * everything resolved in the body frame K, SI units unless ``SID.units`` says otherwise;
 * a Taylor object is M(q) = M0 + sum_k M1[:, k, :] q_k, with M1 stored (nrow, nq, ncol)
@@ -310,6 +310,26 @@ def taylor(M0: np.ndarray, M1: np.ndarray | None = None, kind: str = "general") 
 def eigen_label(mode_number: int, frequency_hz: float) -> str:
     """SIMPACK-style ielastq label ``Eigen Mode %4d : %12.3f Hz`` (sid-spec.md 3.1, 7.4 rule 10)."""
     return f"Eigen Mode {mode_number:4d} : {frequency_hz:12.3f} Hz"
+
+
+#: what the ielastq label of a non-eigen coordinate adds behind "Hz": readers take the frequency
+#: between ":" and "Hz" and some require the prefix "Eigen Mode" (sid-spec.md 3.1, 10 item 7), so
+#: the kind goes last; a .SID_FEM file keeps it only there
+KIND_LABEL_SUFFIX = {"frm": " (frequency response mode)"}
+
+
+def mode_label(mode_number: int, frequency_hz: float, kind: str = "eigen") -> str:
+    """The ielastq label of one coordinate: ``eigen_label`` plus the kind's suffix."""
+    return eigen_label(mode_number, frequency_hz) + KIND_LABEL_SUFFIX.get(kind, "")
+
+
+def kind_of_label(label: str) -> str:
+    """"eigen", "frm", ... from an ielastq label written by ``mode_label``; "other" for free text."""
+    text = label.strip().lower()
+    for kind, suffix in KIND_LABEL_SUFFIX.items():
+        if text.endswith(suffix.strip().lower()):
+            return kind
+    return "eigen" if text.startswith("eigen mode") else "other"
 
 
 def frequencies_from_stiffness(Me: np.ndarray, Ke: np.ndarray) -> np.ndarray:

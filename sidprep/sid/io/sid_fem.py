@@ -1,6 +1,6 @@
 """The ASCII ``.SID_FEM`` format (Wallrapp's Standard Input Data): reader and writer.
 
-Grammar, writer and reader rules and the dialect table: ../shared/design/sid-spec.md section 7.
+Grammar, writer and reader rules and the dialect table: docs/sid-spec.md section 7.
 The reader accepts the dialects seen in the wild (section 7.6): ``m1(row, q, col)`` (native) or
 ``m1(row, col, q)`` (welib, FEMBeam); J as 6x1 or 3x3; Gr/Ge in a-block or k-block column layout,
 auto-detected with the invariant relations of section 4.8; nq = 0 in order-0 blocks; structure
@@ -23,7 +23,7 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.model import (DIAGONAL, GENERAL, IDENTITY, SID, SYMMETRIC, ZERO, SIDNode, Taylor,
-                         frequencies_from_stiffness, inertia_matrix, j6, skew)
+                         frequencies_from_stiffness, inertia_matrix, j6, kind_of_label, skew)
 
 MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
 NODE_MEMBERS = ("origin", "phi", "psi", "AP", "sigma")
@@ -671,8 +671,7 @@ def parse_sid_fem(text: str, path="<text>") -> SID:
     return SID(
         mass=raw["mass"][1], labels=labels, nodes=tuple(nodes), **members,
         frequencies_hz=frequencies,
-        mode_kinds=tuple("eigen" if s.strip().lower().startswith("eigen mode") else "other"
-                         for s in labels),
+        mode_kinds=tuple(kind_of_label(s) for s in labels),
         units="SI", metadata=metadata)
 
 
