@@ -78,8 +78,13 @@ def test_clamped_bar_tip_load_matches_beam_theory_at_mid_span(clamped_bar):
         assert np.polyval(fit, 0.5 * BAR_L) == pytest.approx(expected, rel=BEAM_THEORY_TOL)
 
 
+#: the clamped bar's modal stresses under unit tip forces vs the full model's static stress (our FE,
+#: same mesh and couplings), off the coupled end faces, relative to the largest stress (measured 2.9 %)
+CLAMPED_STATIC_TOL = 0.05
+
+
 def test_modal_stresses_match_the_full_static_solution(clamped_bar):
-    assert clamped_bar.checks["stress_static_max_rel_error"] < STRESS_CHECK_TOL
+    assert clamped_bar.checks["stress_static_max_rel_error"] < CLAMPED_STATIC_TOL < STRESS_CHECK_TOL
     checks = clamped_bar.sid.metadata["checks"]
     assert checks["FE stress"]["passed"]
 
