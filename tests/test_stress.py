@@ -382,3 +382,48 @@ def test_stress_bad_input_is_one_line_and_exit_2(harmonic_run, case, args, words
     assert r.returncode == 2, (case, r.stderr)
     assert len(r.stderr.strip().splitlines()) == 1 and r.stdout == ""
     assert all(w in r.stderr for w in words), r.stderr
+
+
+# ------------------------------------------------------------------------------------------------
+# the engine's piston rod (examples/engine, README "Stress")
+# ------------------------------------------------------------------------------------------------
+
+ENGINE = ROOT / "examples" / "engine"
+#: mid-shank axial stress at the firing peak vs F / A (F: the joint forces along the rod, A: the
+#: shank's I-section); the rest is the rod's inertia and the section's Saint-Venant transition (0.57 %)
+F_OVER_A_RTOL = 0.02
+#: the README's hot spot (1 s run; its largest stress falls on the first firing peak at 0.0324 s,
+#: inside the 0.1 s run of the test): node, von Mises MPa
+README_HOT_SPOT = (1465, 139.406)
+README_RTOL = 1e-3
+
+
+@pytest.fixture(scope="module")
+def engine_run(tmp_path_factory):
+    """examples/engine with the rod reduced by its make line (--stress), run for 0.1 s."""
+    folder = tmp_path_factory.mktemp("engine_stress")
+    for name in ("scene.toml", "analyse.py", "gas_force.py", "stress.py", "crank.obj", "piston.obj"):
+        shutil.copy(ENGINE / name, folder / name)
+    r = cli("reduce", ROOT / "data/meshes/piston_rod.msh", "-o", "piston_rod.sid.h5", "-q", "--no-sid-fem",
+            "--no-obj", "--stress", cwd=folder)
+    assert r.returncode == 0, r.stderr
+    r = cli("simulate", "scene.toml", "--t-end", "0.1", "-q", "-o", "scene.results.h5", cwd=folder)
+    assert r.returncode == 0, r.stderr
+    return folder
+
+
+def test_engine_rod_stress_at_the_firing_peak(engine_run):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("engine_stress", engine_run / "stress.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out = module.main(engine_run)
+    assert out["shank_axial_stress_MPa"] == pytest.approx(out["F_over_A_MPa"], rel=F_OVER_A_RTOL)
+    assert abs(out["shank_bending_stress_MPa"]) < 0.05 * abs(out["F_over_A_MPa"])     # a strut at the peak
+    assert out["hot_spot_node"] == README_HOT_SPOT[0]
+    assert out["hot_spot_von_mises_MPa"] == pytest.approx(README_HOT_SPOT[1], rel=README_RTOL)
+    assert (engine_run / "stress.png").stat().st_size > 10_000
+    readme = (ENGINE / "README.md").read_text()
+    assert f"node {README_HOT_SPOT[0]}, {README_HOT_SPOT[1]:.1f} MPa" in readme
+    assert f"{out['shank_axial_stress_MPa']:.2f} MPa" in readme and f"{out['F_over_A_MPa']:.2f} MPa" in readme
