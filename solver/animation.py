@@ -4,7 +4,8 @@ files / 71 MB before, now 100 files).
 
 Each VTU holds the surfaces of all bodies at that time: a flexible body's deformed surface
 x = r_O + A (c + S q) from ``SID.surface`` (points c, shapes S (ns, 3, nq)), with the point field
-``displacement`` = A S q (elastic part, inertial components, m); a rigid body's OBJ surface
+``displacement`` = A S q (elastic part, inertial components, m) and, when its SID has modal
+stresses, ``von_mises`` (Pa, sidprep.sid.stress; 0 on bodies without); a rigid body's OBJ surface
 x = r_O + A p (displacement 0).  A flexible body without surface modes (e.g. read from an ASCII
 SID_FEM file) is shown by its SID node points, as vertex cells.  The cell field ``body`` numbers
 the bodies in scene order.  Open the ``.pvd`` in ParaView and press play.
@@ -21,6 +22,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_path
+from sidprep.sid.stress import stress_on_points, von_mises
 
 
 #: the series holds at most this many time steps (files): every k-th output sample
@@ -32,19 +34,23 @@ class Surface:
     """Body-frame surface of one body.
 
     points (ns, 3) m in K; triangles (nf, 3) int64 (may be empty: then the points are drawn as
-    vertices); shapes (ns, 3, nq) displacement per unit modal coordinate (nq = 0 for rigid bodies).
+    vertices); shapes (ns, 3, nq) displacement per unit modal coordinate (nq = 0 for rigid bodies);
+    stress (ns, 6, nq) Pa per unit modal coordinate at the points, or None.
     """
 
     points: np.ndarray
     triangles: np.ndarray
     shapes: np.ndarray
+    stress: np.ndarray | None = None
 
 
 def sid_surface(sid) -> Surface:
     """The animation surface of a flexible body (``sidprep.sid.model.SID``)."""
     if sid.surface is not None:
         s = sid.surface
-        return Surface(np.asarray(s.points, float), np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float))
+        points = np.asarray(s.points, float)
+        return Surface(points, np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float),
+                       None if sid.stress is None else stress_on_points(sid.stress, points))
     points = np.array([n.origin.M0[:, 0] for n in sid.nodes]).reshape(-1, 3)
     shapes = np.array([n.phi.M0 for n in sid.nodes]).reshape(-1, 3, sid.nq)
     return Surface(points, np.zeros((0, 3), np.int64), shapes)
@@ -76,21 +82,24 @@ def frame_mesh(result, surfaces: dict[str, Surface], i: int):
     """meshio.Mesh of all bodies at output index ``i``."""
     import meshio
 
-    points, disp, cells, body_ids = [], [], [], []
+    points, disp, cells, body_ids, vm = [], [], [], [], []
     offset = 0
     for k, (name, surf) in enumerate(surfaces.items()):
         b = result.bodies[name]
         x, u = deformed_points(surf, b.position[i], b.rotation[i], b.q[i])
         points.append(x)
         disp.append(u)
+        vm.append(np.zeros(len(x)) if surf.stress is None else von_mises(np.einsum("sck,k->sc", surf.stress, b.q[i])))
         if len(surf.triangles):
             cells.append(("triangle", surf.triangles + offset))
         else:
             cells.append(("vertex", np.arange(len(x), dtype=np.int64)[:, None] + offset))
         body_ids.append(np.full(len(cells[-1][1]), k, dtype=np.int32))
         offset += len(x)
-    return meshio.Mesh(np.vstack(points), cells, point_data={"displacement": np.vstack(disp)},
-                       cell_data={"body": body_ids})
+    point_data = {"displacement": np.vstack(disp)}
+    if any(s.stress is not None for s in surfaces.values()):
+        point_data["von_mises"] = np.concatenate(vm)
+    return meshio.Mesh(np.vstack(points), cells, point_data=point_data, cell_data={"body": body_ids})
 
 
 def write_animation(result, surfaces: dict[str, Surface], pvd_path: str | os.PathLike,

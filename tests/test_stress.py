@@ -427,3 +427,71 @@ def test_engine_rod_stress_at_the_firing_peak(engine_run):
     readme = (ENGINE / "README.md").read_text()
     assert f"node {README_HOT_SPOT[0]}, {README_HOT_SPOT[1]:.1f} MPa" in readme
     assert f"{out['shank_axial_stress_MPa']:.2f} MPa" in readme and f"{out['F_over_A_MPa']:.2f} MPa" in readme
+
+
+# ------------------------------------------------------------------------------------------------
+# seeing it: sidprep view (each mode's von Mises field), sidprep animate (colour by stress, MPa)
+# ------------------------------------------------------------------------------------------------
+
+def page_data(page: Path) -> dict:
+    """The JSON data object ``const D = {...};`` of a sidprep page."""
+    import json
+    import re
+
+    return json.loads(re.search(r"const D = (\{.*?\});\n", page.read_text(), re.S).group(1))
+
+
+def test_view_page_shows_each_modes_von_mises_field(harmonic_run, tmp_path):
+    from test_view import assert_renders, browser
+
+    from sidprep import read_sid
+    from sidprep.view.pages import write_mode_page
+
+    folder, _ = harmonic_run
+    page = write_mode_page(folder / "bar.sid.h5", tmp_path / "bar.html")
+    data = page_data(page)
+    stress = read_sid(folder / "bar.sid.h5").stress
+    peaks = von_mises(stress.modes.transpose(0, 2, 1)).max(axis=0)     # the surface nodes are the stress nodes
+    assert np.allclose(data["vm_peak"], peaks)
+    assert all(max(v) == 1.0 for v in data["vm"]) and "von Mises stress" in page.read_text()
+    if browser():
+        assert_renders(page, tmp_path / "bar.png", "#mode=1&stress")
+
+
+def test_animate_colours_by_von_mises_in_mpa(harmonic_run, tmp_path):
+    from sidprep.solver.stress import recover_stress
+    from sidprep.view.pages import write_mechanism_page
+
+    folder, _ = harmonic_run
+    r = cli("animate", "results.h5", "-o", tmp_path / "run.html", "--colour", "stress", cwd=folder)
+    assert r.returncode == 0, r.stderr
+    data = page_data(tmp_path / "run.html")
+    rec = recover_stress(folder / "results.h5", at=MID_SPAN_TOP)
+    surface_points = np.array(data["bodies"][0]["c"]).reshape(-1, 3)
+    row = int(np.argmin(np.linalg.norm(surface_points - rec.history.position, axis=1)))
+    shown = np.array(data["t"])
+    expected = np.interp(shown, rec.time, rec.history.von_mises) / 1e6
+    assert np.allclose([f[row] for f in data["bodies"][0]["vm"]], expected, atol=0.01)
+    assert data["vm_max"] == pytest.approx(max(max(f) for f in data["bodies"][0]["vm"]), abs=0.01)   # 0.01 MPa rounding
+    assert "von Mises (MPa)" in (tmp_path / "run.html").read_text()
+    gif = cli("animate", "results.h5", "-o", tmp_path / "run.gif", "--colour", "stress", cwd=folder)
+    assert gif.returncode == 0 and (tmp_path / "run.gif").stat().st_size > 10_000
+    with pytest.raises(Exception, match="no body's SID has modal stresses"):
+        write_mechanism_page(no_stress_results(folder), tmp_path / "plain.html", colour="stress")
+
+
+def test_paraview_series_carries_von_mises(harmonic_run, tmp_path):
+    import meshio
+
+    from sidprep import read_sid
+    from sidprep.solver.animation import frame_mesh, sid_surface
+    from sidprep.solver.results import read_results
+
+    folder, _ = harmonic_run
+    result = read_results(folder / "results.h5").result
+    sid = read_sid(folder / "bar.sid.h5")
+    i = len(result.t) // 2
+    mesh = frame_mesh(result, {"bar": sid_surface(sid)}, i)
+    expected = von_mises(sid.stress.at(result.bodies["bar"].q[i])[0])
+    assert np.allclose(mesh.point_data["von_mises"], expected)
+    assert isinstance(mesh, meshio.Mesh)
