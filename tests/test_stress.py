@@ -182,6 +182,32 @@ def test_stress_modes_survive_the_hdf5_file(clamped_bar, tmp_path):
     assert np.array_equal(back.modes, clamped_bar.sid.stress.modes)
 
 
+def test_all_nodes_scope_agrees_with_the_surface_scope(clamped_bar):
+    """--stress all: every node, the surface nodes' values identical to the default scope's."""
+    everywhere = reduce(BAR, ReduceOptions(interfaces=("fixed_end", "free_end"), frame="fixed_end", stress="all",
+                                           check_frequencies=False)).sid.stress
+    surface = clamped_bar.sid.stress
+    assert everywhere.scope == "all" and everywhere.n_nodes == read_mesh(BAR).n_nodes
+    rows = np.searchsorted(everywhere.node_ids, surface.node_ids)
+    assert np.array_equal(everywhere.node_ids[rows], surface.node_ids)
+    assert np.allclose(everywhere.modes[rows], surface.modes, rtol=1e-9, atol=1e-9 * np.abs(surface.modes).max())
+
+
+def test_sid_fem_has_no_place_for_stresses_and_info_reports_them(clamped_bar, tmp_path):
+    import json
+
+    from sidprep import read_sid, write_sid
+
+    back = read_sid(write_sid(clamped_bar.sid, tmp_path / "bar.SID_FEM"))
+    assert back.stress is None                                       # docs/sid-hdf5.md says so
+    write_sid(clamped_bar.sid, tmp_path / "bar.sid.h5")
+    r = cli("info", tmp_path / "bar.sid.h5", "--json", cwd=tmp_path)
+    info = json.loads(r.stdout)["stress"]
+    assert info["nodes"] == clamped_bar.sid.stress.n_nodes and info["component_order"] == list(STRESS_ORDER)
+    text = cli("info", tmp_path / "bar.sid.h5", cwd=tmp_path).stdout
+    assert "modal stresses" in text and "FE stress" in cli("check", tmp_path / "bar.sid.h5", cwd=tmp_path).stdout
+
+
 # ------------------------------------------------------------------------------------------------
 # recovery from a simulation: the clamped bar under a harmonic tip force
 # ------------------------------------------------------------------------------------------------
@@ -344,6 +370,27 @@ def test_miner_damage_of_a_sine_is_the_closed_form():
     d = miner_damage(S * np.cos(2 * np.pi * t), curve)          # from a peak: no half cycle of range S
     assert d.counts.sum() == pytest.approx(n, abs=0.5)
     assert d.damage == pytest.approx(n * (2 * S) ** 3 / 1.024e30, rel=1e-3)
+
+
+def test_stress_cli_fatigue_of_the_harmonic_run(harmonic_run):
+    """The mid-span history of the harmonic run is a sine of the steady amplitude after the start:
+    its damage per run lies between that of the steady cycles alone and of all cycles at the
+    largest range (Basquin, Palmgren-Miner)."""
+    import json
+
+    from sidprep.solver.stress import recover_stress
+
+    folder, omega = harmonic_run
+    r = cli("stress", "results.h5", "--at", ",".join(map(str, MID_SPAN_TOP)), "--json", "--sn", "C=1.024e30,m=3",
+            cwd=folder)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    fatigue = out["fatigue"][str(out["node"])]
+    history = recover_stress(folder / "results.h5", at=MID_SPAN_TOP).history.sigma[:, XX]
+    cycles = 1.5 * omega / (2 * math.pi)
+    steady = 2 * 0.5 * np.ptp(history[len(history) // 2:])
+    assert cycles * steady ** 3 / 1.024e30 * 0.8 < fatigue["damage"] < cycles * np.ptp(history) ** 3 / 1.024e30
+    assert fatigue["repeats_to_failure"] == pytest.approx(1 / fatigue["damage"])
 
 
 # ------------------------------------------------------------------------------------------------
