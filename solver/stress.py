@@ -8,7 +8,8 @@ stresses, sigma_v(t) = |W S q(t)| (W = sidprep.sid.stress.DEVIATOR_ROWS, S the (
 modes): the envelope (largest over the run at every node) and the hot spots follow without
 holding every tensor; the full tensors are formed only at the nodes asked for.
 
-Only the SID side of sidprep is imported (the solver never imports the FE side).
+Only the SID side of sidprep is imported (the solver never imports the FE side); an analytical
+Beam declared in the scene gets its stress modes from sidprep.reduction.beam (numpy only).
 """
 
 from __future__ import annotations
@@ -106,9 +107,23 @@ def sid_path(source: str, results_path: Path) -> Path:
                      "from the folder of the simulation or next to the SID file")
 
 
-def body_stress_modes(results_path: Path, bodies: dict, body: str | None) -> tuple[str, Path, StressModes]:
-    """(body name, SID path, its StressModes) of the body asked for (or the only flexible body)."""
-    flexible = [n for n, b in bodies.items() if b["kind"] == "flexible" and b["source"]]
+def beam_stress_modes(scene_text: str, body: str, results_path: Path) -> StressModes:
+    """The stress modes of an analytical Beam declared inline in the run's scene (kept in the results
+    file): its SID rebuilt from the scene's [bodies.NAME] table (sidprep.reduction.beam)."""
+    from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
+    from sidprep.tables import parse_toml
+
+    table = parse_toml(scene_text, f"{results_path} (its scene)").get("bodies", {}).get(body, {})
+    beam = {key: value for key, value in table.items() if key in BEAM_TABLE_KEYS}
+    return beam_sid(beam_options_from_table(beam, f"{results_path}: scene [bodies.{body}]")).stress
+
+
+def body_stress_modes(results_path: Path, rf, body: str | None) -> tuple[str, str, StressModes]:
+    """(body name, SID path or "beam in the scene", its StressModes) of the body asked for (or the
+    only flexible body)."""
+    bodies = dict(rf.bodies)
+    beams = [n for n, b in bodies.items() if b["kind"] == "beam"]
+    flexible = [n for n, b in bodies.items() if b["kind"] == "flexible" and b["source"]] + beams
     if body is None:
         if len(flexible) != 1:
             raise InputError(f"{results_path}: {len(flexible)} flexible bodies with a SID file "
@@ -119,12 +134,14 @@ def body_stress_modes(results_path: Path, bodies: dict, body: str | None) -> tup
     if body not in flexible:
         raise InputError(f"{results_path}: body {body!r} is {bodies[body]['kind'] or 'not flexible'} with no SID "
                          f"file, so it has no stress modes; choose one of: {', '.join(flexible) or 'none'}")
+    if body in beams:
+        return body, "analytical Beam of the scene", beam_stress_modes(rf.scene.get("text", ""), body, results_path)
     path = sid_path(bodies[body]["source"], results_path)
     sid = read_sid(path)
     if sid.stress is None:
         raise InputError(f"{path}: the SID of body {body!r} has no modal stresses; reduce it again with "
                          "`sidprep reduce MESH --stress` and re-run the simulation")
-    return body, path, sid.stress
+    return body, str(path), sid.stress
 
 
 def von_mises_envelope(stress: StressModes, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +225,7 @@ def recover_stress(results, body: str | None = None, *, at=None, hot_spots: int 
     """
     path = Path(results)
     rf = read_results(path)
-    name, sid_file, stress = body_stress_modes(path, dict(rf.bodies), body)
+    name, sid_file, stress = body_stress_modes(path, rf, body)
     if at is not None and len(at) != 3:
         raise InputError(f"--at {','.join(map(str, at))}: give three coordinates X,Y,Z (m, body frame)")
     history_at = None if at is None else nearest_node(stress, at, name)
