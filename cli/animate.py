@@ -9,10 +9,13 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("animate", help="HTML page (or .mp4/.gif movie) of a simulated mechanism",
                               description="Animate a results file of `sidprep simulate`: flexible bodies' "
                                           "deformed surfaces coloured by displacement, rigid bodies from "
-                                          "their OBJ, a time slider, real or exaggerated deformation.")
+                                          "their OBJ, a time slider, real or exaggerated deformation, colour by displacement or von Mises stress.")
     p.add_argument("results", metavar="RESULTS.h5", help="results file of sidprep simulate")
     p.add_argument("-o", "--output", metavar="OUT", help="movie.html (default RESULTS.html), .mp4 or .gif")
     p.add_argument("--real", action="store_true", help="movies: true deformation (default exaggerated)")
+    p.add_argument("--colour", choices=("displacement", "stress"), default="displacement",
+                   help="colour the surfaces by |u| (m) or by the von Mises stress (MPa; the SID needs modal "
+                        "stresses, `sidprep reduce --stress`); the page has a switch, this is its start")
     p.set_defaults(func=run)
 
 
@@ -26,8 +29,8 @@ def run(args) -> int:
     if out.suffix.lower() not in MOVIE_SUFFIXES:
         raise InputError(f"{out}: unknown output type; use .html, .mp4 or .gif")
     if out.suffix.lower() == ".html":
-        path = write_mechanism_page(args.results, out)
+        path = write_mechanism_page(args.results, out, colour=args.colour)
     else:
-        path = write_mechanism_movie(args.results, out, exaggerated=not args.real)
+        path = write_mechanism_movie(args.results, out, exaggerated=not args.real, colour=args.colour)
     print(f"wrote {path}")
     return 0

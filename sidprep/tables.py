@@ -20,19 +20,27 @@ _NAMES = {float: "a number", int: "an integer", str: "a string", bool: "true or 
 
 def read_toml(path, what: str = "file") -> dict:
     """The TOML document at ``path``; "file not found" and syntax errors as one-line InputErrors."""
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        import tomli as tomllib
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: {what} not found; check the path")
     try:
-        return tomllib.loads(path.read_text())
+        text = path.read_text()
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text file; a {what} is TOML text") from None
+    return parse_toml(text, path)
+
+
+def parse_toml(text: str, source) -> dict:
+    """The TOML document ``text`` (e.g. a scene kept in a results file); syntax errors as one-line
+    InputErrors naming ``source``."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: invalid TOML ({exc}); fix the syntax") from None
+        raise InputError(f"{source}: invalid TOML ({exc}); fix the syntax") from None
 
 
 def _matches(value, hint) -> bool:

@@ -4,7 +4,8 @@ files / 71 MB before, now 100 files).
 
 Each VTU holds the surfaces of all bodies at that time: a flexible body's deformed surface
 x = r_O + A (c + S q) from ``SID.surface`` (points c, shapes S (ns, 3, nq)), with the point field
-``displacement`` = A S q (elastic part, inertial components, m); a rigid body's OBJ surface
+``displacement`` = A S q (elastic part, inertial components, m) and, when its SID has modal
+stresses, ``von_mises`` (Pa, sidprep.sid.stress; 0 on bodies without); a rigid body's OBJ surface
 x = r_O + A p (displacement 0).  A flexible body without surface modes (e.g. read from an ASCII
 SID_FEM file) is shown by its SID node points, as vertex cells.  The cell field ``body`` numbers
 the bodies in scene order.  Open the ``.pvd`` in ParaView and press play.
@@ -20,7 +21,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_path
-from sidprep.sid.surface import Surface, surface_motion
+from sidprep.sid.surface import Surface, surface_motion, surface_von_mises
 
 
 #: the series holds at most this many time steps (files): every k-th output sample
@@ -31,21 +32,24 @@ def frame_mesh(result, surfaces: dict[str, Surface], i: int):
     """meshio.Mesh of all bodies at output index ``i``."""
     import meshio
 
-    points, disp, cells, body_ids = [], [], [], []
+    points, disp, cells, body_ids, vm = [], [], [], [], []
     offset = 0
     for k, (name, surf) in enumerate(surfaces.items()):
         b = result.bodies[name]
         x, u = surface_motion(surf, b.position[i:i + 1], b.rotation[i:i + 1], b.q[i:i + 1])
         points.append(x[0])
         disp.append(u[0])
+        vm.append(np.zeros(len(x[0])) if surf.stress is None else surface_von_mises(surf, b.q[i:i + 1])[0])
         if len(surf.triangles):
             cells.append(("triangle", surf.triangles + offset))
         else:
             cells.append(("vertex", np.arange(len(x), dtype=np.int64)[:, None] + offset))
         body_ids.append(np.full(len(cells[-1][1]), k, dtype=np.int32))
         offset += len(x)
-    return meshio.Mesh(np.vstack(points), cells, point_data={"displacement": np.vstack(disp)},
-                       cell_data={"body": body_ids})
+    point_data = {"displacement": np.vstack(disp)}
+    if any(s.stress is not None for s in surfaces.values()):
+        point_data["von_mises"] = np.concatenate(vm)
+    return meshio.Mesh(np.vstack(points), cells, point_data=point_data, cell_data={"body": body_ids})
 
 
 def write_animation(result, surfaces: dict[str, Surface], pvd_path: str | os.PathLike,

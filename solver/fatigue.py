@@ -42,7 +42,7 @@ class Basquin:
 @dataclass(frozen=True)
 class FatigueDamage:
     """Rainflow cycles and the damage of one history: ranges (n,) Pa, counts (n,) (1 or 0.5),
-    damage D (-), repeats = 1 / D of the history to failure."""
+    damage D (-), repeats = 1 / D of the history to failure (JSON: null when nothing is damaged)."""
 
     ranges: np.ndarray
     counts: np.ndarray
@@ -54,7 +54,7 @@ class FatigueDamage:
 
     def as_dict(self) -> dict:
         return {"cycles": float(self.counts.sum()), "largest_range_Pa": float(self.ranges.max(initial=0.0)),
-                "damage": self.damage, "repeats_to_failure": self.repeats}
+                "damage": self.damage, "repeats_to_failure": self.repeats if self.damage else None}
 
 
 _SN = re.compile(r"^\s*C\s*=\s*([^,]+),\s*m\s*=\s*([^,]+)\s*$")

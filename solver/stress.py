@@ -8,7 +8,8 @@ stresses, sigma_v(t) = |W S q(t)| (W = sidprep.sid.stress.DEVIATOR_ROWS, S the (
 modes): the envelope (largest over the run at every node) and the hot spots follow without
 holding every tensor; the full tensors are formed only at the nodes asked for.
 
-Only the SID side of sidprep is imported (the solver never imports the FE side).
+Only the SID side of sidprep is imported (the solver never imports the FE side); an analytical
+Beam declared in the scene gets its stress modes from sidprep.reduction.beam (numpy only).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ DEFAULT_HOT_SPOTS = 5
 HOT_SPOT_SEPARATION = 0.05
 #: samples per matrix product (bounds the temporaries to SAMPLE_BLOCK x 5 ns doubles)
 SAMPLE_BLOCK = 512
+#: precision of the envelope's matrix products (von_mises_envelope)
+ENVELOPE_DTYPE = np.float32
 #: a point given with --at must lie within this many node spacings (median distance between
 #: neighbouring stress nodes) of the nearest one
 AT_DISTANCE_SPACINGS = 3.0
@@ -104,9 +107,23 @@ def sid_path(source: str, results_path: Path) -> Path:
                      "from the folder of the simulation or next to the SID file")
 
 
-def body_stress_modes(results_path: Path, bodies: dict, body: str | None) -> tuple[str, Path, StressModes]:
-    """(body name, SID path, its StressModes) of the body asked for (or the only flexible body)."""
-    flexible = [n for n, b in bodies.items() if b["kind"] == "flexible" and b["source"]]
+def beam_stress_modes(scene_text: str, body: str, results_path: Path) -> StressModes:
+    """The stress modes of an analytical Beam declared inline in the run's scene (kept in the results
+    file): its SID rebuilt from the scene's [bodies.NAME] table (sidprep.reduction.beam)."""
+    from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
+    from sidprep.tables import parse_toml
+
+    table = parse_toml(scene_text, f"{results_path} (its scene)").get("bodies", {}).get(body, {})
+    beam = {key: value for key, value in table.items() if key in BEAM_TABLE_KEYS}
+    return beam_sid(beam_options_from_table(beam, f"{results_path}: scene [bodies.{body}]")).stress
+
+
+def body_stress_modes(results_path: Path, rf, body: str | None) -> tuple[str, str, StressModes]:
+    """(body name, SID path or "beam in the scene", its StressModes) of the body asked for (or the
+    only flexible body)."""
+    bodies = dict(rf.bodies)
+    beams = [n for n, b in bodies.items() if b["kind"] == "beam"]
+    flexible = [n for n, b in bodies.items() if b["kind"] == "flexible" and b["source"]] + beams
     if body is None:
         if len(flexible) != 1:
             raise InputError(f"{results_path}: {len(flexible)} flexible bodies with a SID file "
@@ -117,30 +134,39 @@ def body_stress_modes(results_path: Path, bodies: dict, body: str | None) -> tup
     if body not in flexible:
         raise InputError(f"{results_path}: body {body!r} is {bodies[body]['kind'] or 'not flexible'} with no SID "
                          f"file, so it has no stress modes; choose one of: {', '.join(flexible) or 'none'}")
+    if body in beams:
+        return body, "analytical Beam of the scene", beam_stress_modes(rf.scene.get("text", ""), body, results_path)
     path = sid_path(bodies[body]["source"], results_path)
     sid = read_sid(path)
     if sid.stress is None:
         raise InputError(f"{path}: the SID of body {body!r} has no modal stresses; reduce it again with "
                          "`sidprep reduce MESH --stress` and re-run the simulation")
-    return body, path, sid.stress
+    return body, str(path), sid.stress
 
 
 def von_mises_envelope(stress: StressModes, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Largest von Mises stress over all samples at every node, and the sample where it occurs:
-    q (nt, nq) -> (envelope (ns,) Pa, sample index (ns,)); one matrix product per SAMPLE_BLOCK samples
-    with the deviatoric stress modes D = W S ((5 ns, nq))."""
+    q (nt, nq) -> (envelope (ns,) Pa, sample index (ns,)).
+
+    One matrix product per SAMPLE_BLOCK samples with the deviatoric stress modes D = W S, laid out
+    (5, ns, nq) so that each deviator component is a contiguous block; in single precision
+    (ENVELOPE_DTYPE: relative error ~1e-6, far below the modal truncation; the hot spots' values
+    and histories are then recomputed in double precision at their nodes).
+    """
     ns = stress.n_nodes
-    D = np.einsum("rc,sck->srk", DEVIATOR_ROWS, stress.modes).reshape(5 * ns, -1)
-    envelope = np.full(ns, -1.0)
+    D = np.einsum("rc,sck->rsk", DEVIATOR_ROWS, stress.modes).reshape(5 * ns, -1).astype(ENVELOPE_DTYPE)
+    qs = np.asarray(q, dtype=ENVELOPE_DTYPE)
+    envelope = np.full(ns, -1.0, dtype=ENVELOPE_DTYPE)
     where = np.zeros(ns, dtype=np.int64)
-    for start in range(0, q.shape[0], SAMPLE_BLOCK):
-        d = (q[start:start + SAMPLE_BLOCK] @ D.T).reshape(-1, ns, 5)
-        vm2 = np.einsum("tsr,tsr->ts", d, d)
+    for start in range(0, qs.shape[0], SAMPLE_BLOCK):
+        d = (qs[start:start + SAMPLE_BLOCK] @ D.T).reshape(-1, 5, ns)
+        np.square(d, out=d)
+        vm2 = d.sum(axis=1)
         k = np.argmax(vm2, axis=0)
         peak = vm2[k, np.arange(ns)]
         better = peak > envelope
         envelope[better], where[better] = peak[better], start + k[better]
-    return np.sqrt(np.maximum(envelope, 0.0)), where
+    return np.sqrt(np.maximum(envelope, 0.0)).astype(float), where
 
 
 def hot_spot_nodes(envelope: np.ndarray, points: np.ndarray, count: int) -> list[int]:
@@ -199,7 +225,7 @@ def recover_stress(results, body: str | None = None, *, at=None, hot_spots: int 
     """
     path = Path(results)
     rf = read_results(path)
-    name, sid_file, stress = body_stress_modes(path, dict(rf.bodies), body)
+    name, sid_file, stress = body_stress_modes(path, rf, body)
     if at is not None and len(at) != 3:
         raise InputError(f"--at {','.join(map(str, at))}: give three coordinates X,Y,Z (m, body frame)")
     history_at = None if at is None else nearest_node(stress, at, name)
@@ -210,9 +236,9 @@ def recover_stress(results, body: str | None = None, *, at=None, hot_spots: int 
     envelope, where = von_mises_envelope(stress, q)
     t = np.asarray(rf.result.t, dtype=float)
     rows = hot_spot_nodes(envelope, stress.points, hot_spots)
-    spots = tuple(HotSpot(int(stress.node_ids[r]), stress.points[r], float(t[where[r]]), float(envelope[r]))
-                  for r in rows)
     histories = tuple(node_history(stress, q, r, principal=principal) for r in rows)
+    spots = tuple(HotSpot(h.node, h.position, float(t[np.argmax(h.von_mises)]), float(h.von_mises.max()))
+                  for h in histories)
     history = None if history_at is None else node_history(stress, q, *history_at, principal=principal)
     return StressRecovery(name, str(sid_file), t, stress.node_ids, stress.points, envelope, t[where],
                           spots, histories, history)

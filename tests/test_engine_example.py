@@ -49,7 +49,7 @@ def engine_dir(tmp_path_factory):
     for name in ("scene.toml", "scene_rigid.toml", "analyse.py", "gas_force.py", "crank.obj", "piston.obj"):
         shutil.copy(EXAMPLE / name, folder / name)
     r = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(ROOT / "data/meshes/piston_rod.msh"),
-                        "-o", "piston_rod.sid.h5", "-q", "--no-sid-fem"], cwd=folder, capture_output=True, text=True)
+                        "-o", "piston_rod.sid.h5", "-q", "--no-sid-fem", "--stress"], cwd=folder, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     return folder
 

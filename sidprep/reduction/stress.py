@@ -26,10 +26,12 @@ SCOPES = ("surface", "all")
 #: elements per batch (temporaries ~ CHUNK * 10 * 9 * nc * 8 bytes)
 CHUNK = 1024
 #: the reduced body's stress under unit master forces vs the full model's, relative to the largest
-#: stress of the load case (a warning).  The FRMs are responses at Omega > 0, not static modes: the
-#: bundled bar (two RBE2 ends, free) shows 4.7 % with every FRM kept (at the coupled end faces;
-#: deflection 0.06 %), 9.7 % with the default cut-off 5x, which drops the moment FRMs
-STRESS_CHECK_TOL = 0.05
+#: stress of the load case, off the interface patches (a warning).  This measures the basis, not
+#: the recovery (exact for shapes in the basis): the FRMs are responses at Omega > 0 and a free
+#: body's unit force carries inertia-relief body loads, neither exactly in the span.  Measured with
+#: the defaults: piston rod 5.3 % (axial force, near the small eye), bundled bar with two free RBE2
+#: ends 8.6 %, the same bar clamped at one end 2.9 %
+STRESS_CHECK_TOL = 0.10
 METHOD = ("element strain at the element's nodes from the shape-function gradients, isotropic Hooke, "
           "unweighted average over the elements sharing a node")
 
@@ -110,7 +112,9 @@ def stress_modes(mesh, material, Phi_fe: np.ndarray, scope: str = "surface") -> 
 def stress_check(red, mesh, material, stress: StressModes) -> dict:
     """The modal stresses against the full model's static solution: unit forces at every interface
     master (not held), the full model's relieved deflection (sidprep.reduction.fe_checks) and its
-    nodal stress vs sum_k sigma_k q_k with the reduced body's static q = Ke^-1 Phi^T P.
+    nodal stress vs sum_k sigma_k q_k with the reduced body's static q = Ke^-1 Phi^T P, at the
+    stress nodes off the interface patches (whose stress is that of the rigid coupling, singular
+    at the patch border).
 
     Returns {"stress_static_max_rel_error": largest |sigma_red - sigma_full| over nodes and
     components, relative to the load case's largest |sigma_full|, worst case; "stress_load_cases": n}.
@@ -123,9 +127,11 @@ def stress_check(red, mesh, material, stress: StressModes) -> dict:
     P = np.zeros((red.im.n_model, len(loads)))
     P[loads, np.arange(len(loads))] = 1.0
     U_full = np.asarray(red.im.T @ relieved_static_solve(red, P))
-    full = nodal_stress(mesh, material, U_full, stress_nodes(mesh, stress.scope))   # (ns, 6, nl)
+    nodes = stress_nodes(mesh, stress.scope)
+    away = ~np.isin(nodes, np.concatenate([i.nodes for i in red.im.interfaces]))
+    full = nodal_stress(mesh, material, U_full, nodes[away])            # (ns, 6, nl)
     q = (red.Phi_model[loads].T) / ((2 * np.pi * red.basis.frequencies_hz) ** 2)[:, None]
-    reduced = np.einsum("sck,kl->scl", stress.modes, q)
+    reduced = np.einsum("sck,kl->scl", stress.modes[away], q)
     err = np.abs(reduced - full).max(axis=(0, 1)) / np.abs(full).max(axis=(0, 1))
     return {"stress_static_max_rel_error": float(err.max()), "stress_load_cases": int(len(loads))}
 

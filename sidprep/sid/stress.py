@@ -1,5 +1,5 @@
-"""Modal stresses of a flexible body and the invariants of a stress tensor (numpy only: the solver
-imports this module).
+"""Modal stresses of a flexible body and the invariants of a stress tensor (numpy, and scipy for
+the nearest-node search; the solver imports this module).
 
 A body's stress at a node is linear in its modal coordinates (linear elasticity about the
 undeformed state, the same assumption as the SID's mode shapes):
@@ -60,6 +60,15 @@ DEVIATOR_ROWS = np.array([[math.sqrt(3) / 2, -math.sqrt(3) / 2, 0, 0, 0, 0],
                           [0, 0, 0, math.sqrt(3), 0, 0],
                           [0, 0, 0, 0, math.sqrt(3), 0],
                           [0, 0, 0, 0, 0, math.sqrt(3)]])
+
+
+def stress_on_points(stress: StressModes, points: np.ndarray) -> np.ndarray:
+    """The modal stresses of the stress node nearest to each point (e.g. the animation surface's
+    points: the same nodes for a meshed body, the section outline's for a Beam); (n, 6, nq) Pa/[q]."""
+    from scipy.spatial import cKDTree
+
+    _, rows = cKDTree(stress.points).query(np.asarray(points, dtype=float))
+    return stress.modes[rows]
 
 
 def von_mises(sigma: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.interpolation import elastic_interpolation
+from sidprep.sid.stress import stress_on_points, von_mises
 
 
 @dataclass(frozen=True)
@@ -24,13 +25,14 @@ class Surface:
 
     points (ns, 3) m in K; triangles (nf, 3) int64 (empty: the points are drawn as vertices);
     shapes (ns, 3, nq) m per unit modal coordinate (nq = 0 for rigid bodies); ``source`` says how
-    the surface was obtained.
+    the surface was obtained; stress (ns, 6, nq) Pa per unit modal coordinate at the points, or None.
     """
 
     points: np.ndarray
     triangles: np.ndarray
     shapes: np.ndarray
     source: str = ""
+    stress: np.ndarray | None = None
 
 
 def node_points(sid) -> tuple[np.ndarray, np.ndarray]:
@@ -51,8 +53,10 @@ def stored_surface(sid) -> Surface | None:
     if sid.surface is None:
         return None
     s = sid.surface
-    return Surface(np.asarray(s.points, float), np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float),
-                   "FE surface modes stored in the SID")
+    points = np.asarray(s.points, float)
+    return Surface(points, np.asarray(s.triangles, np.int64), np.asarray(s.shapes, float),
+                   "FE surface modes stored in the SID",
+                   None if sid.stress is None else stress_on_points(sid.stress, points))
 
 
 def interpolated_surface(sid, points, triangles, source: str) -> Surface:
@@ -95,3 +99,11 @@ def surface_motion(surface: Surface, r: np.ndarray, A: np.ndarray, q: np.ndarray
         local_u = np.zeros((len(r),) + surface.points.shape)
     x = r[:, None, :] + np.einsum("tab,tsb->tsa", A, surface.points[None] + scale * local_u)
     return x, np.einsum("tab,tsb->tsa", A, local_u)
+
+
+def surface_von_mises(surface: Surface, q: np.ndarray) -> np.ndarray | None:
+    """Von Mises stress (nt, ns) Pa at the surface points for modal coordinates q (nt, nq),
+    sigma = sum_k sigma_k q_k; None for a surface without modal stresses."""
+    if surface.stress is None:
+        return None
+    return von_mises(np.einsum("sck,tk->tsc", surface.stress, q[:, :surface.stress.shape[2]]))

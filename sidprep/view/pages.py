@@ -22,11 +22,14 @@ from sidprep.sid.io import read_sid
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.io.obj import read_obj
 from sidprep.sid.model import inertia_matrix
+from sidprep.sid.stress import stress_on_points, von_mises
 from sidprep.sid.surface import (Surface, interpolated_surface, node_points, rigid_surface, stored_surface,
-    surface_motion)
+    surface_motion, surface_von_mises)
 from sidprep.solver.results import read_results
 
 
+#: the pages show stresses in MPa
+PA_PER_MPA = 1e6
 #: the largest mode displacement is drawn as this fraction of the body's bounding-box diagonal
 DISPLAY_FRACTION = 0.1
 #: digits kept in the page's coordinates (relative to the body size): 1e-5 of the diagonal
@@ -186,8 +189,11 @@ function show(phase) {
     peak = Math.max(peak, I[i]);
   }
   for (let i = 0; i < n; i++) I[i] = peak > 0 ? I[i] / peak : 0;
-  Plotly.restyle(gd, {x: [x], y: [y], z: [z], intensity: [I]}, [0]);
+  const vm = D.vm && document.getElementById('colour').value === 'vm';
+  Plotly.restyle(gd, {x: [x], y: [y], z: [z], intensity: [vm ? D.vm[k] : I],
+                      'colorbar.title.text': [vm ? 'von Mises / max' : '|u| / max']}, [0]);
   document.getElementById('factor').textContent = (phase * (+scl.value) * D.amp[k]).toPrecision(3);
+  if (D.vm) document.getElementById('vmpeak').textContent = vm ? 'max von Mises ' + (D.vm_peak[k] / 1e6).toPrecision(4) + ' MPa per unit q' : '';
 }
 function tick(now) {
   if (playing && now - last > 50) { last = now; show(Math.sin(2 * Math.PI * (now - t0) / 1500)); }
@@ -195,8 +201,10 @@ function tick(now) {
 }
 document.getElementById('play').onclick = function () { playing = !playing; this.textContent = playing ? 'stop' : 'animate'; if (!playing) show(1); };
 sel.onchange = () => show(1); scl.oninput = () => show(1);
+if (D.vm) document.getElementById('colour').onchange = () => show(1);
 const m = /mode=(\\d+)/.exec(location.hash);
 if (m) { sel.value = String(+m[1] - 1); }
+if (D.vm && /stress/.test(location.hash)) document.getElementById('colour').value = 'vm';
 show(1);
 requestAnimationFrame(tick);
 """
@@ -227,14 +235,27 @@ def write_mode_page(sid_path, out_path=None, obj_path=None) -> Path:
             "z": _rounded(surface.points[:, 2], size),
             "shapes": [_rounded(surface.shapes[:, :, k] * amp[k], size) for k in range(sid.nq)],
             "amp": [1.0] * sid.nq}
+    stress_rows = []
+    if sid.stress is not None:
+        modes = surface.stress if surface.stress is not None else stress_on_points(sid.stress, surface.points)
+        vm = von_mises(modes.transpose(0, 2, 1))                                 # (ns, nq) Pa/[q]
+        vm_peak = vm.max(axis=0)
+        data["vm"] = [np.round(vm[:, k] / (vm_peak[k] or 1.0), 3).tolist() for k in range(sid.nq)]
+        data["vm_peak"] = vm_peak.tolist()
+        stress_rows = [("modal stresses", f"{sid.stress.n_nodes} {html.escape(sid.stress.scope)} nodes"),
+                       *[(f"{k + 1}", f"{v / PA_PER_MPA:.4g} MPa") for k, v in enumerate(vm_peak)]]
     names = _mode_names(sid)
     options = "".join(f"<option value='{k}'>{html.escape(s)}</option>" for k, s in enumerate(names))
     controls = (f"mode <select id='mode'><option value='-1'>undeformed</option>{options}</select> "
                 "scale <input id='scale' type='range' min='0' max='5' step='0.1' value='1'> "
                 "<button id='play'>animate</button> displayed factor <span id='factor'></span> x "
                 "(1 = largest displacement at 10 % of the body size)")
+    if stress_rows:
+        controls += (" colour <select id='colour'><option value='u'>displacement</option>"
+                     "<option value='vm'>von Mises stress</option></select> <span id='vmpeak'></span>")
     side = (_table(_properties_rows(sid)) + f"<p>surface: {html.escape(surface.source)}</p>"
             + "<h4>modes</h4>" + _table([(s.split(':')[0], html.escape(s.split(':', 1)[1])) for s in names])
+            + ("<h4>largest von Mises stress per unit q</h4>" + _table(stress_rows) if stress_rows else "")
             + "<h4>checks</h4>" + _table(_checks_rows(sid)))
     script = _MODE_SCRIPT % (json.dumps(data), PLOT_ID)
     return write_page(out_path, f"{sid_path.name}", _figure(surface, nodes, size), controls, side, script)
@@ -309,7 +330,8 @@ _MECHANISM_SCRIPT = """
 const D = %s;
 const gd = document.getElementById('%s');
 const slider = document.getElementById('time'), mode = document.getElementById('deform');
-let playing = false, wall0 = 0, t0 = 0, last = 0;
+const colour = document.getElementById('colour');
+let playing = false, wall0 = 0, t0 = 0, last = 0, stress = colour.value === 'stress';
 function show(i) {
   const s = mode.value === 'exaggerated' ? D.exaggeration : 1.0;
   const xs = [], ys = [], zs = [], cs = [];
@@ -328,10 +350,14 @@ function show(i) {
       z[p] = r[2] + A[6]*l0 + A[7]*l1 + A[8]*l2;
       c[p] = Math.hypot(u0, u1, u2);
     }
-    xs.push(x); ys.push(y); zs.push(z); cs.push(c);
+    xs.push(x); ys.push(y); zs.push(z); cs.push(stress ? (B.vm ? B.vm[i] : new Array(n).fill(0)) : c);
   }
   Plotly.restyle(gd, {x: xs, y: ys, z: zs, intensity: cs}, D.bodies.map((_, b) => b));
   document.getElementById('clock').textContent = D.t[i].toFixed(4);
+}
+function legend() {
+  Plotly.relayout(gd, {'coloraxis.cmax': stress ? D.vm_max : D.u_max,
+                       'coloraxis.colorbar.title.text': stress ? 'von Mises (MPa)' : '|u| (m)'});
 }
 function tick(now) {
   if (playing && now - last > 40) {
@@ -349,25 +375,29 @@ document.getElementById('play').onclick = function () {
   wall0 = performance.now(); t0 = D.t[+slider.value];
 };
 slider.oninput = () => show(+slider.value); mode.onchange = () => show(+slider.value);
+colour.onchange = () => { stress = colour.value === 'stress'; legend(); show(+slider.value); };
 const m = /t=(\\d+)/.exec(location.hash);
 if (m) slider.value = Math.min(+m[1], D.t.length - 1);
 if (/exaggerated/.test(location.hash)) mode.value = 'exaggerated';
+if (/stress/.test(location.hash) && !colour.disabled) { colour.value = 'stress'; stress = true; }
+legend();
 show(+slider.value);
 requestAnimationFrame(tick);
 """
 
 
-def write_mechanism_page(results_path, out_path) -> Path:
-    """Self-contained HTML page of a simulated mechanism: surfaces coloured by |u| (m), a time
-    slider with real-time play, true or exaggerated deformation.  Append ``#t=N&exaggerated``
-    to the address to open at sample N with exaggerated deformation."""
+def write_mechanism_page(results_path, out_path, colour: str = "displacement") -> Path:
+    """Self-contained HTML page of a simulated mechanism: surfaces coloured by |u| (m) or by the
+    von Mises stress (MPa, bodies whose SID has modal stresses; ``colour`` the initial choice, a
+    switch on the page), a time slider with real-time play, true or exaggerated deformation.
+    Append ``#t=N&exaggerated&stress`` to the address to open at sample N, exaggerated, coloured by stress."""
     import plotly.graph_objects as go
 
     rf, surfaces = mechanism_surfaces(results_path)
     result = rf.result
     keep = _samples(len(result.t), MAX_PAGE_FRAMES)
     scale = exaggeration(result, surfaces)
-    bodies, traces, allx, umax = [], [], [], 0.0
+    bodies, traces, allx, umax, vm_max = [], [], [], 0.0, 0.0
     for name, s in surfaces.items():
         b = result.bodies[name]
         x, u = surface_motion(s, b.position[keep], b.rotation[keep], b.q[keep], scale)
@@ -378,6 +408,11 @@ def write_mechanism_page(results_path, out_path) -> Path:
         bodies.append({"c": s.points.ravel().tolist(), "S": s.shapes.reshape(-1).tolist() if nq else [],
                        "r": b.position[keep].tolist(), "A": b.rotation[keep].reshape(len(keep), 9).tolist(),
                        "q": b.q[keep][:, :nq].tolist() if nq else [[] for _ in keep]})
+        vm = surface_von_mises(s, b.q[keep])
+        if vm is not None:
+            vm = vm / PA_PER_MPA
+            bodies[-1]["vm"] = np.round(vm, 2).tolist()
+            vm_max = max(vm_max, float(vm.max()))
         t = s.triangles
         traces.append(go.Mesh3d(x=x[0, :, 0], y=x[0, :, 1], z=x[0, :, 2], i=t[:, 0], j=t[:, 1], k=t[:, 2],
                                 intensity=umag[0], colorscale="Viridis", cmin=0, cmax=1, name=name,
@@ -394,22 +429,32 @@ def write_mechanism_page(results_path, out_path) -> Path:
                       coloraxis=dict(colorscale="Viridis", cmin=0, cmax=umax or 1.0,
                                      colorbar=dict(title="|u| (m)")),
                       margin=dict(l=0, r=0, t=0, b=0), showlegend=False)
-    data = {"t": result.t[keep].tolist(), "exaggeration": scale, "bodies": bodies}
+    data = {"t": result.t[keep].tolist(), "exaggeration": scale, "bodies": bodies, "u_max": umax or 1.0,
+            "vm_max": vm_max or 1.0}
+    has_stress = any("vm" in b for b in bodies)
+    if colour == "stress" and not has_stress:
+        raise InputError(f"{results_path}: no body's SID has modal stresses to colour by; reduce with "
+                         "`sidprep reduce MESH --stress` and re-run the simulation, or colour by displacement")
     controls = (f"<button id='play'>play</button> t = <span id='clock'></span> s "
                 f"<input id='time' type='range' min='0' max='{len(keep) - 1}' step='1' value='0' style='width:40%'> "
                 "<select id='deform'><option value='real'>real deformation</option>"
-                f"<option value='exaggerated'>exaggerated x {scale:.3g}</option></select>")
+                f"<option value='exaggerated'>exaggerated x {scale:.3g}</option></select> colour "
+                f"<select id='colour'{'' if has_stress else ' disabled'}><option value='displacement'>displacement |u|</option>"
+                f"<option value='stress'{' selected' if colour == 'stress' else ''}>von Mises stress</option></select>")
     rows = [("results", html.escape(Path(results_path).name)), ("scene", html.escape(rf.scene.get("path", ""))),
             ("time", f"{result.t[0]:.4g} .. {result.t[-1]:.4g} s, {len(result.t)} samples ({len(keep)} shown)"),
             ("max |u|", f"{umax:.3g} m")]
+    if has_stress:
+        rows.append(("max von Mises", f"{vm_max:.4g} MPa (shown samples)"))
     rows += [(name, html.escape(s.source)) for name, s in surfaces.items()]
     script = _MECHANISM_SCRIPT % (json.dumps(data), PLOT_ID)
     return write_page(out_path, Path(results_path).name, fig, controls, _table(rows), script)
 
 
-def write_mechanism_movie(results_path, out_path, exaggerated: bool = True) -> Path:
+def write_mechanism_movie(results_path, out_path, exaggerated: bool = True, colour: str = "displacement") -> Path:
     """An .mp4 (needs ffmpeg) or .gif movie of the mechanism with matplotlib, at most
-    MAX_MOVIE_FRAMES frames, surfaces coloured by |u|."""
+    MAX_MOVIE_FRAMES frames, surfaces coloured by |u| (m) or by the von Mises stress (``colour =
+    "stress"``, MPa), with a colour bar."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -431,16 +476,27 @@ def write_mechanism_movie(results_path, out_path, exaggerated: bool = True) -> P
                               result.bodies[n].q[keep], scale)
         motion[n] = (x, np.linalg.norm(u, axis=2))
     cloud = np.vstack([x.reshape(-1, 3) for x, _ in motion.values()])
-    umax = max(float(u.max()) for _, u in motion.values()) or 1.0
-    fig = plt.figure(figsize=(6, 5), dpi=80)
+    if colour == "stress":
+        values = {n: surface_von_mises(s, result.bodies[n].q[keep]) for n, s in surfaces.items()}
+        values = {n: None if v is None else v / PA_PER_MPA for n, v in values.items()}
+        if all(v is None for v in values.values()):
+            raise InputError(f"{results_path}: no body's SID has modal stresses to colour by; reduce with "
+                             "`sidprep reduce MESH --stress` and re-run the simulation, or colour by displacement")
+        values = {n: np.zeros(motion[n][1].shape) if v is None else v for n, v in values.items()}
+        label = "von Mises (MPa)"
+    else:
+        values, label = {n: u for n, (_, u) in motion.items()}, "|u| (m)"
+    umax = max(float(v.max()) for v in values.values()) or 1.0
+    fig = plt.figure(figsize=(6.6, 5), dpi=80)
     ax = fig.add_subplot(projection="3d")
     cmap = plt.get_cmap("viridis")
+    fig.colorbar(plt.cm.ScalarMappable(matplotlib.colors.Normalize(0, umax), cmap), ax=ax, shrink=0.6, label=label)
 
     def draw(f):
         ax.cla()
         for name, s in surfaces.items():
-            x, u = motion[name]
-            colours = cmap(u[f][s.triangles].mean(axis=1) / umax)
+            x, _ = motion[name]
+            colours = cmap(values[name][f][s.triangles].mean(axis=1) / umax)
             ax.add_collection3d(Poly3DCollection(x[f][s.triangles], facecolors=colours, linewidths=0))
         for set_lim, a in ((ax.set_xlim, 0), (ax.set_ylim, 1), (ax.set_zlim, 2)):
             set_lim(cloud[:, a].min(), cloud[:, a].max())
