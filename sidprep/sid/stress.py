@@ -65,6 +65,8 @@ DEVIATOR_ROWS = np.array([[math.sqrt(3) / 2, -math.sqrt(3) / 2, 0, 0, 0, 0],
 def stress_on_points(stress: StressModes, points: np.ndarray) -> np.ndarray:
     """The modal stresses of the stress node nearest to each point (e.g. the animation surface's
     points: the same nodes for a meshed body, the section outline's for a Beam); (n, 6, nq) Pa/[q]."""
+    # scipy.spatial (with scipy.special) costs 0.15 s CPU to import: only pages and animations of
+    # bodies with stress modes pay it
     from scipy.spatial import cKDTree
 
     _, rows = cKDTree(stress.points).query(np.asarray(points, dtype=float))
