@@ -163,3 +163,25 @@ def test_eig_matrices_equal_matrixstorage_ones(block, tmp_path):
     (tmp_path / "held.eig").write_bytes((block / "block_eig.eig").read_bytes())
     with pytest.raises(InputError, match=r"\*BOUNDARY.*SOLVER=MATRIXSTORAGE"):
         read_matrices(tmp_path / "held.eig")
+
+
+#: examples/import_calculix/README.md: CalculiX 2.20's own eigenfrequencies of the block (block_eig.dat, Hz)
+CCX_BLOCK_HZ = (5592.104, 5592.105, 7419.773)
+#: the README's SID frequencies (Hz, 0.01 Hz) and its tet10 SID frequencies (Hz)
+SID_BLOCK_HZ = (5594.72, 5594.72, 7423.86)
+TET10_BLOCK_HZ = (5592.13, 5592.17, 7387.52)
+#: printed digits of the README
+README_RTOL = 2e-6
+
+
+def test_example_numbers(block, tmp_path):
+    readme = (EXAMPLE / "README.md").read_text()
+    for f in CCX_BLOCK_HZ + SID_BLOCK_HZ + TET10_BLOCK_HZ:
+        assert f"{f:.2f}" in readme or f"{f:.3f}" in readme, f
+    ccx = np.sqrt(elastic(read_eigenvalues(block / "block_eig.eig"))[:3]) / (2 * np.pi)
+    np.testing.assert_allclose(ccx, CCX_BLOCK_HZ, rtol=README_RTOL)
+    options = ReduceOptions(matrices=str(block / "block.sti"), interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3)
+    np.testing.assert_allclose(reduce(block / "block.inp", options).sid.frequencies_hz[:3], SID_BLOCK_HZ,
+                               rtol=README_RTOL)
+    tet = reduce(tet10_block(tmp_path / "b.msh"), ReduceOptions(interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3))
+    np.testing.assert_allclose(tet.sid.frequencies_hz[:3], TET10_BLOCK_HZ, rtol=README_RTOL)

@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices, mirrored_triangle, symmetric_matrix, text_blocks
+from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
+from sidprep.fe.matrices.numbers import mirrored
 
 #: the layout read here, as written by CalculiX 2.11-2.21 (matrixstorage.c, arpack.c)
 FORMAT_VERSION = "calculix-matrixstorage 2.20"
@@ -67,16 +68,15 @@ def read_dof_file(path) -> np.ndarray:
 
 def storage_matrix(path, n: int, what: str):
     """The symmetric (n, n) CSR matrix of a ``.sti`` / ``.mas`` file (upper triangle, 1-based)."""
-    rows, cols, vals = [], [], []
-    for block in text_blocks(path, 3, f"CalculiX {what}"):
-        rows.append(block[:, 0].astype(np.int64) - 1)
-        cols.append(block[:, 1].astype(np.int64) - 1)
-        vals.append(block[:, 2])
-    if not rows:
+    blocks = list(text_blocks(path, "iir", f"CalculiX {what}"))
+    if not blocks:
         raise InputError(f"{path}: empty {what}; run ccx again with *FREQUENCY, SOLVER=MATRIXSTORAGE")
-    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    top = int(max(rows.max(), cols.max())) + 1
-    if rows.min() < 0 or cols.min() < 0 or top > n:
+    ints = np.concatenate([b[0] for b in blocks]) - 1
+    vals = np.concatenate([b[1][:, 0] for b in blocks])
+    del blocks
+    rows, cols = ints[:, 0], ints[:, 1]
+    top = int(ints.max()) + 1
+    if ints.min() < 0 or top > n:
         raise InputError(f"{path}: equation number {top} beyond the {n} DOF of the .dof file; the "
                          ".sti/.mas/.dof files come from different runs: run ccx again")
     return symmetric_matrix(rows, cols, vals, n, path, what)
@@ -134,12 +134,10 @@ def read_eig(path) -> FEMatrices:
                          f"entries of {deck.name} need {expected}; the file is truncated or from another deck: "
                          "run ccx again (or use *FREQUENCY, SOLVER=MATRIXSTORAGE)")
     raw = np.memmap(path, dtype=np.float64, mode="r", offset=start, shape=(2 * (neq + nzs),))
-    matrices = []
-    for k in range(2):
-        block = raw[k * (neq + nzs):(k + 1) * (neq + nzs)]
-        i = np.concatenate([np.arange(neq), rows])
-        j = np.concatenate([np.arange(neq), cols])
-        matrices.append(mirrored_triangle(i, j, np.array(block), neq))
+    starts = np.searchsorted(cols, np.arange(neq))       # the diagonal first in each column: sorted rows
+    i, j = np.insert(rows, starts, np.arange(neq)), np.insert(cols, starts, np.arange(neq))
+    matrices = [mirrored(i, j, np.insert(raw[k * (neq + nzs) + neq:(k + 1) * (neq + nzs)], starts,
+                                          raw[k * (neq + nzs):k * (neq + nzs) + neq]), neq) for k in range(2)]
     del raw
     dofs = np.column_stack([np.repeat(nodes, 3), np.tile([1, 2, 3], len(nodes))])
     return FEMatrices(matrices[0], matrices[1], dofs, str(path), EIG_FORMAT_VERSION, eigenvalues)

@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from sidprep.errors import InputError
 from sidprep.fe.linalg import rigid_body_modes
 from sidprep.fe.matrices import FEMatrices, read_matrices
+from sidprep.fe.matrices.numbers import indefinite_entries
 
 #: K_ij^2 > K_ii K_jj (1 + this) for a stored entry: K is indefinite
 MINOR_RTOL = 1e-9
@@ -59,8 +60,10 @@ def imported_model(mesh, path, units) -> ImportedModel:
     (sidprep.fe.material.UnitSystem); every check of the module docstring, InputError on failure."""
     fe = read_matrices(path)
     K, M = model_dofs(fe, mesh, path)
-    K = K * (units.force_to_n / units.length_to_m)
-    M = M * units.mass_to_kg
+    if units.force_to_n != units.length_to_m:
+        K = K * (units.force_to_n / units.length_to_m)
+    if units.mass_to_kg != 1.0:
+        M = M * units.mass_to_kg
     check_stiffness(K, path)
     check_mass(M, path)
     Ms = scalar_mass(M, path)
@@ -121,10 +124,9 @@ def check_stiffness(K: sp.csr_matrix, path) -> None:
         i = int(np.flatnonzero(~(d > 0))[0])
         raise InputError(f"{path}: the stiffness matrix has a non-positive diagonal entry (DOF {i // 3 + 1}.{i % 3 + 1} "
                          f"of MODEL's node order: {d[i]:.3g}); K is indefinite or the file is damaged: write it again")
-    C = K.tocoo()
-    bad = C.data ** 2 > d[C.row] * d[C.col] * (1 + MINOR_RTOL)
-    if bad.any():
-        raise InputError(f"{path}: the stiffness matrix is indefinite ({int(bad.sum())} entries with "
+    bad = indefinite_entries(K.indptr, K.indices, K.data, d, MINOR_RTOL)
+    if bad:
+        raise InputError(f"{path}: the stiffness matrix is indefinite ({bad} entries with "
                          "K_ij^2 > K_ii K_jj); export the stiffness of a stable linear elastic model")
 
 
