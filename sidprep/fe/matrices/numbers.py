@@ -28,6 +28,25 @@ def _is_space(c) -> bool:
 
 
 @numba.njit(cache=True)
+def _digits(buf, i, mant, digits, shift, fraction):
+    """Decimal digits from ``buf[i]`` on into the integer mantissa (its first 18 significant digits)
+    and the decimal shift; returns (next position, mantissa, significant digits, shift, any digit)."""
+    seen = False
+    while i < len(buf) and 48 <= buf[i] <= 57:
+        seen = True
+        if digits < 18:
+            mant = mant * 10 + (buf[i] - 48)
+            if mant:
+                digits += 1
+            if fraction:
+                shift -= 1
+        elif not fraction:
+            shift += 1
+        i += 1
+    return i, mant, digits, shift, seen
+
+
+@numba.njit(cache=True)
 def _real(buf, i, pow10):
     """(value, next position, ok) of the real number starting at ``buf[i]``."""
     n = len(buf)
@@ -35,29 +54,10 @@ def _real(buf, i, pow10):
     if i < n and (buf[i] == 43 or buf[i] == 45):
         negative = buf[i] == 45
         i += 1
-    mant = 0
-    digits = 0
-    shift = 0
-    seen = False
-    while i < n and 48 <= buf[i] <= 57:
-        seen = True
-        if digits < 18:
-            mant = mant * 10 + (buf[i] - 48)
-            if mant:
-                digits += 1
-        else:
-            shift += 1
-        i += 1
+    i, mant, digits, shift, seen = _digits(buf, i, 0, 0, 0, False)
     if i < n and buf[i] == 46:
-        i += 1
-        while i < n and 48 <= buf[i] <= 57:
-            seen = True
-            if digits < 18:
-                mant = mant * 10 + (buf[i] - 48)
-                shift -= 1
-                if mant:
-                    digits += 1
-            i += 1
+        i, mant, digits, shift, seen_fraction = _digits(buf, i + 1, mant, digits, shift, True)
+        seen = seen or seen_fraction
     if not seen:
         return 0.0, i, False
     if i < n and (buf[i] == 101 or buf[i] == 69 or buf[i] == 100 or buf[i] == 68):
