@@ -170,3 +170,25 @@ def test_command_line_exits_2_with_one_line(bar, tmp_path):
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and str(path) in done.stderr and "negative diagonal" in done.stderr
     assert not (tmp_path / "x.sid.h5").exists()
+
+
+#: pymapdl-reader's documentation (examples, "Read a full file"): the first four frequencies of the
+#: cantilever hex beam of the Ansys-written examples/file.full shipped with ansys-mapdl-reader, Hz
+ANSYS_EXAMPLE_HZ = (1283.200, 1283.200, 5781.975, 6919.399)
+#: the documentation prints them to 0.001 Hz
+ANSYS_PRINTED_RTOL = 1e-6
+
+
+def test_ansys_full_file_gives_the_documented_frequencies():
+    examples = pytest.importorskip("ansys.mapdl.reader.examples",
+                                   reason='ansys-mapdl-reader not installed (pip install "sidprep[ansys]")')
+    import scipy.linalg as sla
+
+    from sidprep.fe.matrices.ansys import full_matrices
+
+    fe, constrained = full_matrices(examples.fullfile)
+    keep = ~constrained
+    lam = sla.eigh(fe.K[keep][:, keep].toarray(), fe.M[keep][:, keep].toarray(), eigvals_only=True)[:4]
+    np.testing.assert_allclose(np.sqrt(lam) / (2 * np.pi), ANSYS_EXAMPLE_HZ, rtol=ANSYS_PRINTED_RTOL)
+    with pytest.raises(InputError, match="63 DOFs are constrained by D commands"):
+        read_matrices(examples.fullfile)

@@ -15,6 +15,7 @@ ending         written by                                      module
 ``.mtx``       Abaqus ``*MATRIX GENERATE`` +                   ``abaqus``
                ``*MATRIX OUTPUT, FORMAT=MATRIX INPUT``
 ``.pch``       Nastran DMIG punch (``PARAM,EXTOUT,DMIGPCH``)   ``nastran``
+``.full``      Ansys (modal / substructure solve, ``WRFULL``)  ``ansys`` (optional package)
 =============  ==============================================  =======================
 """
 
@@ -76,6 +77,7 @@ READERS = {
     ".eig": ("calculix", "CalculiX *FREQUENCY, STORAGE=YES"),
     ".mtx": ("abaqus", "Abaqus *MATRIX GENERATE"),
     ".pch": ("nastran", "Nastran DMIG punch, PARAM,EXTOUT,DMIGPCH"),
+    ".full": ("ansys", "Ansys .full, through ansys-mapdl-reader"),
 }
 
 
