@@ -53,7 +53,7 @@ class ReduceOptions(ModelOptions):
     {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
     dir), stored with their interpolated mode shapes (sidprep.reduction.paths). matrices : a file of
-    K and M written by another FE code (sidprep.fe.matrices: .sti, .mtx, .pch, .op4) used instead of
+    K and M written by another FE code (sidprep.fe.matrices: .sti, .eig, .mtx, .pch, .full) used instead of
     sidprep's own assembly; the mesh is then the deck they belong to (any solid elements).
     """
 
