@@ -185,3 +185,11 @@ def test_example_numbers(block, tmp_path):
                                rtol=README_RTOL)
     tet = reduce(tet10_block(tmp_path / "b.msh"), ReduceOptions(interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3))
     np.testing.assert_allclose(tet.sid.frequencies_hz[:3], TET10_BLOCK_HZ, rtol=README_RTOL)
+
+
+def test_job_file_resolves_matrices_beside_it(block, tmp_path):
+    from sidprep.jobs.jobfile import read_job
+
+    job = tmp_path / "job.toml"
+    job.write_text(f'mesh = "{block / "block.inp"}"\nmatrices = "{Path(os.path.relpath(block / "block.sti", tmp_path))}"\n')
+    assert read_job(job).options.matrices == str((block / "block.sti").resolve())

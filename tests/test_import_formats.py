@@ -162,6 +162,12 @@ def test_other_models_truncated_files_and_wrong_endings(bar, tmp_path):
         read_matrices(tmp_path / "b.pch")
 
 
+def test_stiffening_needs_sidprep_elements(bar, tmp_path):
+    mesh, K, M = bar
+    with pytest.raises(InputError, match="stiffening = true: the geometric stiffening needs sidprep's own elements"):
+        reduce(BAR, ReduceOptions(stiffening=True, matrices=str(bad_pair(tmp_path, mesh, K, M))))
+
+
 def test_command_line_exits_2_with_one_line(bar, tmp_path):
     mesh, K, M = bar
     path = bad_pair(tmp_path, mesh, K, edited(M, 2, 2, -1e-3))
