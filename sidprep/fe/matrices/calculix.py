@@ -23,7 +23,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numba
 import numpy as np
+import scipy.sparse as sp
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
@@ -147,20 +149,40 @@ def lower_structure(elements, nodes) -> tuple[np.ndarray, np.ndarray]:
     """(columns, rows) of CalculiX's strict lower triangle (src/mastruct.f): equations 3 r + c for the
     rank r of a node in ``nodes`` (sorted node numbers), every DOF pair of nodes sharing an element,
     column by column, rows increasing; ``elements``: list of (ne, k) node-number arrays."""
-    pairs = []
+    a, b = [], []
     for e in elements:
         r = np.searchsorted(nodes, e)
-        pairs.append(np.unique((r[:, :, None] * len(nodes) + r[:, None, :]).ravel()))
-    pairs = np.unique(np.concatenate(pairs))
-    a, b = pairs // len(nodes), pairs % len(nodes)
-    a, b = a[a <= b], b[a <= b]                           # node a <= node b (ranks)
-    ca, cb = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
-    col = (3 * a[:, None] + ca.ravel()[None]).ravel()
-    row = (3 * b[:, None] + cb.ravel()[None]).ravel()
-    keep = row > col
-    col, row = col[keep], row[keep]
-    order = np.lexsort((row, col))
-    return col[order], row[order]
+        a.append(np.repeat(r, r.shape[1], axis=1).ravel())
+        b.append(np.tile(r, (1, r.shape[1])).ravel())
+    a, b = np.concatenate(a), np.concatenate(b)
+    keep = a <= b
+    graph = sp.csr_matrix((np.ones(int(keep.sum()), np.int8), (a[keep], b[keep])), shape=(len(nodes),) * 2)
+    graph.sum_duplicates()                                # node b >= a of each node a, sorted
+    return lower_dofs(graph.indptr.astype(np.int64), graph.indices.astype(np.int64))
+
+
+@numba.njit(cache=True)
+def lower_dofs(indptr, indices):
+    """DOF (columns, rows) of the strict lower triangle of the node graph (upper node triangle in CSR,
+    rows sorted): column 3 a + ca holds rows 3 b + cb > 3 a + ca for every neighbour b >= a."""
+    total = 0
+    for a in range(len(indptr) - 1):
+        k = indptr[a + 1] - indptr[a]
+        total += 3 * 3 * k - 6                             # minus the diagonal block's upper part
+    cols = np.empty(total, np.int64)
+    rows = np.empty(total, np.int64)
+    pos = 0
+    for a in range(len(indptr) - 1):
+        for ca in range(3):
+            col = 3 * a + ca
+            for k in range(indptr[a], indptr[a + 1]):
+                for cb in range(3):
+                    row = 3 * indices[k] + cb
+                    if row > col:
+                        cols[pos] = col
+                        rows[pos] = row
+                        pos += 1
+    return cols, rows
 
 
 def tet_deck(mesh, path, material, step: str = "*FREQUENCY, SOLVER=MATRIXSTORAGE\n10") -> None:

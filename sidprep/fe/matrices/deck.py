@@ -137,9 +137,38 @@ def _node_ids(m, path) -> np.ndarray:
     return np.arange(1, len(m.points) + 1, dtype=np.int64)
 
 
+#: nodes per element of the Abaqus / CalculiX solid element types (C3D20R = C3D20, ...)
+ABAQUS_NODES = {"C3D4": 4, "C3D10": 10, "C3D8": 8, "C3D20": 20, "C3D6": 6, "C3D15": 15, "C3D5": 5, "C3D13": 13}
+
+
 def deck_elements(path) -> list[np.ndarray]:
-    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type."""
+    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type:
+    Abaqus / CalculiX ``*ELEMENT`` blocks read directly (their numbers only, ``*INCLUDE`` followed),
+    other formats through meshio."""
     path = Path(path)
-    m = _meshio(path)
-    ids = _node_ids(m, path)
-    return [ids[b.data] for b in m.cells if b.type in FAMILY]
+    if path.suffix.lower() != ".inp":
+        m = _meshio(path)
+        ids = _node_ids(m, path)
+        return [ids[b.data] for b in m.cells if b.type in FAMILY]
+    blocks, numbers, per = [], [], 0
+    for line in _abaqus_lines(path) + ["*END\n"]:
+        if line.startswith("**"):
+            continue
+        if line.startswith("*"):
+            if per and numbers:
+                blocks.append(_element_table(numbers, per, path))
+            words = [w.strip().upper() for w in line[1:].split(",")]
+            kind = dict(w.split("=", 1) for w in words[1:] if "=" in w).get("TYPE", "")
+            per = ABAQUS_NODES.get(kind.rstrip("RHIM"), 0) if words[0] == "ELEMENT" else 0
+            numbers = []
+        elif per:
+            numbers.append(line)
+    return blocks
+
+
+def _element_table(lines: list[str], per: int, path) -> np.ndarray:
+    """(ne, per) node numbers of the data lines of one *ELEMENT block (element number first)."""
+    values = np.array([v for v in ",".join(lines).replace("\n", ",").split(",") if v.strip()], dtype=np.int64)
+    if values.size % (per + 1):
+        raise InputError(f"{path}: an *ELEMENT block does not hold {per} nodes per element; fix the deck")
+    return values.reshape(-1, per + 1)[:, 1:]
