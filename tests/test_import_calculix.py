@@ -193,3 +193,12 @@ def test_job_file_resolves_matrices_beside_it(block, tmp_path):
     job = tmp_path / "job.toml"
     job.write_text(f'mesh = "{block / "block.inp"}"\nmatrices = "{Path(os.path.relpath(block / "block.sti", tmp_path))}"\n')
     assert read_job(job).options.matrices == str((block / "block.sti").resolve())
+
+
+def test_reduction_from_eig_reports_ccx_own_frequencies(block):
+    """--matrices jobname.eig: the check table carries CalculiX's own frequencies beside the SID's."""
+    options = ReduceOptions(matrices=str(block / "block_eig.eig"), interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3)
+    result = reduce(block / "block_eig.inp", options)
+    np.testing.assert_allclose(result.checks["fe_code_frequencies_hz"], CCX_BLOCK_HZ, rtol=README_RTOL)
+    assert result.passed and result.checks["fe_code_frequency_max_rel_error"] < SID_VS_CCX_RTOL
+    np.testing.assert_allclose(result.sid.frequencies_hz[:3], SID_BLOCK_HZ, rtol=README_RTOL)
