@@ -318,6 +318,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
         with ph("import", str(o.matrices)):
             imported = imported_model(mesh, o.matrices, units)
         assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
+        imported = replace(imported, K=None)              # K freed once projected (peak memory); M kept for the checks
         notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); material not used"]
     else:
         check_parts_held(mesh, interfaces, source)
