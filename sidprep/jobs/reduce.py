@@ -280,7 +280,8 @@ def load_mesh(mesh, o, ph):
     units = unit_system(o.units)
     if isinstance(mesh, FEMesh):
         return mesh, str(mesh.source)
-    read = read_model if o.matrices else read_mesh        # a deck of any solid elements when K, M are imported
+    # a deck of any solid elements when K, M are imported (ReduceOptions.matrices; ModalOptions has none)
+    read = read_model if getattr(o, "matrices", None) else read_mesh
     with ph("mesh", str(mesh)):
         m = read(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
     return m, str(mesh)
