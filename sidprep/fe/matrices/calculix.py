@@ -29,6 +29,7 @@ import scipy.sparse as sp
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
+from sidprep.fe.matrices.deck import deck_elements
 from sidprep.fe.matrices.numbers import mirrored
 
 #: the layout read here, as written by CalculiX 2.11-2.21 (matrixstorage.c, arpack.c)
@@ -110,8 +111,6 @@ EQUATION_KEYWORDS = ("*BOUNDARY", "*EQUATION", "*MPC", "*RIGID BODY", "*COUPLING
 def read_eig(path) -> FEMatrices:
     """K, M, DOF map and eigenvalues of a STORAGE=YES ``jobname.eig``, the sparsity structure rebuilt
     from ``jobname.inp`` beside it (module docstring)."""
-    from sidprep.fe.matrices.deck import deck_elements
-
     path = Path(path)
     deck = path.with_suffix(".inp")
     if not deck.is_file():

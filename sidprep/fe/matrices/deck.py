@@ -47,10 +47,24 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
         raise InputError(f"{path}: file not found; check the path")
     if path.suffix.lower() in (".msh", ".geo", ".step", ".stp", ".brep", ".iges", ".igs"):
         return read_mesh(path, size=size, order=order)
+    if path.suffix.lower() == ".inp" and abaqus_types(path) <= {"C3D4", "C3D10"}:
+        return read_mesh(path)                             # a tetrahedral deck: read once, as a sidprep mesh
     m = _meshio(path)
     if {b.type for b in m.cells if b.type in FAMILY} <= {"tetra", "tetra10"}:
         return read_mesh(path)
     return solid_model(m, path)
+
+
+def abaqus_types(path) -> set[str]:
+    """The element types of the ``*ELEMENT`` blocks of an Abaqus / CalculiX deck (suffixes such as
+    R, H, M, I dropped for the solid types of ``ABAQUS_NODES``)."""
+    return set().union(*(abaqus_types_of(line) for line in _abaqus_lines(path) if line[:8].upper() == "*ELEMENT"))
+
+
+def abaqus_types_of(line: str) -> set[str]:
+    """{the element type} of one ``*ELEMENT`` keyword line (solid types without their R/H/M/I suffix)."""
+    kind = dict(w.split("=", 1) for w in (x.strip().upper() for x in line.split(",")[1:]) if "=" in w).get("TYPE", "")
+    return {kind.rstrip("RHIM") if kind.rstrip("RHIM") in ABAQUS_NODES else kind}
 
 
 def _meshio(path):
@@ -157,9 +171,7 @@ def deck_elements(path) -> list[np.ndarray]:
         if line.startswith("*"):
             if per and numbers:
                 blocks.append(_element_table(numbers, per, path))
-            words = [w.strip().upper() for w in line[1:].split(",")]
-            kind = dict(w.split("=", 1) for w in words[1:] if "=" in w).get("TYPE", "")
-            per = ABAQUS_NODES.get(kind.rstrip("RHIM"), 0) if words[0] == "ELEMENT" else 0
+            per = ABAQUS_NODES.get(next(iter(abaqus_types_of(line))), 0) if line[:8].upper() == "*ELEMENT" else 0
             numbers = []
         elif per:
             numbers.append(line)
