@@ -45,7 +45,7 @@ _SETTING = re.compile(r"^((?:\S+: )?)([a-z_]+) = (\S+?):")
 
 
 @contextlib.contextmanager
-def cli_flags(flags=("modes", "fmax", "count", "damping", "cutoff_factor", "frame", "output", "clamp")):
+def cli_flags(flags=("modes", "fmax", "count", "damping", "cutoff_factor", "frame", "output", "clamp", "matrices")):
     """Name command-line flags in the library's setting errors: "modes = 0: ..." -> "--modes 0: ..."."""
     from sidprep.errors import InputError
 

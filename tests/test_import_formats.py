@@ -154,6 +154,8 @@ def test_other_models_truncated_files_and_wrong_endings(bar, tmp_path):
     path.write_text(text[:len(text) // 2 - 7])                 # cut inside a line
     with pytest.raises(InputError, match="truncated"):
         read_matrices(path)
+    with pytest.raises(InputError, match="matrices = .*none.sti: file not found"):
+        read_matrices(tmp_path / "none.sti")
     (tmp_path / "b.txt").write_text("1 1 1.0\n")
     with pytest.raises(InputError, match="unknown matrix file ending '.txt'"):
         read_matrices(tmp_path / "b.txt")

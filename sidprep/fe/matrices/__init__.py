@@ -67,13 +67,15 @@ def read_matrices(path) -> FEMatrices:
     missing, truncated or not what its ending says."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"--matrices {path}: file not found; check the path")
+        raise InputError(f"matrices = {path}: file not found; check the path")
     return reader_for(path)(path)
 
 
 #: file ending -> (reader module, what writes it)
 READERS = {
     ".sti": ("calculix", "CalculiX *FREQUENCY, SOLVER=MATRIXSTORAGE"),
+    ".mas": ("calculix", "the same, its mass file"),
+    ".dof": ("calculix", "the same, its DOF map"),
     ".eig": ("calculix", "CalculiX *FREQUENCY, STORAGE=YES"),
     ".mtx": ("abaqus", "Abaqus *MATRIX GENERATE"),
     ".pch": ("nastran", "Nastran DMIG punch, PARAM,EXTOUT,DMIGPCH"),
