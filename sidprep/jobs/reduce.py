@@ -317,7 +317,8 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     check_mode_count(o, mesh.n_dof, len(interfaces))
     if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
         with ph("import", str(o.matrices)):
-            imported = imported_model(mesh, o.matrices, units)
+            imported = imported_model(mesh, o.matrices, units, len(interfaces))
+        mesh = imported.mesh                              # with the rotation nodes of beams and shells
         assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
         imported = replace(imported, K=None)              # K freed once projected (peak memory); M kept for the checks
         notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); material not used"]

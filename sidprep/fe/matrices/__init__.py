@@ -88,11 +88,21 @@ SYMMETRY_RTOL = 1e-8
 
 
 def symmetric_matrix(rows, cols, values, n: int, path, what: str) -> sp.csr_matrix:
-    """The symmetric (n, n) CSR matrix of triplets (0-based) that hold one triangle (mirrored,
-    sidprep.fe.matrices.numbers.mirrored) or both (checked to ``SYMMETRY_RTOL``); duplicates summed."""
+    """The symmetric (n, n) CSR matrix of triplets (0-based): each off-diagonal pair given once (one
+    triangle in the FE code's own equation order, mirrored: sidprep.fe.matrices.numbers.mirrored) or
+    twice (both triangles, checked to ``SYMMETRY_RTOL``); duplicates summed."""
     rows, cols, values = (np.asarray(a) for a in (rows, cols, values))
     if not ((rows > cols).any() and (rows < cols).any()):
-        return mirrored(rows, cols, values, n)
+        return mirrored(rows, cols, values, n)            # one triangle by index (CalculiX, most files)
+    off = rows != cols
+    pattern = sp.csr_matrix((np.ones(int(off.sum())), (rows[off], cols[off])), shape=(n, n))
+    pattern.sum_duplicates()
+    both = pattern.multiply(pattern.T).nnz
+    if both == 0:
+        return mirrored(rows, cols, values, n)            # one entry per pair, in the code's own order
+    if both != pattern.nnz:
+        raise InputError(f"{path}: {what} gives {pattern.nnz - both} off-diagonal entries without their mirror "
+                         f"and {both} with it; a file holds one triangle or the whole symmetric matrix: write it again")
     A = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
     scale = max(float(np.abs(A.data).max(initial=0.0)), np.finfo(float).tiny)
     asym = float(np.abs(A - A.T).max()) / scale
