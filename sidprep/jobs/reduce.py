@@ -343,7 +343,8 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
             stiff = stiffening_parts(mesh, material, M_fe, red.im, red.static_solve, red.Phi_fe)
-    metadata = {"source": source, "mesh_sha256": mesh.sha256, "material": material.as_dict(), "notes": notes,
+    metadata = {"source": source, "mesh_sha256": mesh.sha256, "notes": notes,
+                "material": {"name": f"none: K and M from {o.matrices}"} if o.matrices else material.as_dict(),
                 "options": {"mesh": source, **asdict(o)},
                 "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
                                 "master_point_m": i.master_point.tolist()} for i in interfaces],
