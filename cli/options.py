@@ -46,7 +46,7 @@ _SETTING = re.compile(r"^((?:\S+: )?)([a-z_]+) = (\S+?):")
 
 @contextlib.contextmanager
 def cli_flags(flags=("modes", "fmax", "count", "damping", "cutoff_factor", "frame", "output", "clamp",
-                     "workers")):
+                     "workers", "matrices")):
     """Name command-line flags in the library's setting errors: "modes = 0: ..." -> "--modes 0: ..."."""
     from sidprep.errors import InputError
 

@@ -43,8 +43,9 @@ def add_reduce_arguments(p) -> None:
                         "(--stress) or at every node (--stress all), for `sidprep stress` after a simulation")
     p.add_argument("--matrices", metavar="FILE",
                    help="K and M written by another FE code instead of sidprep's own assembly: CalculiX .sti "
-                        "(*FREQUENCY, SOLVER=MATRIXSTORAGE), Abaqus .mtx, Nastran DMIG .pch or OP4 .op4; MESH is "
-                        "then the deck they come from (any solid elements); values in --units (docs/import.md)")
+                        "(*FREQUENCY, SOLVER=MATRIXSTORAGE) or .eig, Abaqus _STIF1.mtx, Nastran DMIG .pch, Ansys "
+                        ".full; MESH is then the deck they come from (any solid elements); values in --units "
+                        "(docs/import.md)")
     p.add_argument("--check-frequencies", action=argparse.BooleanOptionalAction, default=None,
                    help="compare with a full-model eigen solve (default on; the costliest check)")
 

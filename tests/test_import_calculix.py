@@ -78,6 +78,7 @@ def test_sid_of_c3d20_block_matches_ccx_and_a_tet10_mesh(block, tmp_path):
     options = ReduceOptions(matrices=str(block / "block.sti"), interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3)
     result = reduce(block / "block.inp", options)
     assert result.passed and result.checks["rigid_energy_ratio"] < 1e-12
+    assert result.sid.metadata["material"]["name"].startswith("none: K and M from")
     f_sid = result.sid.frequencies_hz[:3]
     f_ccx = np.sqrt(elastic(read_eigenvalues(block / "block_eig.eig"))[:3]) / (2 * np.pi)
     np.testing.assert_allclose(f_sid, f_ccx, rtol=SID_VS_CCX_RTOL)
@@ -163,3 +164,42 @@ def test_eig_matrices_equal_matrixstorage_ones(block, tmp_path):
     (tmp_path / "held.eig").write_bytes((block / "block_eig.eig").read_bytes())
     with pytest.raises(InputError, match=r"\*BOUNDARY.*SOLVER=MATRIXSTORAGE"):
         read_matrices(tmp_path / "held.eig")
+
+
+#: examples/import_calculix/README.md: CalculiX 2.20's own eigenfrequencies of the block (block_eig.dat, Hz)
+CCX_BLOCK_HZ = (5592.104, 5592.105, 7419.773)
+#: the README's SID frequencies (Hz, 0.01 Hz) and its tet10 SID frequencies (Hz)
+SID_BLOCK_HZ = (5594.72, 5594.72, 7423.86)
+TET10_BLOCK_HZ = (5592.13, 5592.17, 7387.52)
+#: printed digits of the README
+README_RTOL = 2e-6
+
+
+def test_example_numbers(block, tmp_path):
+    readme = (EXAMPLE / "README.md").read_text()
+    for f in CCX_BLOCK_HZ + SID_BLOCK_HZ + TET10_BLOCK_HZ:
+        assert f"{f:.2f}" in readme or f"{f:.3f}" in readme, f
+    ccx = np.sqrt(elastic(read_eigenvalues(block / "block_eig.eig"))[:3]) / (2 * np.pi)
+    np.testing.assert_allclose(ccx, CCX_BLOCK_HZ, rtol=README_RTOL)
+    options = ReduceOptions(matrices=str(block / "block.sti"), interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3)
+    np.testing.assert_allclose(reduce(block / "block.inp", options).sid.frequencies_hz[:3], SID_BLOCK_HZ,
+                               rtol=README_RTOL)
+    tet = reduce(tet10_block(tmp_path / "b.msh"), ReduceOptions(interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3))
+    np.testing.assert_allclose(tet.sid.frequencies_hz[:3], TET10_BLOCK_HZ, rtol=README_RTOL)
+
+
+def test_job_file_resolves_matrices_beside_it(block, tmp_path):
+    from sidprep.jobs.jobfile import read_job
+
+    job = tmp_path / "job.toml"
+    job.write_text(f'mesh = "{block / "block.inp"}"\nmatrices = "{Path(os.path.relpath(block / "block.sti", tmp_path))}"\n')
+    assert read_job(job).options.matrices == str((block / "block.sti").resolve())
+
+
+def test_reduction_from_eig_reports_ccx_own_frequencies(block):
+    """--matrices jobname.eig: the check table carries CalculiX's own frequencies beside the SID's."""
+    options = ReduceOptions(matrices=str(block / "block_eig.eig"), interfaces=("END_A:rbe3", "END_B:rbe3"), modes=3)
+    result = reduce(block / "block_eig.inp", options)
+    np.testing.assert_allclose(result.checks["fe_code_frequencies_hz"], CCX_BLOCK_HZ, rtol=README_RTOL)
+    assert result.passed and result.checks["fe_code_frequency_max_rel_error"] < SID_VS_CCX_RTOL
+    np.testing.assert_allclose(result.sid.frequencies_hz[:3], SID_BLOCK_HZ, rtol=README_RTOL)

@@ -154,12 +154,20 @@ def test_other_models_truncated_files_and_wrong_endings(bar, tmp_path):
     path.write_text(text[:len(text) // 2 - 7])                 # cut inside a line
     with pytest.raises(InputError, match="truncated"):
         read_matrices(path)
+    with pytest.raises(InputError, match="matrices = .*none.sti: file not found"):
+        read_matrices(tmp_path / "none.sti")
     (tmp_path / "b.txt").write_text("1 1 1.0\n")
     with pytest.raises(InputError, match="unknown matrix file ending '.txt'"):
         read_matrices(tmp_path / "b.txt")
     (tmp_path / "b.pch").write_text(text[:2000])               # an Abaqus file given the Nastran ending
     with pytest.raises(InputError, match="not a Nastran punch file"):
         read_matrices(tmp_path / "b.pch")
+
+
+def test_stiffening_needs_sidprep_elements(bar, tmp_path):
+    mesh, K, M = bar
+    with pytest.raises(InputError, match="stiffening = true: the geometric stiffening needs sidprep's own elements"):
+        reduce(BAR, ReduceOptions(stiffening=True, matrices=str(bad_pair(tmp_path, mesh, K, M))))
 
 
 def test_command_line_exits_2_with_one_line(bar, tmp_path):
@@ -170,3 +178,115 @@ def test_command_line_exits_2_with_one_line(bar, tmp_path):
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and str(path) in done.stderr and "negative diagonal" in done.stderr
     assert not (tmp_path / "x.sid.h5").exists()
+
+
+#: pymapdl-reader's documentation (examples, "Read a full file"): the first four frequencies of the
+#: cantilever hex beam of the Ansys-written examples/file.full shipped with ansys-mapdl-reader, Hz
+ANSYS_EXAMPLE_HZ = (1283.200, 1283.200, 5781.975, 6919.399)
+#: the documentation prints them to 0.001 Hz
+ANSYS_PRINTED_RTOL = 1e-6
+
+
+def test_ansys_full_file_gives_the_documented_frequencies():
+    examples = pytest.importorskip("ansys.mapdl.reader.examples",
+                                   reason='ansys-mapdl-reader not installed (pip install "sidprep[ansys]")')
+    import scipy.linalg as sla
+
+    from sidprep.fe.matrices.ansys import full_matrices
+
+    fe, constrained = full_matrices(examples.fullfile)
+    keep = ~constrained
+    lam = sla.eigh(fe.K[keep][:, keep].toarray(), fe.M[keep][:, keep].toarray(), eigvals_only=True)[:4]
+    np.testing.assert_allclose(np.sqrt(lam) / (2 * np.pi), ANSYS_EXAMPLE_HZ, rtol=ANSYS_PRINTED_RTOL)
+    with pytest.raises(InputError, match="63 DOFs are constrained by D commands"):
+        read_matrices(examples.fullfile)
+
+
+# ---------------------------------------------------------------------------------------------
+# 6-DOF nodes: a beam stiffener (Euler-Bernoulli frame elements, rotations at its nodes) on the bar
+# ---------------------------------------------------------------------------------------------
+#: the stiffener: steel, area, second moments (y, z) and torsion constant (m^2, m^4); no torsion
+#: stiffness (J = 0): the solid's nodes hold no rotation, so a twisting stiffener would be a mechanism;
+#: its rx DOFs are written without stiffness (like a shell's drilling DOF)
+STIFFENER = {"E": 210e9, "G": 210e9 / 2.6, "rho": 7850.0, "A": 4e-4, "I": 2e-8, "J": 0.0}
+#: two reductions of the same physics (rotation nodes kept vs the massless rotations condensed out
+#: exactly before): the same Craig-Bampton space, round-off of the 17-digit files only
+ROTATION_RTOL = 1e-7
+
+
+def frame_element(L: float) -> np.ndarray:
+    """12 x 12 stiffness of an Euler-Bernoulli frame element along x: [u v w rx ry rz] at both ends."""
+    s = STIFFENER
+    K = np.zeros((12, 12))
+    for i, j, k in ((0, 6, s["E"] * s["A"] / L), (3, 9, s["G"] * s["J"] / L)):
+        K[np.ix_([i, j], [i, j])] += k * np.array([[1, -1], [-1, 1]])
+    EI = s["E"] * s["I"]
+    bend = EI / L ** 3 * np.array([[12, 6 * L, -12, 6 * L], [6 * L, 4 * L * L, -6 * L, 2 * L * L],
+                                   [-12, -6 * L, 12, -6 * L], [6 * L, 2 * L * L, -6 * L, 4 * L * L]])
+    K[np.ix_([1, 5, 7, 11], [1, 5, 7, 11])] += bend                        # v, rz (plane xy)
+    flip = np.diag([1, -1, 1, -1])                                          # w, ry: ry = -dw/dx
+    K[np.ix_([2, 4, 8, 10], [2, 4, 8, 10])] += flip @ bend @ flip           # w, ry (plane xz)
+    return K
+
+
+def stiffened_bar(mesh, K, M):
+    """(K, M) over [3n translations, 3p rotations of the edge nodes] with frame elements along the
+    bar's edge y = z = 0, and the edge's node rows (p,)."""
+    edge = np.flatnonzero((np.abs(mesh.points[:, 1]) < 1e-9) & (np.abs(mesh.points[:, 2]) < 1e-9))
+    edge = edge[np.argsort(mesh.points[edge, 0])]
+    n, p = mesh.n_nodes, len(edge)
+    rows, cols, vals, lumped = [], [], [], np.zeros(3 * n)
+    for e, (a, b) in enumerate(zip(edge[:-1], edge[1:])):
+        L = mesh.points[b, 0] - mesh.points[a, 0]
+        dofs = np.r_[3 * a + np.arange(3), 3 * n + 3 * e + np.arange(3), 3 * b + np.arange(3),
+                     3 * n + 3 * (e + 1) + np.arange(3)]
+        rows.append(np.repeat(dofs, 12)), cols.append(np.tile(dofs, 12)), vals.append(frame_element(L).ravel())
+        for node in (a, b):
+            lumped[3 * node:3 * node + 3] += STIFFENER["rho"] * STIFFENER["A"] * L / 2
+    size = 3 * (n + p)
+    Kb = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size))
+    grow = sp.eye(size, 3 * n, format="csr")
+    return (grow @ K.tocsr() @ grow.T + Kb).tocsr(), (grow @ (M.tocsr() + sp.diags(lumped)) @ grow.T).tocsr(), edge
+
+
+def write_mtx6(path: Path, mesh, A, edge):
+    """Abaqus .mtx of A over [translations, rotations of ``edge``] (upper triangle, DOFs 1-6)."""
+    n = mesh.n_nodes
+    A = sp.triu(A).tocoo()
+
+    def node_and_dof(i):
+        rot = i >= 3 * n
+        node = np.where(rot, mesh.node_ids[edge[np.clip((i - 3 * n) // 3, 0, len(edge) - 1)]],
+                        mesh.node_ids[np.minimum(i // 3, n - 1)])
+        return node, i % 3 + 1 + 3 * rot
+
+    (a, b), (c, d) = node_and_dof(A.row), node_and_dof(A.col)
+    path.write_text("".join(f"{w},{x}, {y},{z}, {v:.17g}\n" for w, x, y, z, v in zip(a, b, c, d, A.data)))
+
+
+def test_beam_rotations_reduce_like_their_exact_condensation(bar, tmp_path):
+    """Rotation nodes kept as interior DOFs give the SID of the exactly condensed model (the rotations
+    carry no mass, so K_tt - K_tr K_rr^-1 K_rt is exact), and the stiffener does change it."""
+    import scipy.sparse.linalg as spla
+
+    mesh, K, M = bar
+    K6, M6, edge = stiffened_bar(mesh, K, M)
+    t = 3 * mesh.n_nodes
+    r = t + np.flatnonzero(K6.diagonal()[t:] > 0)                            # ry, rz (rx carries nothing)
+    K_tt, K_tr, K_rr = K6[:t, :t], K6[:t][:, r], K6[r][:, r].tocsc()
+    K_c = (K_tt - K_tr @ sp.csr_matrix(spla.spsolve(K_rr, K_tr.T.tocsc()))).tocoo()
+    write_mtx6(tmp_path / "r_STIF1.mtx", mesh, K6, edge)
+    write_mtx6(tmp_path / "r_MASS1.mtx", mesh, M6, edge)
+    write_mtx(tmp_path / "c_STIF1.mtx", mesh, K_c)
+    write_mtx(tmp_path / "c_MASS1.mtx", mesh, M6[:t, :t].tocoo())
+    options = dict(interfaces=("fixed_end:rbe3", "free_end:rbe3"), modes=4)
+    rotations = reduce(BAR, ReduceOptions(matrices=str(tmp_path / "r_STIF1.mtx"), **options))
+    condensed = reduce(BAR, ReduceOptions(matrices=str(tmp_path / "c_STIF1.mtx"), **options))
+    bare = reduce(BAR, ReduceOptions(**options, check_frequencies=False))
+    assert rotations.passed and rotations.checks["rigid_energy_ratio"] < 1e-12
+    assert rotations.sid.mass == pytest.approx(condensed.sid.mass, rel=1e-12)
+    np.testing.assert_allclose(rotations.sid.frequencies_hz, condensed.sid.frequencies_hz, rtol=ROTATION_RTOL)
+    assert np.abs(rotations.sid.frequencies_hz[:4] / bare.sid.frequencies_hz[:4] - 1).max() > 1e-2
+    assert len(rotations.sid.surface.node_ids) == len(bare.sid.surface.node_ids)     # rotation nodes: no surface
+    with pytest.raises(InputError, match="need at least one interface"):
+        imported_model(mesh, tmp_path / "r_STIF1.mtx", unit_system("si"), n_interfaces=0)

@@ -425,7 +425,8 @@ def _read_meshio(path) -> _RawMesh:
     if other:
         raise InputError(
             f"{path}: contains volume elements other than tetrahedra ({', '.join(other)}); "
-            "re-mesh the volume with tetrahedra only"
+            "re-mesh the volume with tetrahedra only, or reduce it from its FE code's K and M "
+            "with --matrices (docs/import.md)"
         )
     tet = types & {"tetra", "tetra10"}
     if not tet:

@@ -1,5 +1,5 @@
 """TOML job files of ``sidprep reduce JOB.toml``: the ReduceOptions and OutputOptions fields plus
-``mesh``; ``mesh`` and ``output`` are relative to the job file's folder."""
+``mesh``; ``mesh``, ``output`` and ``matrices`` are relative to the job file's folder."""
 
 from __future__ import annotations
 
@@ -28,9 +28,9 @@ class _JobTable(ReduceOptions, OutputOptions):
 
 
 def split_job_table(table: dict, source, base: Path, *, context: str = "") -> dict:
-    """A checked job table with ``mesh`` and ``output`` resolved against ``base``."""
+    """A checked job table with ``mesh``, ``output`` and ``matrices`` resolved against ``base``."""
     data = checked_table(table, _JobTable, source, context=context)
-    for key in ("mesh", "output"):
+    for key in ("mesh", "output", "matrices"):
         if data.get(key) is not None and not Path(data[key]).is_absolute():
             data[key] = str((base / data[key]).resolve())
     return data

@@ -56,7 +56,7 @@ class ReduceOptions(ModelOptions):
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
     dir), stored with their interpolated mode shapes (sidprep.reduction.paths). stress : None,
     "surface" or "all": modal stresses at those nodes (sidprep.reduction.stress). matrices : a file of
-    K and M written by another FE code (sidprep.fe.matrices: .sti, .mtx, .pch, .op4) used instead of
+    K and M written by another FE code (sidprep.fe.matrices: .sti, .eig, .mtx, .pch, .full) used instead of
     sidprep's own assembly; the mesh is then the deck they belong to (any solid elements).
     """
 

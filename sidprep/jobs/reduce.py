@@ -277,7 +277,8 @@ def load_mesh(mesh, o, ph):
     units = unit_system(o.units)
     if isinstance(mesh, FEMesh):
         return mesh, str(mesh.source)
-    read = read_model if o.matrices else read_mesh        # a deck of any solid elements when K, M are imported
+    # a deck of any solid elements when K, M are imported (ReduceOptions.matrices; ModalOptions has none)
+    read = read_model if getattr(o, "matrices", None) else read_mesh
     with ph("mesh", str(mesh)):
         m = read(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
     return m, str(mesh)
@@ -305,8 +306,10 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     check_mode_count(o, mesh.n_dof, len(interfaces))
     if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
         with ph("import", str(o.matrices)):
-            imported = imported_model(mesh, o.matrices, units)
+            imported = imported_model(mesh, o.matrices, units, len(interfaces))
+        mesh = imported.mesh                              # with the rotation nodes of beams and shells
         assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
+        imported = replace(imported, K=None)              # K freed once projected (peak memory); M kept for the checks
         notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); material not used"]
     else:
         check_parts_held(mesh, interfaces, source)
@@ -329,7 +332,8 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
             stiff = stiffening_parts(mesh, material, M_fe, red.im, red.static_solve, red.Phi_fe)
-    metadata = {"source": source, "mesh_sha256": mesh.sha256, "material": material.as_dict(), "notes": notes,
+    metadata = {"source": source, "mesh_sha256": mesh.sha256, "notes": notes,
+                "material": {"name": f"none: K and M from {o.matrices}"} if o.matrices else material.as_dict(),
                 "options": {"mesh": source, **asdict(o)},
                 "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
                                 "master_point_m": i.master_point.tolist()} for i in interfaces],

@@ -339,6 +339,9 @@ def format_checks(checks: dict) -> str:
     if "rigid_energy_ratio" in checks:
         lines.append(f"  imported matrices ({checks['matrices_format']}): rigid-body strain energy ratio "
                      f"{checks['rigid_energy_ratio']:.1e} (tol {checks['rigid_energy_tol']:g})")
+    if "fe_code_frequencies_hz" in checks:
+        lines.append("  the FE code's own eigenfrequencies " + ", ".join(f"{f:.1f}" for f in checks["fe_code_frequencies_hz"])
+                     + f" Hz: SID max rel. difference {checks['fe_code_frequency_max_rel_error']:.1e}")
     if not checks["static_within_fembs_promise"]:
         lines.append("  WARNING: static deflection error above 1 %: " + static_advice(checks))
     lines.append("  checks (mass, CM, inertia, zero-energy modes, eigenfrequencies) "

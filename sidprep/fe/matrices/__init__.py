@@ -15,6 +15,7 @@ ending         written by                                      module
 ``.mtx``       Abaqus ``*MATRIX GENERATE`` +                   ``abaqus``
                ``*MATRIX OUTPUT, FORMAT=MATRIX INPUT``
 ``.pch``       Nastran DMIG punch (``PARAM,EXTOUT,DMIGPCH``)   ``nastran``
+``.full``      Ansys (modal / substructure solve, ``WRFULL``)  ``ansys`` (optional package)
 =============  ==============================================  =======================
 """
 
@@ -28,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices.numbers import number_blocks
+from sidprep.fe.matrices.numbers import mirrored, table_blocks
 
 
 @dataclass(frozen=True)
@@ -66,16 +67,19 @@ def read_matrices(path) -> FEMatrices:
     missing, truncated or not what its ending says."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"--matrices {path}: file not found; check the path")
+        raise InputError(f"matrices = {path}: file not found; check the path")
     return reader_for(path)(path)
 
 
 #: file ending -> (reader module, what writes it)
 READERS = {
     ".sti": ("calculix", "CalculiX *FREQUENCY, SOLVER=MATRIXSTORAGE"),
+    ".mas": ("calculix", "the same, its mass file"),
+    ".dof": ("calculix", "the same, its DOF map"),
     ".eig": ("calculix", "CalculiX *FREQUENCY, STORAGE=YES"),
     ".mtx": ("abaqus", "Abaqus *MATRIX GENERATE"),
     ".pch": ("nastran", "Nastran DMIG punch, PARAM,EXTOUT,DMIGPCH"),
+    ".full": ("ansys", "Ansys .full, through ansys-mapdl-reader"),
 }
 
 
@@ -84,46 +88,40 @@ SYMMETRY_RTOL = 1e-8
 
 
 def symmetric_matrix(rows, cols, values, n: int, path, what: str) -> sp.csr_matrix:
-    """The symmetric (n, n) CSR matrix of triplets (0-based) that hold one triangle (mirrored) or
-    both (checked to ``SYMMETRY_RTOL``); duplicates are summed."""
+    """The symmetric (n, n) CSR matrix of triplets (0-based): each off-diagonal pair given once (one
+    triangle in the FE code's own equation order, mirrored: sidprep.fe.matrices.numbers.mirrored) or
+    twice (both triangles, checked to ``SYMMETRY_RTOL``); duplicates summed."""
     rows, cols, values = (np.asarray(a) for a in (rows, cols, values))
-    lower, upper = rows > cols, rows < cols
-    if lower.any() and upper.any():
-        A = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
-        scale = max(float(np.abs(A.data).max(initial=0.0)), np.finfo(float).tiny)
-        asym = float(np.abs(A - A.T).max()) / scale
-        if asym > SYMMETRY_RTOL:
-            raise InputError(f"{path}: {what} is not symmetric (|A - A^T| / max|A| = {asym:.1e}); "
-                             "export the symmetric matrix of a linear elastic model (no friction, "
-                             "follower loads or unsymmetric solver)")
-        return A
-    return mirrored_triangle(np.maximum(rows, cols), np.minimum(rows, cols), values, n)
-
-
-def mirrored_triangle(i, j, values, n: int) -> sp.csr_matrix:
-    """L + L^T - diag(L) of the lower-triangle triplets (i >= j), built row by row without a
-    general sort when the rows come in order (CalculiX, Nastran write them so)."""
-    if len(i) and not np.all(i[1:] >= i[:-1]):
-        order = np.argsort(i, kind="stable")
-        i, j, values = i[order], j[order], values[order]
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(i, minlength=n), out=indptr[1:])
-    L = sp.csr_matrix((values, j, indptr), shape=(n, n))
-    L.sum_duplicates()
-    A = (L + L.T.tocsr()).tocsr()
-    A.setdiag(L.diagonal())
+    if not ((rows > cols).any() and (rows < cols).any()):
+        return mirrored(rows, cols, values, n)            # one triangle by index (CalculiX, most files)
+    off = rows != cols
+    pattern = sp.csr_matrix((np.ones(int(off.sum())), (rows[off], cols[off])), shape=(n, n))
+    pattern.sum_duplicates()
+    both = pattern.multiply(pattern.T).nnz
+    if both == 0:
+        return mirrored(rows, cols, values, n)            # one entry per pair, in the code's own order
+    if both != pattern.nnz:
+        raise InputError(f"{path}: {what} gives {pattern.nnz - both} off-diagonal entries without their mirror "
+                         f"and {both} with it; a file holds one triangle or the whole symmetric matrix: write it again")
+    A = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+    scale = max(float(np.abs(A.data).max(initial=0.0)), np.finfo(float).tiny)
+    asym = float(np.abs(A - A.T).max()) / scale
+    if asym > SYMMETRY_RTOL:
+        raise InputError(f"{path}: {what} is not symmetric (|A - A^T| / max|A| = {asym:.1e}); "
+                         "export the symmetric matrix of a linear elastic model (no friction, "
+                         "follower loads or unsymmetric solver)")
     return A
 
 
-def text_blocks(path, columns: int, what: str):
-    """Yield (k, columns) float64 blocks of the numbers of an ASCII file (blank- or comma-separated,
-    ``*``/``$`` comment lines), streamed (sidprep.fe.matrices.numbers); an unreadable byte or a
-    short last line is an InputError (a truncated or foreign file)."""
+def text_blocks(path, kinds: str, what: str):
+    """Yield (ints, reals) blocks of the lines of an ASCII file with columns ``kinds`` ("i" integer,
+    "r" real; blank- or comma-separated, ``*``/``$`` comment lines), streamed
+    (sidprep.fe.matrices.numbers.table_blocks); a line that breaks the layout is an InputError (a
+    truncated or foreign file)."""
     try:
-        for block, _ in number_blocks(path, columns):
-            yield block
+        yield from table_blocks(path, kinds)
     except ValueError as exc:
         offset, rows = exc.args
         raise InputError(f"{path}: unreadable or incomplete line near byte {offset} (after {rows} complete "
-                         f"lines of {columns} numbers); the file is truncated or not a {what} file: "
-                         "write it again or check its ending") from None
+                         f"lines); the file is truncated or not a {what} file: write it again or check "
+                         "its ending") from None

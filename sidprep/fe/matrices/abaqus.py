@@ -51,13 +51,13 @@ def partner(path: Path, kind: str) -> Path:
 
 def triplets(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(row keys, column keys, values) with key = 8 node + DOF, from one .mtx file."""
-    blocks = list(text_blocks(path, 5, "Abaqus matrix-input (.mtx: node, DOF, node, DOF, value)"))
+    blocks = list(text_blocks(path, "iiiir", "Abaqus matrix-input (.mtx: node, DOF, node, DOF, value)"))
     if not blocks:
         raise InputError(f"{path}: no matrix entries; write it again with *MATRIX OUTPUT")
-    a = np.concatenate(blocks)
-    ints = a[:, :4].astype(np.int64)
+    ints = np.concatenate([b[0] for b in blocks])
+    values = np.concatenate([b[1][:, 0] for b in blocks])
     dof = ints[:, [1, 3]]
     if (dof < DOF_RANGE[0]).any() or (dof > DOF_RANGE[1]).any() or (ints[:, [0, 2]] < 1).any():
         raise InputError(f"{path}: DOF numbers outside 1-6 or node numbers below 1; sidprep reads structural "
                          "(displacement) DOFs of the input file's nodes")
-    return 8 * ints[:, 0] + ints[:, 1], 8 * ints[:, 2] + ints[:, 3], a[:, 4]
+    return 8 * ints[:, 0] + ints[:, 1], 8 * ints[:, 2] + ints[:, 3], values

@@ -23,12 +23,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numba
 import numpy as np
+import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices, mirrored_triangle, symmetric_matrix, text_blocks
+from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
 from sidprep.fe.matrices.deck import deck_elements
-
+from sidprep.fe.matrices.numbers import mirrored
 
 #: the layout read here, as written by CalculiX 2.11-2.21 (matrixstorage.c, arpack.c)
 FORMAT_VERSION = "calculix-matrixstorage 2.20"
@@ -69,16 +71,15 @@ def read_dof_file(path) -> np.ndarray:
 
 def storage_matrix(path, n: int, what: str):
     """The symmetric (n, n) CSR matrix of a ``.sti`` / ``.mas`` file (upper triangle, 1-based)."""
-    rows, cols, vals = [], [], []
-    for block in text_blocks(path, 3, f"CalculiX {what}"):
-        rows.append(block[:, 0].astype(np.int64) - 1)
-        cols.append(block[:, 1].astype(np.int64) - 1)
-        vals.append(block[:, 2])
-    if not rows:
+    blocks = list(text_blocks(path, "iir", f"CalculiX {what}"))
+    if not blocks:
         raise InputError(f"{path}: empty {what}; run ccx again with *FREQUENCY, SOLVER=MATRIXSTORAGE")
-    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    top = int(max(rows.max(), cols.max())) + 1
-    if rows.min() < 0 or cols.min() < 0 or top > n:
+    ints = np.concatenate([b[0] for b in blocks]) - 1
+    vals = np.concatenate([b[1][:, 0] for b in blocks])
+    del blocks
+    rows, cols = ints[:, 0], ints[:, 1]
+    top = int(ints.max()) + 1
+    if ints.min() < 0 or top > n:
         raise InputError(f"{path}: equation number {top} beyond the {n} DOF of the .dof file; the "
                          ".sti/.mas/.dof files come from different runs: run ccx again")
     return symmetric_matrix(rows, cols, vals, n, path, what)
@@ -110,7 +111,6 @@ EQUATION_KEYWORDS = ("*BOUNDARY", "*EQUATION", "*MPC", "*RIGID BODY", "*COUPLING
 def read_eig(path) -> FEMatrices:
     """K, M, DOF map and eigenvalues of a STORAGE=YES ``jobname.eig``, the sparsity structure rebuilt
     from ``jobname.inp`` beside it (module docstring)."""
-
     path = Path(path)
     deck = path.with_suffix(".inp")
     if not deck.is_file():
@@ -135,12 +135,10 @@ def read_eig(path) -> FEMatrices:
                          f"entries of {deck.name} need {expected}; the file is truncated or from another deck: "
                          "run ccx again (or use *FREQUENCY, SOLVER=MATRIXSTORAGE)")
     raw = np.memmap(path, dtype=np.float64, mode="r", offset=start, shape=(2 * (neq + nzs),))
-    matrices = []
-    for k in range(2):
-        block = raw[k * (neq + nzs):(k + 1) * (neq + nzs)]
-        i = np.concatenate([np.arange(neq), rows])
-        j = np.concatenate([np.arange(neq), cols])
-        matrices.append(mirrored_triangle(i, j, np.array(block), neq))
+    starts = np.searchsorted(cols, np.arange(neq))       # the diagonal first in each column: sorted rows
+    i, j = np.insert(rows, starts, np.arange(neq)), np.insert(cols, starts, np.arange(neq))
+    matrices = [mirrored(i, j, np.insert(raw[k * (neq + nzs) + neq:(k + 1) * (neq + nzs)], starts,
+                                          raw[k * (neq + nzs):k * (neq + nzs) + neq]), neq) for k in range(2)]
     del raw
     dofs = np.column_stack([np.repeat(nodes, 3), np.tile([1, 2, 3], len(nodes))])
     return FEMatrices(matrices[0], matrices[1], dofs, str(path), EIG_FORMAT_VERSION, eigenvalues)
@@ -150,20 +148,40 @@ def lower_structure(elements, nodes) -> tuple[np.ndarray, np.ndarray]:
     """(columns, rows) of CalculiX's strict lower triangle (src/mastruct.f): equations 3 r + c for the
     rank r of a node in ``nodes`` (sorted node numbers), every DOF pair of nodes sharing an element,
     column by column, rows increasing; ``elements``: list of (ne, k) node-number arrays."""
-    pairs = []
+    a, b = [], []
     for e in elements:
         r = np.searchsorted(nodes, e)
-        pairs.append(np.unique((r[:, :, None] * len(nodes) + r[:, None, :]).ravel()))
-    pairs = np.unique(np.concatenate(pairs))
-    a, b = pairs // len(nodes), pairs % len(nodes)
-    a, b = a[a <= b], b[a <= b]                           # node a <= node b (ranks)
-    ca, cb = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
-    col = (3 * a[:, None] + ca.ravel()[None]).ravel()
-    row = (3 * b[:, None] + cb.ravel()[None]).ravel()
-    keep = row > col
-    col, row = col[keep], row[keep]
-    order = np.lexsort((row, col))
-    return col[order], row[order]
+        a.append(np.repeat(r, r.shape[1], axis=1).ravel())
+        b.append(np.tile(r, (1, r.shape[1])).ravel())
+    a, b = np.concatenate(a), np.concatenate(b)
+    keep = a <= b
+    graph = sp.csr_matrix((np.ones(int(keep.sum()), np.int8), (a[keep], b[keep])), shape=(len(nodes),) * 2)
+    graph.sum_duplicates()                                # node b >= a of each node a, sorted
+    return lower_dofs(graph.indptr.astype(np.int64), graph.indices.astype(np.int64))
+
+
+@numba.njit(cache=True)
+def lower_dofs(indptr, indices):
+    """DOF (columns, rows) of the strict lower triangle of the node graph (upper node triangle in CSR,
+    rows sorted): column 3 a + ca holds rows 3 b + cb > 3 a + ca for every neighbour b >= a."""
+    total = 0
+    for a in range(len(indptr) - 1):
+        k = indptr[a + 1] - indptr[a]
+        total += 3 * 3 * k - 6                             # minus the diagonal block's upper part
+    cols = np.empty(total, np.int64)
+    rows = np.empty(total, np.int64)
+    pos = 0
+    for a in range(len(indptr) - 1):
+        for ca in range(3):
+            col = 3 * a + ca
+            for k in range(indptr[a], indptr[a + 1]):
+                for cb in range(3):
+                    row = 3 * indices[k] + cb
+                    if row > col:
+                        cols[pos] = col
+                        rows[pos] = row
+                        pos += 1
+    return cols, rows
 
 
 def tet_deck(mesh, path, material, step: str = "*FREQUENCY, SOLVER=MATRIXSTORAGE\n10") -> None:

@@ -49,10 +49,24 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
         raise InputError(f"{path}: file not found; check the path")
     if path.suffix.lower() in (".msh", ".geo", ".step", ".stp", ".brep", ".iges", ".igs"):
         return read_mesh(path, size=size, order=order)
+    if path.suffix.lower() == ".inp" and abaqus_types(path) <= {"C3D4", "C3D10"}:
+        return read_mesh(path)                             # a tetrahedral deck: read once, as a sidprep mesh
     m = _meshio(path)
     if {b.type for b in m.cells if b.type in FAMILY} <= {"tetra", "tetra10"}:
         return read_mesh(path)
     return solid_model(m, path)
+
+
+def abaqus_types(path) -> set[str]:
+    """The element types of the ``*ELEMENT`` blocks of an Abaqus / CalculiX deck (suffixes such as
+    R, H, M, I dropped for the solid types of ``ABAQUS_NODES``)."""
+    return set().union(*(abaqus_types_of(line) for line in _abaqus_lines(path) if line[:8].upper() == "*ELEMENT"))
+
+
+def abaqus_types_of(line: str) -> set[str]:
+    """{the element type} of one ``*ELEMENT`` keyword line (solid types without their R/H/M/I suffix)."""
+    kind = dict(w.split("=", 1) for w in (x.strip().upper() for x in line.split(",")[1:]) if "=" in w).get("TYPE", "")
+    return {kind.rstrip("RHIM") if kind.rstrip("RHIM") in ABAQUS_NODES else kind}
 
 
 def _meshio(path):
@@ -137,9 +151,36 @@ def _node_ids(m, path) -> np.ndarray:
     return np.arange(1, len(m.points) + 1, dtype=np.int64)
 
 
+#: nodes per element of the Abaqus / CalculiX solid element types (C3D20R = C3D20, ...)
+ABAQUS_NODES = {"C3D4": 4, "C3D10": 10, "C3D8": 8, "C3D20": 20, "C3D6": 6, "C3D15": 15, "C3D5": 5, "C3D13": 13}
+
+
 def deck_elements(path) -> list[np.ndarray]:
-    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type."""
+    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type:
+    Abaqus / CalculiX ``*ELEMENT`` blocks read directly (their numbers only, ``*INCLUDE`` followed),
+    other formats through meshio."""
     path = Path(path)
-    m = _meshio(path)
-    ids = _node_ids(m, path)
-    return [ids[b.data] for b in m.cells if b.type in FAMILY]
+    if path.suffix.lower() != ".inp":
+        m = _meshio(path)
+        ids = _node_ids(m, path)
+        return [ids[b.data] for b in m.cells if b.type in FAMILY]
+    blocks, numbers, per = [], [], 0
+    for line in _abaqus_lines(path) + ["*END\n"]:
+        if line.startswith("**"):
+            continue
+        if line.startswith("*"):
+            if per and numbers:
+                blocks.append(_element_table(numbers, per, path))
+            per = ABAQUS_NODES.get(next(iter(abaqus_types_of(line))), 0) if line[:8].upper() == "*ELEMENT" else 0
+            numbers = []
+        elif per:
+            numbers.append(line)
+    return blocks
+
+
+def _element_table(lines: list[str], per: int, path) -> np.ndarray:
+    """(ne, per) node numbers of the data lines of one *ELEMENT block (element number first)."""
+    values = np.array([v for v in ",".join(lines).replace("\n", ",").split(",") if v.strip()], dtype=np.int64)
+    if values.size % (per + 1):
+        raise InputError(f"{path}: an *ELEMENT block does not hold {per} nodes per element; fix the deck")
+    return values.reshape(-1, per + 1)[:, 1:]

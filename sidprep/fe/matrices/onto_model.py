@@ -6,9 +6,15 @@ through the model's node numbers (``FEMesh.node_ids``, kept in the SID).  What i
 
 * every translational DOF of every model node has a row (a DOF the FE code removed by an SPC or
   made dependent by an MPC has none: InputError; export the free, unconstrained model);
-* rotational DOFs 4-6 (beam and shell nodes) only when they carry neither stiffness nor mass
-  (CalculiX writes none for solids); otherwise InputError (not supported: the interface
-  coupling and the SID invariants are built on translations);
+* rotational DOFs 4-6 (beam and shell nodes) that carry stiffness: each such node gets a *rotation
+  node* appended to the model (same position and node number, its 3 DOFs = rx, ry, rz), so that the
+  reduction keeps 3 DOFs per node; rotation nodes carry no mass (rotary inertia is refused: the SID
+  invariants are built on translations), belong to no node set or surface, and are interior DOFs
+  of the Craig-Bampton step (interfaces couple the translations of their patch: RBE2 with
+  components 123).  A rotational DOF the FE code wrote without any stiffness (e.g. a shell's
+  drilling DOF) is connected to nothing: it gets a decoupled unit stiffness, which changes no other
+  DOF.  Models with rotation nodes need at least one interface (the free-frame supports are
+  chosen among the translations of interface masters);
 * the translational mass is isotropic, M = Ms (x) E3 (any solid element's consistent or lumped
   mass, point masses): the SID invariants are computed from Ms (sid-spec 4.2).
 
@@ -20,7 +26,7 @@ must give no strain energy (:func:`rigid_energy_ratio` below ``RIGID_ENERGY_TOL`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -28,6 +34,7 @@ import scipy.sparse as sp
 from sidprep.errors import InputError
 from sidprep.fe.linalg import rigid_body_modes
 from sidprep.fe.matrices import FEMatrices, read_matrices
+from sidprep.fe.matrices.numbers import indefinite_entries
 
 #: K_ij^2 > K_ii K_jj (1 + this) for a stored entry: K is indefinite
 MINOR_RTOL = 1e-9
@@ -43,7 +50,8 @@ RIGID_ENERGY_TOL = 1e-8
 class ImportedModel:
     """K (3n, 3n) N/m and M (3n, 3n) kg of the model's nodes (DOF 3 i + c), the scalar mass Ms
     (n, n) kg with M = Ms (x) E3, the FE code's eigenvalues (rad/s)^2 or None, the reader's format
-    and version, and the rigid-body energy ratio of K."""
+    and version, the rigid-body energy ratio of K, and ``mesh``: MODEL with its rotation nodes
+    appended (module docstring; the same mesh when there are none)."""
 
     K: sp.csr_matrix
     M: sp.csr_matrix
@@ -51,31 +59,42 @@ class ImportedModel:
     eigenvalues: np.ndarray | None
     fmt: str
     rigid_energy_ratio: float
+    mesh: object = None
 
 
-def imported_model(mesh, path, units) -> ImportedModel:
+def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     """Read ``path`` (any format of sidprep.fe.matrices), map it onto ``mesh`` (an FEMesh in metres
     whose ``node_ids`` are the FE code's node numbers) and convert it to SI with ``units``
     (sidprep.fe.material.UnitSystem); every check of the module docstring, InputError on failure."""
     fe = read_matrices(path)
-    K, M = model_dofs(fe, mesh, path)
-    K = K * (units.force_to_n / units.length_to_m)
-    M = M * units.mass_to_kg
+    K, M, owners = model_dofs(fe, mesh, path)
+    if len(owners) and not n_interfaces:
+        raise InputError(f"{path}: {len(owners)} nodes have rotational DOFs (beams, shells); such models need "
+                         "at least one interface: give --interface NAME")
+    rotating = rotation_mesh(mesh, owners)
+    if units.force_to_n != units.length_to_m:
+        K = K * (units.force_to_n / units.length_to_m)
+    if units.mass_to_kg != 1.0:
+        M = M * units.mass_to_kg
+    ratio = rigid_energy_ratio(K, rigid_motions(mesh.points, owners))
+    K = decoupled_rotations(K, 3 * mesh.n_nodes, path)
     check_stiffness(K, path)
     check_mass(M, path)
+    if len(owners) and abs(M[3 * mesh.n_nodes:]).sum() > 0:
+        raise InputError(f"{path}: rotational DOFs carry mass (rotary inertia of beams or shells); sidprep's SID "
+                         "invariants are built on translations: export the model with lumped translational mass")
     Ms = scalar_mass(M, path)
-    ratio = rigid_energy_ratio(K, mesh.points)
     if ratio > RIGID_ENERGY_TOL:
         raise InputError(f"{path}: the six rigid-body motions of the model give strain energy (ratio "
                          f"{ratio:.1e} > {RIGID_ENERGY_TOL:g}): K is not that of the free model or does not "
                          "belong to MODEL's coordinates; export it without *BOUNDARY/SPC or springs to ground, "
                          "with the same nodes and --units as MODEL")
-    return ImportedModel(K, M, Ms, fe.eigenvalues, fe.fmt, ratio)
+    return ImportedModel(K, M, Ms, fe.eigenvalues, fe.fmt, ratio, rotating)
 
 
-def model_dofs(fe: FEMatrices, mesh, path) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """K and M permuted onto the model's DOFs 3 i + c (module docstring); rows of rotational DOFs
-    are dropped when empty."""
+def model_dofs(fe: FEMatrices, mesh, path) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray]:
+    """K and M permuted onto the model's DOFs 3 i + c, rotation nodes appended (module docstring),
+    and the (p,) mesh rows of the rotation nodes' owners."""
     node, dof = fe.dofs[:, 0], fe.dofs[:, 1]
     ids = np.asarray(mesh.node_ids, dtype=np.int64)
     sorter = np.argsort(ids)
@@ -87,31 +106,62 @@ def model_dofs(fe: FEMatrices, mesh, path) -> tuple[sp.csr_matrix, sp.csr_matrix
                          f"{mesh.source} (first: node {int(node[unknown][0])}); give the deck or mesh the "
                          "matrices were written from")
     rotation = dof > 3
+    stiff = np.zeros(len(dof), bool)
     if rotation.any():
         loaded = np.flatnonzero(rotation)
-        used = np.asarray(abs(fe.K)[loaded].sum(axis=1)).ravel() + np.asarray(abs(fe.M)[loaded].sum(axis=1)).ravel()
-        if (used > 0).any():
-            first = loaded[used > 0][0]
-            raise InputError(f"{path}: {int((used > 0).sum())} rotational DOF(s) (beam/shell nodes, first: node "
-                             f"{int(node[first])} DOF {int(dof[first])}) carry stiffness or mass; sidprep reduces "
-                             "models with translational DOFs only: model the part with solid elements")
-    keep = np.flatnonzero(~rotation)
-    target = 3 * row[keep] + dof[keep] - 1
-    n = 3 * mesh.n_nodes
+        stiff[loaded] = np.asarray(abs(fe.K)[loaded].sum(axis=1)).ravel() > 0
+    owners = np.unique(row[stiff])                       # nodes that get a rotation node
+    slot = np.full(mesh.n_nodes, -1)
+    slot[owners] = mesh.n_nodes + np.arange(len(owners))
+    keep = np.flatnonzero(~rotation | (slot[row] >= 0))
+    target = np.where(dof[keep] > 3, 3 * slot[row[keep]] + dof[keep] - 4, 3 * row[keep] + dof[keep] - 1)
+    n = 3 * (mesh.n_nodes + len(owners))
     present = np.zeros(n, bool)
     present[target] = True
     if len(np.unique(target)) != len(target):
         raise InputError(f"{path}: a node DOF appears twice in the DOF map; the file is damaged: write it again")
-    if not present.all():
-        missing = np.flatnonzero(~present)
-        raise InputError(f"{path}: {len(missing)} of the {n} translational DOFs of MODEL {mesh.source} have no row "
-                         f"(first: node {int(ids[missing[0] // 3])} DOF {missing[0] % 3 + 1}): removed by an SPC/"
-                         "*BOUNDARY or an MPC, or the matrices come from another model; export the free, "
+    if not present[:3 * mesh.n_nodes].all():
+        missing = np.flatnonzero(~present[:3 * mesh.n_nodes])
+        raise InputError(f"{path}: {len(missing)} of the {3 * mesh.n_nodes} translational DOFs of MODEL {mesh.source} "
+                         f"have no row (first: node {int(ids[missing[0] // 3])} DOF {missing[0] % 3 + 1}): removed by "
+                         "an SPC/*BOUNDARY or an MPC, or the matrices come from another model; export the free, "
                          "unconstrained model (sidprep adds its own interfaces)")
     if len(keep) == fe.K.shape[0] and np.array_equal(target, np.arange(n)):
-        return fe.K, fe.M                                 # the FE code numbered the DOFs as MODEL does
+        return fe.K, fe.M, owners                         # the FE code numbered the DOFs as MODEL does
     P = sp.csr_matrix((np.ones(len(keep)), (target, keep)), shape=(n, fe.K.shape[0]))
-    return (P @ fe.K @ P.T).tocsr(), (P @ fe.M @ P.T).tocsr()
+    return (P @ fe.K @ P.T).tocsr(), (P @ fe.M @ P.T).tocsr(), owners
+
+
+def decoupled_rotations(K: sp.csr_matrix, first: int, path) -> sp.csr_matrix:
+    """K with a unit diagonal on the rotational DOFs (from ``first`` on) that have no stiffness at all
+    (connected to nothing: the other DOFs do not change)."""
+    free = np.flatnonzero(K.diagonal()[first:] == 0) + first
+    if not len(free):
+        return K
+    if abs(K[free]).sum() > 0:
+        raise InputError(f"{path}: a rotational DOF has no diagonal stiffness but couples to others; "
+                         "K is damaged: write it again")
+    return (K + sp.csr_matrix((np.ones(len(free)), (free, free)), shape=K.shape)).tocsr()
+
+
+def rotation_mesh(mesh, owners: np.ndarray):
+    """MODEL with a rotation node appended per owner (same position and node number; in no set,
+    on no surface or element)."""
+    if not len(owners):
+        return mesh
+    return replace(mesh, points=np.vstack([mesh.points, mesh.points[owners]]),
+                   node_ids=np.concatenate([mesh.node_ids, mesh.node_ids[owners]]))
+
+
+def rigid_motions(points: np.ndarray, owners: np.ndarray) -> np.ndarray:
+    """(3 (n + p), 6) rigid motions about the centroid: translations t + theta x x at the n nodes,
+    the rotation theta at the p rotation nodes."""
+    R = rigid_body_modes(points)
+    if not len(owners):
+        return R
+    Rr = np.zeros((len(owners), 3, 6))
+    Rr[:, :, 3:] = np.eye(3)
+    return np.vstack([R, Rr.reshape(-1, 6)])
 
 
 def check_stiffness(K: sp.csr_matrix, path) -> None:
@@ -121,10 +171,9 @@ def check_stiffness(K: sp.csr_matrix, path) -> None:
         i = int(np.flatnonzero(~(d > 0))[0])
         raise InputError(f"{path}: the stiffness matrix has a non-positive diagonal entry (DOF {i // 3 + 1}.{i % 3 + 1} "
                          f"of MODEL's node order: {d[i]:.3g}); K is indefinite or the file is damaged: write it again")
-    C = K.tocoo()
-    bad = C.data ** 2 > d[C.row] * d[C.col] * (1 + MINOR_RTOL)
-    if bad.any():
-        raise InputError(f"{path}: the stiffness matrix is indefinite ({int(bad.sum())} entries with "
+    bad = indefinite_entries(K.indptr, K.indices, K.data, d, MINOR_RTOL)
+    if bad:
+        raise InputError(f"{path}: the stiffness matrix is indefinite ({bad} entries with "
                          "K_ij^2 > K_ii K_jj); export the stiffness of a stable linear elastic model")
 
 
@@ -153,10 +202,9 @@ def scalar_mass(M: sp.csr_matrix, path) -> sp.csr_matrix:
     return Ms
 
 
-def rigid_energy_ratio(K: sp.spmatrix, points: np.ndarray) -> float:
-    """max over the 6 rigid motions r about the centroid of |r^T K r| / (|r|^T |K| |r|): zero for the
-    K of a free model up to the digits of the file, O(1) for a grounded or foreign K."""
-    R = rigid_body_modes(points - points.mean(axis=0))
+def rigid_energy_ratio(K: sp.spmatrix, R: np.ndarray) -> float:
+    """max over the rigid motions r (columns of R, :func:`rigid_motions`) of |r^T K r| / (|r|^T |K| |r|):
+    zero for the K of a free model up to the digits of the file, O(1) for a grounded or foreign K."""
     absK = abs(K)
     energy = np.abs(np.einsum("ik,ik->k", R, K @ R))
     scale = np.einsum("ik,ik->k", np.abs(R), absK @ np.abs(R))
