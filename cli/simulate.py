@@ -2,12 +2,30 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
+from sidprep.solver.integrators.settings import METHODS
+
 #: signals plotted / exported when the scene's [output] names none
 DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
+
+
+def positive(text: str) -> float:
+    """argparse type: a number > 0."""
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
+def solver_overrides(args) -> dict:
+    """The SolverSettings fields the command line sets (h, method, rtol, output_dt)."""
+    given = {"h": args.step, "method": args.method, "rtol": args.rtol,
+             "output_dt": None if args.rate is None else 1.0 / args.rate}
+    return {key: value for key, value in given.items() if value is not None}
 
 
 def register(subparsers) -> None:
@@ -21,6 +39,12 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", metavar="RESULTS.h5",
                    help="results file (default ./<scene stem>.results.h5); plot, CSV and animation go beside it")
     p.add_argument("--t-end", type=float, metavar="T", help="end time in s (overrides [solver] t_end)")
+    solver = p.add_argument_group("solver settings (override the scene's [solver] and [output] rate)")
+    solver.add_argument("--step", type=positive, metavar="H", help="step size in s ([solver] step)")
+    solver.add_argument("--method", choices=METHODS, help="integration method ([solver] method)")
+    solver.add_argument("--rtol", type=positive, metavar="RTOL",
+                        help="relative tolerance of the step-size control ([solver] rtol)")
+    solver.add_argument("--rate", type=positive, metavar="HZ", help="output samples per second ([output] rate)")
     p.add_argument("--plot", action="store_true", help="write <results>.png of the [output] signals")
     p.add_argument("--csv", action="store_true", help="write <results>.csv of the [output] signals")
     p.add_argument("--animate", action="store_true", help="write <results>.pvd + <results>_vtu/ for ParaView")
@@ -110,7 +134,7 @@ def run(args) -> int:
     kw = scene.simulate_kwargs
     with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
         try:
-            result = simulate(scene)
+            result = simulate(scene, **solver_overrides(args))
         except SimulationFailed as exc:  # keep what was computed: the motion up to the failure
             kept = write_results(exc.result, out, scene=scene.provenance(), bodies=scene.sources)
             raise InputError(f"{exc} in {kept}") from None
