@@ -204,11 +204,12 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
     else:
         points = list(itertools.product(*sweep.values()))
     cases = doc.get("case", [{}]) or [{}]
-    jobs = []
+    jobs, tables = [], []
     for c, case in enumerate(cases):
         for point in points:
             params = dict(zip(keys, point))
             table = {**base, **case, **params}
+            tables.append(table)
             context = f"[case {c + 1}]" if len(cases) > 1 else ("[sweep]" if params else "[job]")
             data = split_job_table(table, path, path.parent, context=context)
             if data.get("mesh") is None:
@@ -218,10 +219,35 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             label = "-".join(f"{k}={v}" for k, v in shown.items() if k != "mesh")
             name = _safe(Path(job.mesh).name.split(".")[0] + (f"-{label}" if label else ""))
             jobs.append(BatchJob(name, job.mesh, job.options, tuple(sorted(shown.items()))))
-    settings = checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")
+    settings = {**study_file_switches(tables, doc.get("batch", {}), path),
+                **checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")}
     if "outdir" in settings and not Path(settings["outdir"]).is_absolute():
         settings["outdir"] = str(path.parent / settings["outdir"])
     return unique_names(jobs), settings
+
+
+def study_file_switches(tables: list[dict], batch: dict, path) -> dict:
+    """The job-file output keys of a study's jobs, honoured or refused: ``sid_fem`` / ``obj`` the
+    same for every job become the batch's (a [batch] value must agree); ``output`` is refused (a
+    study names each job's files OUTDIR/<job name>.*)."""
+    if any("output" in t for t in tables):
+        raise InputError(f"{path}: output = ...: a study writes each job's files as OUTDIR/<job name>.sid.h5; "
+                         "remove output and set [batch] outdir = \"FOLDER\" instead")
+    out = {}
+    for key in ("sid_fem", "obj"):
+        if not any(key in t for t in tables):
+            continue
+        values = {t.get(key, getattr(BatchOptions, key)) for t in tables}
+        if len(values) > 1:
+            raise InputError(f"{path}: {key} differs between the jobs; a batch writes the same files for every "
+                             f"job: set {key} once in [job] or [batch]")
+        if values:
+            value = values.pop()
+            if key in batch and batch[key] != value:
+                raise InputError(f"{path}: [job] {key} = {str(value).lower()} but [batch] {key} = "
+                                 f"{str(batch[key]).lower()}; keep one of them")
+            out[key] = value
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
