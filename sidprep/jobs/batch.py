@@ -10,6 +10,7 @@ skips finished jobs and a killed batch resumes without lost or half-written outp
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import hashlib
 import itertools
@@ -303,14 +304,51 @@ def available_memory_mb() -> float:
     return 4096.0
 
 
+#: every thread pool of a worker process at one thread, set before numpy, MKL, OpenBLAS or numba
+#: load (a limit set after the import does not reach OpenMP / numba): with N jobs on N cores more
+#: threads only contend (issue 27: 1.58x -> 1.77x over one by one on 2 cores)
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                     "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
+#: what a reduction imports, loaded once in the fork server: every worker forks with it loaded
+#: (measured 1.5 s of imports and first calls per fresh worker)
+WORKER_PRELOAD = ("numpy", "scipy.sparse.linalg", "scipy.linalg", "h5py", "sidprep.jobs.reduce",
+                  "sidprep.jobs.output", "sidprep.fe.mesh", "sidprep.fe.assemble")
+
+
+@contextlib.contextmanager
+def single_threaded_environment():
+    """os.environ with SINGLE_THREAD_ENV while the block runs (processes started in it inherit it)."""
+    saved = {k: os.environ.get(k) for k in SINGLE_THREAD_ENV}
+    os.environ.update(SINGLE_THREAD_ENV)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def _single_threaded_worker() -> None:
+    """Worker initializer: the thread limits, for a fork server not started by ``_LocalPool``."""
+    os.environ.update(SINGLE_THREAD_ENV)
+
+
 class _LocalPool:
-    """A process pool of ``workers`` processes (forkserver: clean workers, reused across jobs)."""
+    """A process pool of ``workers`` processes, forked from a server that runs single-threaded
+    (SINGLE_THREAD_ENV) with the reduction's modules loaded (WORKER_PRELOAD), reused across jobs."""
 
     def __init__(self, workers: int):
         import multiprocessing
+        import multiprocessing.forkserver
         from concurrent.futures import ProcessPoolExecutor
 
-        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
+        context = multiprocessing.get_context("forkserver")
+        with single_threaded_environment():
+            context.set_forkserver_preload(list(WORKER_PRELOAD))
+            multiprocessing.forkserver.ensure_running()
+        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker)
         self.workers = workers
 
     def submit(self, *args):
@@ -421,6 +459,7 @@ def _run_pending(todo, options, client, records, cache, progress, total):
             records[job.name] = failed_record(job, str(exc))
             if progress:
                 progress(records[job.name], len(records), total, [])
+    queue.sort(key=lambda item: -item[2])       # largest first (memory ~ DOF ~ time): no long job in the tail
     running = {}
     try:
         while queue or running:
