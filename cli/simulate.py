@@ -109,7 +109,7 @@ def not_a_scene_hint(path: str) -> str:
 
 
 def run(args) -> int:
-    from sidprep.progress import Phases
+    from sidprep.progress import Phases, SimulationProgress
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results
     from sidprep.solver.scene import load_scene, simulate
@@ -134,7 +134,8 @@ def run(args) -> int:
     kw = scene.simulate_kwargs
     with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
         try:
-            result = simulate(scene, **solver_overrides(args))
+            with SimulationProgress(scene.t_end, enabled=not args.quiet) as progress:
+                result = simulate(scene, **solver_overrides(args), progress=progress)
         except SimulationFailed as exc:  # keep what was computed: the motion up to the failure
             kept = write_results(exc.result, out, scene=scene.provenance(), bodies=scene.sources)
             raise InputError(f"{exc} in {kept}") from None
