@@ -271,7 +271,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
     from sidprep.jobs.output import output_paths, write_reduction
     from sidprep.progress import peak_memory_mb
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     record = failed_record(job, "")
     record["started_unix_s"] = time.time()
     try:
@@ -288,6 +288,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
     except Exception as exc:  # a job's internal error must not stop the batch
         record["error"] = f"internal error: {type(exc).__name__}: {exc}"
     record["wall_s"] = time.perf_counter() - t0
+    record["cpu_s"] = time.process_time() - cpu0
     record["finished_unix_s"] = time.time()
     record["peak_memory_mb"] = peak_memory_mb()
     return record
