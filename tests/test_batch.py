@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readme_numbers import check_numbers
 
 from sidprep.cli.main import main
 from sidprep.jobs.batch import BatchOptions, jobs_from_meshes, read_study, run_batch
@@ -142,7 +143,15 @@ def test_a_study_sweeps_the_cartesian_product_and_plots_frequencies(tmp_path):
     # same shape and nu: f scales exactly with sqrt(E / rho); EN 1999-1-1 aluminium E = 70 GPa, rho = 2700 kg/m^3,
     # EN 1993-1-1 steel 210 GPa, 7850 kg/m^3 (both nu = 0.3)
     ratio = f["bar-modes=2-material=aluminium"] / f["bar-modes=2-material=steel"]
-    assert ratio == pytest.approx(np.sqrt((70e9 / 2700) / (210e9 / 7850)), rel=1e-6)
+    closed_form = np.sqrt((70e9 / 2700) / (210e9 / 7850))
+    assert ratio == pytest.approx(closed_form, rel=1e-6)
+    from sidprep.jobs.modal import modal_analysis
+    from sidprep.jobs.options import ModalOptions
+
+    full = modal_analysis(str(BAR), ModalOptions(count=1))
+    steel = f["bar-modes=2-material=steel"]
+    check_numbers(ROOT / "examples/reduce_job/README.md", "study", [
+        steel, full.frequencies_hz[full.n_rigid], f["bar-modes=2-material=aluminium"], steel, closed_form])
 
 
 @pytest.mark.parametrize("text, message", [
