@@ -3,6 +3,7 @@ the closed-form modal series of the simply supported Euler-Bernoulli beam (Fryba
 
 from __future__ import annotations
 
+import importlib.util
 import shutil
 import subprocess
 import sys
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readme_numbers import check_numbers
 
 from sidprep.reduction.beam import beam_options_from_table, beam_sid
 from sidprep.solver import ConstantSpeed, Fixed, FlexibleBody, PointForce, System
@@ -104,7 +106,7 @@ def test_the_beam_path_survives_the_sid_file(tmp_path):
     assert read_sid_hdf5(tmp_path / "b.sid.h5").paths == {}
 
 
-def test_moving_force_example_short(tmp_path):
+def test_moving_force_example(tmp_path):
     src = ROOT / "examples" / "moving_force"
     for name in ("scene.toml", "analyse.py"):
         shutil.copy(src / name, tmp_path / name)
@@ -119,6 +121,25 @@ def test_moving_force_example_short(tmp_path):
         sys.path.remove(str(tmp_path))
         sys.modules.pop("analyse", None)
     assert out["error_on_beam"] < FRYBA_RTOL and out["error_after_exit"] < FRYBA_RTOL
+    from sidprep.solver.results import read_results
+
+    result = read_results(tmp_path / "scene.results.h5").result
+    e = result.energy
+    balance = e["external"] - e["kinetic"] - e["strain"]
+    check_numbers(src / "README.md", "results", [
+        1e3 * out["peak_m"], 1e3 * out["peak_closed_form_m"], 1e3 * out["static_PL3_48EI_m"],
+        out["error_on_beam"], out["error_after_exit"],
+        np.max(np.abs(balance - balance[0])) / np.max(np.abs(e["external"])), 10, kept_forms_share(tmp_path), 10, 201])
+
+
+def kept_forms_share(folder):
+    """max |10-term series - 201-term series| at midspan over the 2 s, relative to the peak."""
+    spec = importlib.util.spec_from_file_location("moving_force_analyse", folder / "analyse.py")
+    an = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(an)
+    t = np.linspace(0.0, 2.0, 2001)
+    full = an.midspan_series(t)
+    return float(np.max(np.abs(an.midspan_series(t, modes=10) - full)) / np.max(np.abs(full)))
 
 
 def test_a_path_marker_on_a_rigid_body_is_a_one_line_error(tmp_path):
