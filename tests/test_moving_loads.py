@@ -388,7 +388,7 @@ PORTAL_DWELL_RTOL = 1e-3
 PORTAL_TOOL_RTOL = 5e-3
 
 
-def test_robotic_portal_short(tmp_path):
+def test_robotic_portal(tmp_path):
     import importlib.util
 
     for name in ("scene.toml", "analyse.py", "carriage.obj"):
@@ -396,10 +396,17 @@ def test_robotic_portal_short(tmp_path):
     spec = importlib.util.spec_from_file_location("portal_analyse", tmp_path / "analyse.py")
     an = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(an)
-    out = an.main(t_end=9.2, plot=False, folder=tmp_path)
+    out = an.main(plot=False, folder=tmp_path)
     assert abs(out["r1_dwell_deflection_mm"] / out["r1_dwell_closed_form_mm"] - 1) < PORTAL_DWELL_RTOL
     assert abs(out["r1_tool_error_at_dwell_mm"][0] / out["r1_tool_x_closed_form_mm"] - 1) < PORTAL_TOOL_RTOL
     assert 3.0 < out["beam_deformation_mm"]["runway_a"] < 6.0 and out["states"] == 44
+    d, n, m = out["beam_deformation_mm"], out["coordinates"], out["constraints"]
+    check_numbers(ROOT / "examples/robotic_portal/README.md", "results", [
+        max(d["runway_a"], d["runway_b"]), 4, d["cross"],
+        out["r1_tool_error_mm_max"], out["r1_tool_error_x_mm_max"],
+        8.9, 20, 12, abs(out["r1_dwell_deflection_mm"]), abs(out["r1_dwell_closed_form_mm"]),
+        2.5, abs(out["r1_tool_error_at_dwell_mm"][0]), 2.5, abs(out["r1_tool_x_closed_form_mm"]),
+        n, m, n - m, out["states"]])
 
 
 #: a mass launched along a stiff beam (E 7e12 Pa, its own weight switched off, so only the mass's
