@@ -102,6 +102,8 @@ def animation_surfaces(scene) -> dict:
 def not_a_scene_hint(path: str) -> str:
     """What to do with a file that is not a scene: a SID is a body a scene names, a mesh is reduced first."""
     name = Path(path).name.lower()
+    if name.endswith(".results.h5"):
+        return f"it is a results file: plot it (sidprep plot {path} SIGNAL...) or animate it (sidprep animate {path})"
     if name.endswith((".sid.h5", ".sid_fem", ".h5")):
         return (f"a SID file is one body: write a scene that names it ([bodies.NAME] type = \"flexible\", "
                 f"sid = \"{Path(path).name}\"; docs/scenes.md, e.g. examples/flexible_pendulum/scene.toml)")
