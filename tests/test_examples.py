@@ -118,6 +118,11 @@ def test_pendulum_readme_numbers(pendulum):
     peak = np.max(result.joints["hinge"].force[:, 2])
     rigid_peak = m * 9.81 + 2 * m**2 * 9.81 * d[0] ** 2 / i_hinge
     swing_error = np.max(np.abs(angle - ref.sol(result.t)[0]))
+    from sidprep.fe.mesh import read_mesh
+
+    f = sid.frequencies_hz
+    check_numbers(ROOT / "examples/flexible_pendulum/README.md", "body", [
+        read_mesh(ROOT / "data/meshes/bar.msh").n_dof, sid.mass, sid.nq, f[0], f[-1]])
     check_numbers(ROOT / "examples/flexible_pendulum/README.md", "results", [
         m, np.hypot(*d[[0, 2]]), i_hinge,
         0.5, at[0], ref.sol(0.5)[0], 1e-12, PENDULUM_ANGLE_ATOL, swing_error,
