@@ -11,7 +11,7 @@ def register(subparsers) -> None:
                                           "deformed surfaces coloured by displacement, rigid bodies from "
                                           "their OBJ, a time slider, real or exaggerated deformation, colour by displacement or von Mises stress.")
     p.add_argument("results", metavar="RESULTS.h5", help="results file of sidprep simulate")
-    p.add_argument("-o", "--output", metavar="OUT", help="movie.html (default RESULTS.html), .mp4 or .gif")
+    p.add_argument("-o", "--output", metavar="OUT", help="movie.html (default ./<RESULTS stem>.html), .mp4 or .gif")
     p.add_argument("--real", action="store_true", help="movies: true deformation (default exaggerated)")
     p.add_argument("--colour", choices=("displacement", "stress"), default="displacement",
                    help="colour the surfaces by |u| (m) or by the von Mises stress (MPa; the SID needs modal "
@@ -20,12 +20,11 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
+    from sidprep.cli.options import default_output
     from sidprep.errors import InputError
     from sidprep.view.pages import write_mechanism_movie, write_mechanism_page
 
-    out = Path(args.output) if args.output else Path(args.results).with_suffix(".html")
+    out = default_output(args.results, ".html", args.output)
     if out.suffix.lower() not in MOVIE_SUFFIXES:
         raise InputError(f"{out}: unknown output type; use .html, .mp4 or .gif")
     if out.suffix.lower() == ".html":

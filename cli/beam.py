@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from sidprep.cli.options import MaterialList
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -12,7 +14,8 @@ def register(subparsers) -> None:
     p.add_argument("--section", required=True,
                    help="profile:dims in m, e.g. rectangle:b,h  circle:d  tube:D,d  rectangular_tube:b,h,t  "
                         "I:b,h,tw,tf  T:b,h,tw,tf  U:b,h,tw,tf  general:A,Iy,Iz,J (Iy: bending in xz)")
-    p.add_argument("--material", help="built-in material name (or label of --E --nu --rho)")
+    p.add_argument("--material", action=MaterialList,
+                   help="built-in material name (or label of --E --nu --rho); '--material list' prints them")
     p.add_argument("--E", type=float, help="Young's modulus, Pa")
     p.add_argument("--nu", type=float, help="Poisson's ratio")
     p.add_argument("--rho", type=float, help="density, kg/m^3")

@@ -1,11 +1,48 @@
-"""Command-line options shared by the sub-commands that read an FE model (modes, reduce)."""
+"""Command-line options shared by the sub-commands: the model options (modes, reduce, beam), the
+material list, and the one convention for output places and names (README, "Where outputs go")."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import re
 import sys
+from pathlib import Path
+
+#: the double suffixes of sidprep's own files, removed whole when a name is derived from them
+OWN_SUFFIXES = (".sid.h5", ".results.h5")
+
+
+def output_stem(path) -> str:
+    """The name an input lends to its outputs: ``piston_rod.msh`` -> ``piston_rod``,
+    ``piston_rod.sid.h5`` -> ``piston_rod``, ``scene.results.h5`` -> ``scene``."""
+    name = Path(path).name
+    for suffix in OWN_SUFFIXES:
+        if name.lower().endswith(suffix):
+            return name[:-len(suffix)]
+    return Path(name).stem
+
+
+def default_output(input_path, suffix: str, given=None) -> Path:
+    """The output of a command: ``given`` (its -o) when set, else ``./<input stem><suffix>`` in the
+    current folder (the convention of every command; companion files go beside the main output)."""
+    return Path(given) if given else Path(output_stem(input_path) + suffix)
+
+
+class MaterialList(argparse.Action):
+    """``--material NAME``; ``--material list`` prints the built-in materials and exits."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if values == "list":
+            from sidprep.fe.material import BUILTIN
+
+            print(f"{'name':<14s} {'E [GPa]':>8s} {'nu':>6s} {'rho [kg/m^3]':>13s}")
+            for m in BUILTIN.values():
+                print(f"{m.name:<14s} {m.E / 1e9:8.1f} {m.nu:6.3f} {m.rho:13.0f}")
+            print("sources: sidprep/fe/material.py; any other material: --E --nu --rho")
+            parser.exit(0)
+        setattr(namespace, self.dest, values)
 
 
 def add_model_arguments(parser, *, units_default: str | None) -> None:
@@ -17,7 +54,9 @@ def add_model_arguments(parser, *, units_default: str | None) -> None:
     mat.add_argument("--E", type=float, help="Young's modulus (Pa, or MPa with --units mm-t-s)")
     mat.add_argument("--nu", type=float, help="Poisson's ratio")
     mat.add_argument("--rho", type=float, help="density (kg/m^3, or t/mm^3 with --units mm-t-s)")
-    mat.add_argument("--material", help="built-in material: steel, aluminium, titanium, cast_iron, ductile_iron")
+    mat.add_argument("--material", action=MaterialList,
+                     help="built-in material: steel, aluminium, titanium, cast_iron, ductile_iron "
+                          "('--material list' prints their E, nu, rho)")
     parser.add_argument("--units", default=units_default, choices=("si", "mm-t-s"),
                         help="unit system of mesh coordinates and material values (default si); results are SI")
     geo = parser.add_argument_group("geometry files (.geo .step .brep): meshed with gmsh")

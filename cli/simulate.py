@@ -2,12 +2,30 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
+from sidprep.solver.integrators.settings import METHODS
+
 #: signals plotted / exported when the scene's [output] names none
 DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
+
+
+def positive(text: str) -> float:
+    """argparse type: a number > 0."""
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
+def solver_overrides(args) -> dict:
+    """The SolverSettings fields the command line sets (h, method, rtol, output_dt)."""
+    given = {"h": args.step, "method": args.method, "rtol": args.rtol,
+             "output_dt": None if args.rate is None else 1.0 / args.rate}
+    return {key: value for key, value in given.items() if value is not None}
 
 
 def register(subparsers) -> None:
@@ -21,6 +39,12 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", metavar="RESULTS.h5",
                    help="results file (default ./<scene stem>.results.h5); plot, CSV and animation go beside it")
     p.add_argument("--t-end", type=float, metavar="T", help="end time in s (overrides [solver] t_end)")
+    solver = p.add_argument_group("solver settings (override the scene's [solver] and [output] rate)")
+    solver.add_argument("--step", type=positive, metavar="H", help="step size in s ([solver] step)")
+    solver.add_argument("--method", choices=METHODS, help="integration method ([solver] method)")
+    solver.add_argument("--rtol", type=positive, metavar="RTOL",
+                        help="relative tolerance of the step-size control ([solver] rtol)")
+    solver.add_argument("--rate", type=positive, metavar="HZ", help="output samples per second ([output] rate)")
     p.add_argument("--plot", action="store_true", help="write <results>.png of the [output] signals")
     p.add_argument("--csv", action="store_true", help="write <results>.csv of the [output] signals")
     p.add_argument("--animate", action="store_true", help="write <results>.pvd + <results>_vtu/ for ParaView")
@@ -79,6 +103,8 @@ def animation_surfaces(scene) -> dict:
 def not_a_scene_hint(path: str) -> str:
     """What to do with a file that is not a scene: a SID is a body a scene names, a mesh is reduced first."""
     name = Path(path).name.lower()
+    if name.endswith(".results.h5"):
+        return f"it is a results file: plot it (sidprep plot {path} SIGNAL...) or animate it (sidprep animate {path})"
     if name.endswith((".sid.h5", ".sid_fem", ".h5")):
         return (f"a SID file is one body: write a scene that names it ([bodies.NAME] type = \"flexible\", "
                 f"sid = \"{Path(path).name}\"; docs/scenes.md, e.g. examples/flexible_pendulum/scene.toml)")
@@ -86,7 +112,7 @@ def not_a_scene_hint(path: str) -> str:
 
 
 def run(args) -> int:
-    from sidprep.progress import Phases
+    from sidprep.progress import Phases, SimulationProgress
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results
     from sidprep.solver.scene import load_scene, simulate
@@ -111,7 +137,8 @@ def run(args) -> int:
     kw = scene.simulate_kwargs
     with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
         try:
-            result = simulate(scene)
+            with SimulationProgress(scene.t_end, enabled=not args.quiet) as progress:
+                result = simulate(scene, **solver_overrides(args), progress=progress)
         except SimulationFailed as exc:  # keep what was computed: the motion up to the failure
             kept = write_results(exc.result, out, scene=scene.provenance(), bodies=scene.sources)
             raise InputError(f"{exc} in {kept}") from None

@@ -11,13 +11,14 @@ def register(subparsers) -> None:
     p.add_argument("sid", metavar="BODY", help="SID file (.sid.h5 or .SID_FEM)")
     p.add_argument("--obj", metavar="SURFACE.obj", help="surface to animate (body frame, SID units); "
                    "default: the SID's surface modes, else the convex hull of its nodes")
-    p.add_argument("-o", "--output", metavar="PAGE.html", help="page to write (default BODY.html)")
+    p.add_argument("-o", "--output", metavar="PAGE.html", help="page to write (default ./<BODY stem>.html)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from sidprep.cli.options import default_output
     from sidprep.view.pages import write_mode_page
 
-    path = write_mode_page(args.sid, args.output, args.obj)
+    path = write_mode_page(args.sid, default_output(args.sid, ".html", args.output), args.obj)
     print(f"wrote {path}")
     return 0

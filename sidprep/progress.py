@@ -42,6 +42,60 @@ class Phases:
             print(f"  {name} done in {dt:.2f} s", file=self.stream, flush=True)
 
 
+#: plain progress lines (stderr not a terminal): one per this fraction of the simulated time
+PLAIN_FRACTION = 0.1
+
+
+class SimulationProgress:
+    """The progress of a simulation on stderr: simulated time, steps per second and the time left.
+
+    A rich progress bar when ``stream`` is a terminal, plain lines (one per PLAIN_FRACTION of the
+    run) otherwise; nothing when ``enabled`` is False.  Use as a context manager; the instance is
+    the ``progress`` callable(t, t_end, steps) of SolverSettings.
+    """
+
+    def __init__(self, t_end: float, enabled: bool = True, stream=None):
+        self.t_end, self.enabled = float(t_end), enabled
+        self.stream = stream if stream is not None else sys.stderr
+        self.bar = self.task = None
+        self.t0 = time.perf_counter()
+        self.next_line = PLAIN_FRACTION
+
+    def __enter__(self):
+        self.t0 = time.perf_counter()
+        if self.enabled and self.stream.isatty():
+            from rich.console import Console
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self.bar = Progress(TextColumn("  simulate"), BarColumn(),
+                                TextColumn("t = {task.completed:.4g} / {task.total:g} s"),
+                                TextColumn("{task.fields[rate]}"), TimeRemainingColumn(),
+                                console=Console(file=self.stream), transient=True)
+            self.bar.start()
+            self.task = self.bar.add_task("", total=self.t_end, rate="")
+        return self
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.stop()
+
+    def __call__(self, t: float, t_end: float, steps: int) -> None:
+        if not self.enabled:
+            return
+        elapsed = max(time.perf_counter() - self.t0, 1e-9)
+        rate = f"{steps / elapsed:.0f} steps/s"
+        if self.bar is not None:
+            self.bar.update(self.task, completed=min(t, t_end), rate=rate)
+            return
+        fraction = t / t_end if t_end > 0 else 1.0
+        if fraction >= self.next_line or fraction >= 1.0:
+            left = elapsed * (1.0 - fraction) / max(fraction, 1e-12)
+            print(f"  simulate t = {t:.4g} / {t_end:g} s ({100 * fraction:.0f} %), {rate}, about {left:.0f} s left",
+                  file=self.stream, flush=True)
+            while self.next_line <= fraction:
+                self.next_line += PLAIN_FRACTION
+
+
 def peak_memory_mb() -> float:
     """Peak resident set size of this process so far, in MiB (Linux ru_maxrss is in KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

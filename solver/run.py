@@ -248,6 +248,8 @@ class Run:
         with _CompileNotice():
             while stepper.status == "running":
                 chunks.append(stepper.advance(self.t_end))
+                if self.settings.progress:
+                    self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
         result = postprocess(self, samples)

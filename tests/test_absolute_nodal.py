@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readme_numbers import check_numbers
 from scipy.integrate import solve_ivp
 
 from sidprep.errors import InputError
@@ -53,6 +54,14 @@ def test_two_link_energy_is_conserved():
     assert np.max(r.energy["kinetic"]) > 0.8 * total[0]
     # zero gravitational energy for the straight hanging links: 5 kg g (0.5 + 1.5 + sin 15 deg / 2) m at the start
     assert r.energy["gravity"][0] == pytest.approx(5 * G * (2.0 + 0.5 * math.sin(math.radians(15))), rel=1e-12)
+    at = [int(np.argmin(np.abs(r.t - x))) for x in (0.5, 1.0, 2.0)]
+    phi1, rel = r.joints["pin"].coordinate, r.joints["elbow"].coordinate
+    check_numbers(EXAMPLE.parent / "README.md", "results", [
+        np.max(np.abs(total - total[0])) / total[0], 0.03, 0, TWO_LINK_ENERGY_TOL,
+        r.energy["gravity"][0], 1e-12,
+        0.5, 1.0, 2.0, *phi1[at], 0.5, 1.0, 2.0, *rel[at],
+        0.5, *r.markers["tip"][at[0], :2],
+        1e3 * np.max(np.abs(r.bodies["link1"].q[:, 0])), 1e3 * 5 * G * 1.0**3 / (8 * 1e3)])
 
 
 def test_rk4_is_fourth_order_on_the_two_link_system():

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readme_numbers import check_numbers
 
 from sidprep.cli.main import main
 from sidprep.jobs.batch import BatchOptions, jobs_from_meshes, read_study, run_batch
@@ -134,13 +135,36 @@ def test_a_study_sweeps_the_cartesian_product_and_plots_frequencies(tmp_path):
     jobs, settings = read_study(study)
     assert len(jobs) == 4 and settings["outdir"] == str(tmp_path / "res")
     assert sorted(j.name for j in jobs)[0] == "bar-modes=2-material=aluminium"
+    assert settings["obj"] is False                                  # [job] obj = false is honoured
     report = run_batch(jobs, BatchOptions(**settings, workers=2))
     assert report.exit_code == 0 and Path(report.files["plot"]).is_file()     # f vs the numeric sweep (modes)
+    assert not list((tmp_path / "res").glob("*.obj")) and len(list((tmp_path / "res").glob("*.SID_FEM"))) == 4
     f = {j.name: r["frequencies_hz"][0] for j, r in zip(jobs, report.records)}
     # same shape and nu: f scales exactly with sqrt(E / rho); EN 1999-1-1 aluminium E = 70 GPa, rho = 2700 kg/m^3,
     # EN 1993-1-1 steel 210 GPa, 7850 kg/m^3 (both nu = 0.3)
     ratio = f["bar-modes=2-material=aluminium"] / f["bar-modes=2-material=steel"]
-    assert ratio == pytest.approx(np.sqrt((70e9 / 2700) / (210e9 / 7850)), rel=1e-6)
+    closed_form = np.sqrt((70e9 / 2700) / (210e9 / 7850))
+    assert ratio == pytest.approx(closed_form, rel=1e-6)
+    from sidprep.jobs.modal import modal_analysis
+    from sidprep.jobs.options import ModalOptions
+
+    full = modal_analysis(str(BAR), ModalOptions(count=1))
+    steel = f["bar-modes=2-material=steel"]
+    check_numbers(ROOT / "examples/reduce_job/README.md", "study", [
+        steel, full.frequencies_hz[full.n_rigid], f["bar-modes=2-material=aluminium"], steel, closed_form])
+
+
+@pytest.mark.parametrize("text, message", [
+    ('[job]\nmesh = "bar.msh"\noutput = "x.sid.h5"\n', "set [batch] outdir"),
+    ('[job]\nmesh = "bar.msh"\n[sweep]\nobj = [true, false]\n', "obj differs between the jobs"),
+    ('[job]\nmesh = "bar.msh"\nsid_fem = false\n[batch]\nsid_fem = true\n', "keep one of them"),
+])
+def test_a_study_refuses_job_keys_it_cannot_honour(tmp_path, capsys, text, message):
+    study = tmp_path / "s.toml"
+    study.write_text(text)
+    assert main(["batch", str(study)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err and str(study) in err
 
 
 def test_a_study_with_a_wrong_type_names_file_key_and_type(tmp_path, capsys):
@@ -164,3 +188,24 @@ def test_jobs_start_only_while_their_memory_estimate_fits(tmp_path):
     spans = sorted((r["started_unix_s"], r["finished_unix_s"]) for r in report.records)
     assert report.exit_code == 0
     assert all(a_end <= b_start for (_, a_end), (b_start, _) in zip(spans, spans[1:]))   # never two at once
+
+
+def test_the_summary_is_readable_at_80_columns():
+    """Job names whole (folded, never cut to 'piston_...'); a static error above 1 % is a warning."""
+    from rich.console import Console
+
+    from sidprep.cli.batch import print_summary
+    from sidprep.jobs.batch import BatchReport
+
+    names = ["piston_rod-modes=8-material=aluminium-cutoff_factor=10", "bar-modes=2-material=steel"]
+    records = [{"name": n, "status": "ok", "dof": 16374, "wall_s": 12.3, "peak_memory_mb": 812.0,
+                "frequencies_hz": [262.1], "checks_passed": True,
+                "checks": {"static_deflection_max_rel_error": e, "static_within_fembs_promise": e < 0.01}}
+               for n, e in zip(names, (0.058, 0.0003))]
+    console = Console(width=80, record=True)
+    print_summary(BatchReport(records, "study_out", 30.0, {"json": "study_out/batch.json"}), console=console)
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80
+    first_column = "".join(line.split("  ")[0].strip() for line in text.splitlines()[4:])
+    assert all(n in first_column for n in names) and "…" not in text
+    assert "warn 5.8 %" in text and "passed" in text

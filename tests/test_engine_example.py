@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readme_numbers import check_numbers
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "engine"
@@ -54,9 +55,10 @@ def engine_dir(tmp_path_factory):
     return folder
 
 
-def test_engine_short(engine_dir):
+def test_engine(engine_dir):
+    """The full 1 s of both engines (about 1 s CPU once compiled) and the README's numbers."""
     tmp_path = engine_dir
-    out = load(tmp_path / "analyse.py").main(t_end=0.3, plot=False, folder=tmp_path)
+    out = load(tmp_path / "analyse.py").main(plot=False, folder=tmp_path)
     assert out["energy_balance"] < ENERGY_BALANCE_TOL
     assert out["revolution_speeds_vs_rigid"] < REVOLUTION_SPEED_RTOL
     assert abs(out["shortening_at_peak"] / out["static_shortening_at_peak"] - 1) < SHORTENING_RTOL
@@ -68,6 +70,17 @@ def test_engine_short(engine_dir):
     fe = sidprep.modal_analysis(ROOT / "data/meshes/piston_rod.msh",
                                 sidprep.ModalOptions(count=1, clamp=("big_end", "small_end")))
     assert abs(out["mechanism_hz"][1] / fe.frequencies_hz[0] - 1) < OUT_OF_PLANE_RTOL
+    amplitudes = [x for mode, a in out["modal_amplitudes"].items() for x in (mode, a)]
+    shortening, static = out["shortening_at_peak"], out["static_shortening_at_peak"]
+    check_numbers(EXAMPLE / "README.md", "results", [
+        *out["crank_speed"], len(out["revolution_speeds"]),
+        out["energy_balance"], out["work"], ENERGY_BALANCE_TOL,
+        out["revolution_speeds_vs_rigid"], out["final_speed_vs_rigid"], out["instantaneous_speed_vs_rigid"],
+        REVOLUTION_SPEED_RTOL,
+        1e6 * shortening, out["peak_compression"] / 1e3, 1e6 * static, out["axial_stiffness"],
+        100 * (shortening / static - 1),
+        *amplitudes, 3, out["oscillation_hz"][3], 80, first, 100 * (1 - out["oscillation_hz"][3] / first),
+        out["mechanism_hz"][1], fe.frequencies_hz[0]])
 
 
 def test_gas_force_table_in_the_scene_is_the_cycle_model():

@@ -118,6 +118,11 @@ def test_pendulum_readme_numbers(pendulum):
     peak = np.max(result.joints["hinge"].force[:, 2])
     rigid_peak = m * 9.81 + 2 * m**2 * 9.81 * d[0] ** 2 / i_hinge
     swing_error = np.max(np.abs(angle - ref.sol(result.t)[0]))
+    from sidprep.fe.mesh import read_mesh
+
+    f = sid.frequencies_hz
+    check_numbers(ROOT / "examples/flexible_pendulum/README.md", "body", [
+        read_mesh(ROOT / "data/meshes/bar.msh").n_dof, sid.mass, sid.nq, f[0], f[-1]])
     check_numbers(ROOT / "examples/flexible_pendulum/README.md", "results", [
         m, np.hypot(*d[[0, 2]]), i_hinge,
         0.5, at[0], ref.sol(0.5)[0], 1e-12, PENDULUM_ANGLE_ATOL, swing_error,
@@ -152,6 +157,55 @@ def test_spinning_body_conserves_energy_and_momenta(tmp_path):
 
     ref = solve_ivp(euler, (0.0, SPIN_T_END), b.omega[0], rtol=1e-12, atol=1e-12, dense_output=True)
     assert np.max(np.abs(b.omega - ref.sol(result.t).T)) <= SPIN_OMEGA_RTOL * np.linalg.norm(b.omega[0])
+
+
+def angular_momentum(sid, b):
+    """Inertial angular momentum (nt, 3) of the flexible body ``b`` about the origin, N m s:
+    H = r_O x p + A (md(q) x v_K + I(q) omega + Cr(q)^T qd)."""
+    h = []
+    for r, A, v, w, q, qd in zip(b.position, b.rotation, b.velocity, b.omega, b.q, b.qd):
+        md = sid.mdCM(q)[:, 0]
+        p = sid.mass * v + A @ (np.cross(w, md) + sid.Ct.M0.T @ qd)
+        h_k = np.cross(md, A.T @ v) + inertia_matrix(sid.J(q)[:, 0]) @ w + sid.Cr(q).T @ qd
+        h.append(np.cross(r, p) + A @ h_k)
+    return np.array(h)
+
+
+def test_spinning_body_readme_numbers(tmp_path):
+    """The full 10 s (about 1 s CPU): every number of the README, its 2 s values from the same run."""
+    out = tmp_path / "spin.h5"
+    summary = run_cli(SPINNING, "-o", str(out))
+    result = read_results(out).result
+    sid, m, c, i_cm = rigid_properties()
+    b = result.bodies["bar"]
+    principal, axes = np.linalg.eigh(i_cm)
+    principal = principal[np.argmax(np.abs(axes), axis=0)]                   # ordered as x, y, z
+    w0 = b.omega[0]
+    z_axis = axes[:, np.argmax(np.abs(axes[2]))]
+    tilt = np.degrees(np.arccos(abs(w0 @ z_axis) / np.linalg.norm(w0)))
+    estimate = next(e.estimate for e in result.effects.bodies["bar"] if e.effect == "centrifugal_stiffening")
+    check_numbers(ROOT / "examples/spinning_body/README.md", "body", [m, *principal, tilt, estimate])
+
+    two = result.t <= SPIN_T_END + 1e-9
+    e = result.energy["total"]
+    drift = np.abs(e - e[0]) / abs(e[0])
+    h = angular_momentum(sid, b)
+    h_drift = np.linalg.norm(h - h[0], axis=1) / np.linalg.norm(h[0])
+    ref = solve_ivp(lambda t, w: np.linalg.solve(i_cm, -np.cross(w, i_cm @ w)), (0.0, 10.0), w0, rtol=1e-12,
+                    atol=1e-12, dense_output=True)
+    w_err = np.max(np.abs(b.omega - ref.sol(result.t).T), axis=1) / np.linalg.norm(w0)
+    cm = np.linalg.norm(b.position + b.rotation @ c, axis=1)
+    kinetic = 0.5 * w0 @ i_cm @ w0
+    magnitude = np.linalg.norm(b.omega[:, 1:], axis=1)
+    check_numbers(ROOT / "examples/spinning_body/README.md", "results", [
+        10, 2, 2,
+        result.energy["kinetic"][0], kinetic,
+        drift.max(), drift[two].max(), 0, SPIN_ENERGY_RTOL,
+        h_drift.max(), h_drift[two].max(), 0, *h[0], SPIN_MOMENTUM_RTOL,
+        1e-12, w_err.max(), w_err[two].max(), 0, SPIN_OMEGA_RTOL,
+        1e3 * cm.max(), 1e3 * cm[two].max(), 0, 1e3 * CM_DRIFT_ATOL,
+        b.omega[:, 0].min(), b.omega[:, 0].max(), magnitude.max(), magnitude.min()])
+    assert summary["steps"] == 10000
 
 
 #: examples/slider_crank: the energy closure's target (README), measured 1.1e-5 over the 10 s

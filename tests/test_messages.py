@@ -29,3 +29,8 @@ def test_static_advice_fits_the_options():
     assert "--cutoff-factor" in static_advice({"frequency_response_modes": True})
     without = static_advice({"frequency_response_modes": False})
     assert "--no-frm" in without and "--cutoff-factor" not in without
+
+
+def test_a_results_file_passed_to_simulate_is_pointed_to_plot_and_animate():
+    r = sidprep("simulate", "run.results.h5")
+    assert r.returncode == 2 and "sidprep plot run.results.h5" in r.stderr and "sidprep animate" in r.stderr

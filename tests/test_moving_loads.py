@@ -3,6 +3,7 @@ the closed-form modal series of the simply supported Euler-Bernoulli beam (Fryba
 
 from __future__ import annotations
 
+import importlib.util
 import shutil
 import subprocess
 import sys
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readme_numbers import check_numbers
 
 from sidprep.reduction.beam import beam_options_from_table, beam_sid
 from sidprep.solver import ConstantSpeed, Fixed, FlexibleBody, PointForce, System
@@ -104,7 +106,7 @@ def test_the_beam_path_survives_the_sid_file(tmp_path):
     assert read_sid_hdf5(tmp_path / "b.sid.h5").paths == {}
 
 
-def test_moving_force_example_short(tmp_path):
+def test_moving_force_example(tmp_path):
     src = ROOT / "examples" / "moving_force"
     for name in ("scene.toml", "analyse.py"):
         shutil.copy(src / name, tmp_path / name)
@@ -119,6 +121,25 @@ def test_moving_force_example_short(tmp_path):
         sys.path.remove(str(tmp_path))
         sys.modules.pop("analyse", None)
     assert out["error_on_beam"] < FRYBA_RTOL and out["error_after_exit"] < FRYBA_RTOL
+    from sidprep.solver.results import read_results
+
+    result = read_results(tmp_path / "scene.results.h5").result
+    e = result.energy
+    balance = e["external"] - e["kinetic"] - e["strain"]
+    check_numbers(src / "README.md", "results", [
+        1e3 * out["peak_m"], 1e3 * out["peak_closed_form_m"], 1e3 * out["static_PL3_48EI_m"],
+        out["error_on_beam"], out["error_after_exit"],
+        np.max(np.abs(balance - balance[0])) / np.max(np.abs(e["external"])), 10, kept_forms_share(tmp_path), 10, 201])
+
+
+def kept_forms_share(folder):
+    """max |10-term series - 201-term series| at midspan over the 2 s, relative to the peak."""
+    spec = importlib.util.spec_from_file_location("moving_force_analyse", folder / "analyse.py")
+    an = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(an)
+    t = np.linspace(0.0, 2.0, 2001)
+    full = an.midspan_series(t)
+    return float(np.max(np.abs(an.midspan_series(t, modes=10) - full)) / np.max(np.abs(full)))
 
 
 def test_a_path_marker_on_a_rigid_body_is_a_one_line_error(tmp_path):
@@ -271,10 +292,11 @@ def test_a_free_sliding_mass_conserves_energy_and_stays_on_the_deformed_beam():
 SLIDING_X_TOL = 2e-4
 
 
-def sliding_mass_reference(t, m=100.0, zeta=0.02, x0=2.0):
+def sliding_mass_reference(t, m=100.0, zeta=0.02, x0=2.0, accelerations=False):
     """The mass on the curve z = w(x, t) = phi(x) eta(t) (one mode, phi = a sin(pi x / L)) by
     Lagrange with x as its coordinate, integrated by scipy DOP853 (a second formulation:
-    no path, no projection, no constraint rows):
+    no path, no projection, no constraint rows); x (nt,), m, or with ``accelerations`` also
+    its x'' and z'' (nt,), m/s^2:
 
         m (1 + w_x^2) x'' + m w_x phi eta'' = -m w_x (w_xx x'^2 + 2 w_xt x') - m g w_x
         m phi w_x x'' + (1 + m phi^2) eta'' = -omega^2 eta - 2 zeta omega eta' + f_beam
@@ -296,20 +318,32 @@ def sliding_mass_reference(t, m=100.0, zeta=0.02, x0=2.0):
         return [deta, etadd, dx, xdd]
 
     sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0, x0, 0.0], t_eval=t, method="DOP853", rtol=1e-10, atol=1e-12)
-    return sol.y[2]
+    if not accelerations:
+        return sol.y[2]
+    eta, deta, x, dx = sol.y
+    etadd, xdd = np.array([rhs(0.0, y)[1::2] for y in sol.y.T]).T
+    phi, dphi, ddphi = a * np.sin(k * x), a * k * np.cos(k * x), -a * k * k * np.sin(k * x)
+    zdd = ddphi * dx * dx * eta + dphi * xdd * eta + 2 * dphi * dx * deta + phi * etadd     # d^2/dt^2 phi(x) eta
+    return x, xdd, zdd
 
 
-def test_moving_mass_example_short(tmp_path):
+def test_moving_mass_example(tmp_path):
+    """The full 60 s (about 2 s CPU) against the second formulation: every number of the README."""
+    spec = importlib.util.spec_from_file_location("moving_mass_analyse", ROOT / "examples/moving_mass/analyse.py")
+    an = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(an)
     shutil.copy(ROOT / "examples/moving_mass/scene.toml", tmp_path / "scene.toml")
-    r = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "simulate", "scene.toml", "--t-end", "10", "-q",
-                        "-o", "out.h5"], cwd=tmp_path, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    from sidprep.solver.results import read_results
+    out = an.main(plot=False, folder=tmp_path)
+    from sidprep.solver.scene import load_scene, simulate
 
-    result = read_results(tmp_path / "out.h5").result
+    result = simulate(load_scene(tmp_path / "scene.toml"))
     x = result.bodies["mass"].position[:, 0]
-    assert np.max(np.abs(x - sliding_mass_reference(result.t))) < SLIDING_X_TOL
-    assert x.max() > 7.5                                     # past midspan: it slides to and fro
+    x_ref, ax_ref, az_ref = sliding_mass_reference(result.t, accelerations=True)
+    assert np.max(np.abs(x - x_ref)[result.t <= 10.0]) < SLIDING_X_TOL
+    check_numbers(ROOT / "examples/moving_mass/README.md", "results", [
+        *out["x_range_m"], x_ref.min(), x_ref.max(), 60, np.max(np.abs(x - x_ref)),
+        out["peak_az"], np.abs(az_ref).max(), out["peak_ax"], np.abs(ax_ref).max(),
+        out["sliding_period_s"], out["energy_drift"]])
 
 
 #: the bundled bar (1 x 0.05 x 0.08 m, 12.5 depths long) pinned at its RBE2 end faces, a 10 kN
@@ -367,7 +401,7 @@ PORTAL_DWELL_RTOL = 1e-3
 PORTAL_TOOL_RTOL = 5e-3
 
 
-def test_robotic_portal_short(tmp_path):
+def test_robotic_portal(tmp_path):
     import importlib.util
 
     for name in ("scene.toml", "analyse.py", "carriage.obj"):
@@ -375,10 +409,17 @@ def test_robotic_portal_short(tmp_path):
     spec = importlib.util.spec_from_file_location("portal_analyse", tmp_path / "analyse.py")
     an = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(an)
-    out = an.main(t_end=9.2, plot=False, folder=tmp_path)
+    out = an.main(plot=False, folder=tmp_path)
     assert abs(out["r1_dwell_deflection_mm"] / out["r1_dwell_closed_form_mm"] - 1) < PORTAL_DWELL_RTOL
     assert abs(out["r1_tool_error_at_dwell_mm"][0] / out["r1_tool_x_closed_form_mm"] - 1) < PORTAL_TOOL_RTOL
     assert 3.0 < out["beam_deformation_mm"]["runway_a"] < 6.0 and out["states"] == 44
+    d, n, m = out["beam_deformation_mm"], out["coordinates"], out["constraints"]
+    check_numbers(ROOT / "examples/robotic_portal/README.md", "results", [
+        max(d["runway_a"], d["runway_b"]), 4, d["cross"],
+        out["r1_tool_error_mm_max"], out["r1_tool_error_x_mm_max"],
+        8.9, 20, 12, abs(out["r1_dwell_deflection_mm"]), abs(out["r1_dwell_closed_form_mm"]),
+        2.5, abs(out["r1_tool_error_at_dwell_mm"][0]), 2.5, abs(out["r1_tool_x_closed_form_mm"]),
+        n, m, n - m, out["states"]])
 
 
 #: a mass launched along a stiff beam (E 7e12 Pa, its own weight switched off, so only the mass's

@@ -10,6 +10,7 @@ skips finished jobs and a killed batch resumes without lost or half-written outp
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import glob
 import hashlib
@@ -18,6 +19,7 @@ import itertools
 import json
 import math
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import re
 import time
@@ -222,11 +224,12 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
     else:
         points = list(itertools.product(*sweep.values()))
     cases = doc.get("case", [{}]) or [{}]
-    jobs = []
+    jobs, tables = [], []
     for c, case in enumerate(cases):
         for point in points:
             params = dict(zip(keys, point))
             table = {**base, **case, **params}
+            tables.append(table)
             context = f"[case {c + 1}]" if len(cases) > 1 else ("[sweep]" if params else "[job]")
             data = split_job_table(table, path, path.parent, context=context)
             if data.get("mesh") is None:
@@ -236,7 +239,8 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             label = "-".join(f"{k}={v}" for k, v in shown.items() if k != "mesh")
             name = _safe(Path(job.mesh).name.split(".")[0] + (f"-{label}" if label else ""))
             jobs.append(BatchJob(name, job.mesh, job.options, tuple(sorted(shown.items()))))
-    settings = checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")
+    settings = {**study_file_switches(tables, doc.get("batch", {}), path),
+                **checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")}
     try:
         BatchOptions(**settings)
     except InputError as exc:
@@ -244,6 +248,30 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
     if "outdir" in settings and not Path(settings["outdir"]).is_absolute():
         settings["outdir"] = str(path.parent / settings["outdir"])
     return unique_names(jobs), settings
+
+
+def study_file_switches(tables: list[dict], batch: dict, path) -> dict:
+    """The job-file output keys of a study's jobs, honoured or refused: ``sid_fem`` / ``obj`` the
+    same for every job become the batch's (a [batch] value must agree); ``output`` is refused (a
+    study names each job's files OUTDIR/<job name>.*)."""
+    if any("output" in t for t in tables):
+        raise InputError(f"{path}: output = ...: a study writes each job's files as OUTDIR/<job name>.sid.h5; "
+                         "remove output and set [batch] outdir = \"FOLDER\" instead")
+    out = {}
+    for key in ("sid_fem", "obj"):
+        if not any(key in t for t in tables):
+            continue
+        values = {t.get(key, getattr(BatchOptions, key)) for t in tables}
+        if len(values) > 1:
+            raise InputError(f"{path}: {key} differs between the jobs; a batch writes the same files for every "
+                             f"job: set {key} once in [job] or [batch]")
+        if values:
+            value = values.pop()
+            if key in batch and batch[key] != value:
+                raise InputError(f"{path}: [job] {key} = {str(value).lower()} but [batch] {key} = "
+                                 f"{str(batch[key]).lower()}; keep one of them")
+            out[key] = value
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -261,7 +289,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
     """Run one job in the current process and write its files; never raises (failures are records)."""
 
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     record = failed_record(job, "")
     record["started_unix_s"] = time.time()
     try:
@@ -278,6 +306,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
     except Exception as exc:  # a job's internal error must not stop the batch
         record["error"] = f"internal error: {type(exc).__name__}: {exc}"
     record["wall_s"] = time.perf_counter() - t0
+    record["cpu_s"] = time.process_time() - cpu0
     record["finished_unix_s"] = time.time()
     record["peak_memory_mb"] = peak_memory_mb()
     return record
@@ -294,12 +323,48 @@ def available_memory_mb() -> float:
     return 4096.0
 
 
+#: every thread pool of a worker process at one thread, set before numpy, MKL, OpenBLAS or numba
+#: load (a limit set after the import does not reach OpenMP / numba): with N jobs on N cores more
+#: threads only contend (issue 27: 1.58x -> 1.77x over one by one on 2 cores)
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                     "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
+#: what a reduction imports, loaded once in the fork server: every worker forks with it loaded
+#: (measured 1.5 s of imports and first calls per fresh worker)
+WORKER_PRELOAD = ("numpy", "scipy.sparse.linalg", "scipy.linalg", "h5py", "sidprep.jobs.reduce",
+                  "sidprep.jobs.output", "sidprep.fe.mesh", "sidprep.fe.assemble")
+
+
+@contextlib.contextmanager
+def single_threaded_environment():
+    """os.environ with SINGLE_THREAD_ENV while the block runs (processes started in it inherit it)."""
+    saved = {k: os.environ.get(k) for k in SINGLE_THREAD_ENV}
+    os.environ.update(SINGLE_THREAD_ENV)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def _single_threaded_worker() -> None:
+    """Worker initializer: the thread limits, for a fork server not started by ``_LocalPool``."""
+    os.environ.update(SINGLE_THREAD_ENV)
+
+
 class _LocalPool:
-    """A process pool of ``workers`` processes (forkserver: clean workers, reused across jobs)."""
+    """A process pool of ``workers`` processes, forked from a server that runs single-threaded
+    (SINGLE_THREAD_ENV) with the reduction's modules loaded (WORKER_PRELOAD), reused across jobs."""
 
     def __init__(self, workers: int):
 
-        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
+        context = multiprocessing.get_context("forkserver")
+        with single_threaded_environment():
+            context.set_forkserver_preload(list(WORKER_PRELOAD))
+            multiprocessing.forkserver.ensure_running()
+        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker)
         self.workers = workers
 
     def submit(self, *args):
@@ -408,6 +473,7 @@ def _run_pending(todo, options, client, records, cache, progress, total):
             records[job.name] = failed_record(job, str(exc))
             if progress:
                 progress(records[job.name], len(records), total, [])
+    queue.sort(key=lambda item: -item[2])       # largest first (memory ~ DOF ~ time): no long job in the tail
     running = {}
     try:
         while queue or running:

@@ -60,6 +60,8 @@ class SolverSettings:
     max_steps : the run stops with an error after this many steps
     baumgarte : constraint stabilisation rate of the explicit methods, 1/s
     effects : None (the System's choice), "auto", "all" or a list of effect names
+    progress : None, or a callable(t, t_end, steps) the run calls between chunks of steps (the
+        compiled loop runs a chunk without returning; sidprep.progress.SimulationProgress)
     """
 
     method: str = "genalpha"
@@ -74,6 +76,7 @@ class SolverSettings:
     max_steps: int = MAX_STEPS
     baumgarte: float = 20.0
     effects: object = None
+    progress: object = None
 
     def __post_init__(self):
         if self.method not in METHODS:

@@ -1,0 +1,65 @@
+"""``sidprep linearize SCENE``: eigenfrequencies and mode shapes of the mechanism at its assembled
+start (sidprep.solver.linear.mechanism_modes), as a table or JSON."""
+
+from __future__ import annotations
+
+#: entries of a mode shape printed in the table (the largest, by magnitude)
+SHAPE_ENTRIES = 3
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "linearize", help="eigenfrequencies and mode shapes of a scene's mechanism at its assembled start",
+        description="Assemble the scene's start (joints closed, as sidprep simulate does) and linearise the "
+                    "constrained equations there: M and the tangent stiffness K (elastic, joint springs, "
+                    "gravity and the other effects the scene includes) on the joints' null space. Prints the "
+                    "eigenfrequencies (0 Hz: rigid-body motions and unstable directions) and the largest "
+                    "entries of each mode shape (body, coordinate).")
+    p.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
+    p.add_argument("--count", type=int, metavar="N", help="print the first N modes (default all)")
+    p.add_argument("--json", action="store_true",
+                   help="one JSON object: frequencies_hz, n_rigid, coordinates, shapes (columns)")
+    p.set_defaults(func=run)
+
+
+def shape_summary(shape, coordinates, entries: int = SHAPE_ENTRIES) -> str:
+    """The largest entries of one mass-normalised shape, e.g. 'rod q.3 +0.98, crank omega.z -0.12'."""
+    import numpy as np
+
+    order = np.argsort(-np.abs(shape))[:entries]
+    return ", ".join(f"{coordinates[k][0]} {coordinates[k][1]} {shape[k]:+.3g}" for k in order if shape[k] != 0)
+
+
+def run(args) -> int:
+    import json
+
+    from sidprep.errors import InputError
+    from sidprep.solver.linear import mechanism_modes
+    from sidprep.solver.scene import load_scene
+    from sidprep.tables import require_toml
+
+    require_toml(args.scene, "scene file", "linearize takes a scene (docs/scenes.md)")
+    if args.count is not None and args.count < 1:
+        raise InputError(f"--count {args.count}: must be >= 1")
+    scene = load_scene(args.scene)
+    if not hasattr(scene.system, "bodies") or not hasattr(scene.system, "joints"):
+        raise InputError(f"{args.scene}: linearize needs a floating-frame scene (bodies and joints), "
+                         "not an absolute-nodal one")
+    modes = mechanism_modes(scene.system)
+    n = len(modes.frequencies_hz) if args.count is None else min(args.count, len(modes.frequencies_hz))
+    if args.json:
+        print(json.dumps({"scene": str(args.scene), "n_rigid": modes.n_rigid,
+                          "frequencies_hz": modes.frequencies_hz[:n].tolist(),
+                          "coordinates": [list(c) for c in modes.coordinates],
+                          "shapes": modes.shapes[:, :n].T.tolist()}))
+        return 0
+    print(f"{scene.title}: {len(modes.frequencies_hz)} modes at the assembled start, {modes.n_rigid} rigid-body "
+          "(0 Hz)")
+    print(f"  {'mode':>4s}  {'f [Hz]':>12s}  largest entries of the shape (body coordinate value)")
+    for k in range(n):
+        print(f"  {k + 1:4d}  {modes.frequencies_hz[k]:12.4f}  {shape_summary(modes.shapes[:, k], modes.coordinates)}")
+    unbalanced = int((modes.frequencies_hz == 0).sum()) - modes.n_rigid
+    if unbalanced > 0:
+        print(f"  note: {unbalanced} mode(s) at 0 Hz are not rigid-body motions: negative stiffness there (the start "
+              "is not an equilibrium, e.g. a pendulum released sideways under gravity, or it is unstable)")
+    return 0
