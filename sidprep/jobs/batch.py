@@ -14,13 +14,13 @@ import glob
 import hashlib
 import itertools
 import json
-import os
 import re
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from sidprep.errors import InputError
+from sidprep.jobs.executor import task_pool
 from sidprep.jobs.options import ReduceOptions
 
 #: fraction of the available memory a batch may plan for
@@ -31,8 +31,6 @@ GEOMETRY_DOF_GUESS = 100_000
 #: the first elastic frequencies kept in a job's record
 RECORD_FREQUENCIES = 6
 CACHE_DIR = ".cache"
-#: seconds to wait for a Dask scheduler before giving up
-DASK_CONNECT_S = 10
 
 
 @dataclass(frozen=True)
@@ -277,57 +275,6 @@ def available_memory_mb() -> float:
     return 4096.0
 
 
-class _LocalPool:
-    """A process pool of ``workers`` processes (forkserver: clean workers, reused across jobs)."""
-
-    def __init__(self, workers: int):
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
-        self.workers = workers
-
-    def submit(self, *args):
-        return self.pool.submit(run_job, *args)
-
-    def wait(self, futures):
-        from concurrent.futures import FIRST_COMPLETED, wait
-        return wait(futures, return_when=FIRST_COMPLETED).done
-
-    def close(self):
-        self.pool.shutdown(wait=True, cancel_futures=True)
-
-
-class _DaskPool:
-    """The same interface on a dask.distributed cluster (``address`` of its scheduler)."""
-
-    def __init__(self, address, workers: int | None):
-        try:
-            from distributed import Client
-        except ImportError:
-            raise InputError("scheduler: dask.distributed is not installed; pip install distributed") from None
-        try:
-            self.client = address if hasattr(address, "submit") else Client(address, timeout=DASK_CONNECT_S)
-        except (OSError, TimeoutError) as exc:
-            raise InputError(f"scheduler {address}: cannot connect ({exc}); check the address and that the "
-                             "scheduler runs") from None
-        self.own = not hasattr(address, "submit")
-        info = self.client.scheduler_info()["workers"].values()
-        self.workers = workers or max(sum(w.get("nthreads", 1) for w in info), 1)
-        self.memory_mb = sum(w.get("memory_limit", 0) or 0 for w in info) / 2**20 or None
-
-    def submit(self, *args):
-        return self.client.submit(run_job, *args, pure=False)
-
-    def wait(self, futures):
-        from distributed import wait
-        return wait(list(futures), return_when="FIRST_COMPLETED").done
-
-    def close(self):
-        if self.own:
-            self.client.close()
-
-
 def _cached(record_path: Path) -> dict | None:
     """The finished record of a job if it and all its files are on disk."""
     try:
@@ -384,8 +331,7 @@ def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, p
 
 
 def _run_pending(todo, options, client, records, cache, progress, total):
-    pool = _DaskPool(client or options.scheduler, options.workers) if (client or options.scheduler) \
-        else _LocalPool(options.workers or os.cpu_count() or 1)
+    pool = task_pool(options.scheduler, options.workers, client)
     budget = options.memory_limit_mb or getattr(pool, "memory_mb", None) or MEMORY_FRACTION * available_memory_mb()
     queue = []
     for job, key in todo:                                   # DOF and memory before starting; bad mesh -> record
@@ -401,7 +347,7 @@ def _run_pending(todo, options, client, records, cache, progress, total):
             planned = sum(m for _, _, m in running.values())
             while queue and len(running) < pool.workers and (not running or planned + queue[0][2] <= budget):
                 job, key, mem = queue.pop(0)
-                running[pool.submit(job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
+                running[pool.run(run_job, job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
                 planned += mem
                 if progress:
                     progress(None, len(records), total, [j.name for j, _, _ in running.values()])

@@ -52,7 +52,8 @@ class ReduceOptions(ModelOptions):
     (neither = ``DEFAULT_MODES``). damping : ratio in [0, 1), a per-mode tuple, or
     {"rayleigh": (alpha [1/s], beta [s])}. paths : "NAME:x0,y0,z0:x1,y1,z1[:...][:n]" (the
     curve through these points) or "NAME:nodes=SET:dir=x[:n]" (through a node set ordered along
-    dir), stored with their interpolated mode shapes (sidprep.reduction.paths).
+    dir), stored with their interpolated mode shapes (sidprep.reduction.paths). parts : reduce the
+    model in that many parts (component mode synthesis, sidprep.jobs.parts; None = in one piece).
     """
 
     interfaces: tuple = ()
@@ -66,6 +67,7 @@ class ReduceOptions(ModelOptions):
     stiffening: bool = False
     check_frequencies: bool = True
     paths: tuple[str, ...] = ()
+    parts: int | None = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,8 @@ def check_reduce_options(o: ReduceOptions) -> None:
     if not o.cutoff_factor >= 1:
         raise InputError(f"cutoff_factor = {o.cutoff_factor}: must be >= 1 (FEMBS default {DEFAULT_CUTOFF_FACTOR:g})")
     check_damping(o.damping)
+    if o.parts is not None and o.parts < 2:
+        raise InputError(f"parts = {o.parts}: must be >= 2 (or none, to reduce the model in one piece)")
 
 
 def check_output(path) -> Path:
