@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -125,6 +126,18 @@ def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         mono, parts = monolithic_and_parts(BAR, 8, scheduler=client)
     assert_same_body(mono, parts, BAR)
+    assert parts.checks["frequency_check"].startswith("certified")
+
+
+def test_an_attached_frame_and_rbe3_interfaces_in_parts_match_the_monolithic_reduction():
+    o = ReduceOptions(interfaces=("fixed_end:rbe3", "free_end:rbe3"), frame="fixed_end", modes=4)
+    mono = reduce(BAR, o)
+    parts = reduce(BAR, replace(o, parts=4), workers=2)
+    kinds = np.array(mono.sid.mode_kinds)
+    np.testing.assert_allclose(parts.sid.frequencies_hz[kinds == "eigen"], mono.sid.frequencies_hz[kinds == "eigen"],
+                               rtol=PARTS_FREQ_RTOL)
+    assert abs(parts.sid.mass / mono.sid.mass - 1) < MASS_RTOL
+    assert parts.passed and parts.checks["zero_energy_modes"] == 0
     assert parts.checks["frequency_check"].startswith("certified")
 
 
