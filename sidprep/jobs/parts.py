@@ -140,6 +140,13 @@ def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None,
     return ordered, assembly, level2
 
 
+def sent_mb(items) -> float:
+    """MiB of the arrays of PartModels (to the workers) or PartReductions (back), once each."""
+    arrays = [a for x in items for v in vars(x).values()
+              for a in ((v.data, v.indices, v.indptr) if hasattr(v, "indptr") else (v,)) if isinstance(a, np.ndarray)]
+    return sum(a.nbytes for a in arrays) / 2.0**20
+
+
 def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None):
     """The Craig-Bampton step of sidprep.jobs.reduce.reduce_body done in parts: a function
     (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel; ``notes`` gets one line on
@@ -165,7 +172,8 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
                          f"{max(len(p.dofs) for p in parts)} DOF, {len(coarse)} coarse DOF, "
                          f"{sum(len(r.frequencies_hz) for r in ordered)} part modes up to "
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
-                         f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB")
+                         f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
+                         f"{sent_mb(parts):.0f} MiB sent to the workers, {sent_mb(ordered):.0f} MiB back")
         return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2)
 
     return reducer
