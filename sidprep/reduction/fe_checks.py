@@ -16,6 +16,9 @@ STATIC_BLOCK = 12
 #: the eigenvalue count's conjugate gradients: relative residual (M norm) at convergence, iteration limit
 COUNT_RTOL = 1e-10
 COUNT_MAX_ITERATIONS = 200
+#: boundary columns of the dynamic Schur complement per conjugate-gradient block (a reduction in
+#: parts has thousands of coarse DOFs; the temporaries scale with the block)
+COUNT_BLOCK = 48
 #: the count's shift sits between the checked Ritz values and the next one; the checked set grows
 #: over Ritz values within this factor (eigenvalues) of the last, so a degenerate pair is not split
 COUNT_GAP = 1.1
@@ -101,44 +104,48 @@ def dynamic_schur(K, M, factor, modes, mu, boundary, b, sigma: float):
     def phi(coef):
         return (modes @ coef)[interior]
 
-    A_b = (K.tocsr()[b] - sigma * M.tocsr()[b]).toarray()     # rows b of K - sigma M
-    F = A_b[:, interior].T
-
+    A_b = (K.tocsr()[b] - sigma * M.tocsr()[b]).tocsr()      # rows b of K - sigma M (sparse)
+    F = A_b[:, np.flatnonzero(interior)].T.tocsc()          # (K - sigma M)_ib
     m_ii = interior_operator(M, interior).matmat
-
-    c = phi_t(F)
-    g = F - m_ii(phi(c))
 
     def solve_w(v):                                       # (K_ii^-1 v, M_ii K_ii^-1 v), projected onto W
         w = np.asarray(factor.solve(v)).reshape(v.shape)
         w -= phi(phi_t(m_ii(w)))                          # the modes' round-off (M_ii-orthonormal to 1e-10)
         return w, m_ii(w)
 
-    # (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g on W by conjugate gradients in the M_ii inner product
-    # (the operator is self-adjoint there, eigenvalues 1 - sigma / mu >= 1 - sigma / mu_(ncb+1) > 0),
-    # one column per boundary DOF, one solve and two M_ii products per step
-    r, Mr = solve_w(g)
-    y, p, Mp = np.zeros_like(r), r.copy(), Mr.copy()
-    rr = rr0 = np.einsum("ij,ij->j", r, Mr)
-    for _ in range(COUNT_MAX_ITERATIONS):
-        active = rr > COUNT_RTOL ** 2 * rr0
-        if not active.any():
-            break
-        w, Mw = solve_w(Mp)
-        pBp = np.einsum("ij,ij->j", p, Mp) - sigma * np.einsum("ij,ij->j", Mp, w)
-        if np.any(pBp[active] <= 0):                      # not definite: sigma above mu_(ncb+1)
-            return None
-        alpha = np.where(active, rr / np.where(active, pBp, 1.0), 0.0)
-        y += alpha * p
-        r -= alpha * (p - sigma * w)
-        Mr -= alpha * (Mp - sigma * Mw)
-        rr, rr_old = np.einsum("ij,ij->j", r, Mr), rr
-        beta = np.where(active, rr / np.where(active, rr_old, 1.0), 0.0)
-        p = r + beta * p
-        Mp = Mr + beta * Mp
-    else:
+    def shifted_solve(f):                                 # (K - sigma M)_ii^-1 f, exactly; None if not definite
+        c = phi_t(f)
+        g = f - m_ii(phi(c))
+        # (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g on W by conjugate gradients in the M_ii inner product
+        # (the operator is self-adjoint there, eigenvalues 1 - sigma / mu >= 1 - sigma / mu_(ncb+1) > 0),
+        # one column per boundary DOF, one solve and two M_ii products per step
+        r, Mr = solve_w(g)
+        y, p, Mp = np.zeros_like(r), r.copy(), Mr.copy()
+        rr = rr0 = np.einsum("ij,ij->j", r, Mr)
+        for _ in range(COUNT_MAX_ITERATIONS):
+            active = rr > COUNT_RTOL ** 2 * rr0
+            if not active.any():
+                return phi(c / (mu - sigma)[:, None]) + y
+            w, Mw = solve_w(Mp)
+            pBp = np.einsum("ij,ij->j", p, Mp) - sigma * np.einsum("ij,ij->j", Mp, w)
+            if np.any(pBp[active] <= 0):                  # not definite: sigma above mu_(ncb+1)
+                return None
+            alpha = np.where(active, rr / np.where(active, pBp, 1.0), 0.0)
+            y += alpha * p
+            r -= alpha * (p - sigma * w)
+            Mr -= alpha * (Mp - sigma * Mw)
+            rr, rr_old = np.einsum("ij,ij->j", r, Mr), rr
+            beta = np.where(active, rr / np.where(active, rr_old, 1.0), 0.0)
+            p = r + beta * p
+            Mp = Mr + beta * Mp
         return None
-    S = A_b[:, b] - F.T @ (phi(c / (mu - sigma)[:, None]) + y)
+
+    S = A_b[:, b].toarray()
+    for s in range(0, len(b), COUNT_BLOCK):               # COUNT_BLOCK columns at a time (peak memory)
+        X = shifted_solve(F[:, s:s + COUNT_BLOCK].toarray())
+        if X is None:
+            return None
+        S[:, s:s + COUNT_BLOCK] -= F.T @ X
     return int(np.sum(mu < sigma)), S
 
 
