@@ -13,6 +13,7 @@ import hashlib
 import io
 import itertools
 import re
+import signal
 import struct
 import tempfile
 from dataclasses import dataclass, field, replace
@@ -229,6 +230,7 @@ def _gmsh_session(options: dict):
     own = not gmsh.isInitialized()
     if own:
         gmsh.initialize(readConfigFiles=False, interruptible=False)
+        _python_sigpipe()
     options = {"General.Terminal": 0, "General.Verbosity": 0, **options}
     get = {str: gmsh.option.getString, float: gmsh.option.getNumber}
     put = {str: gmsh.option.setString, float: gmsh.option.setNumber}
@@ -250,6 +252,15 @@ def _gmsh_session(options: dict):
                 gmsh.model.setCurrent(previous)
             for name, value in saved.items():
                 put[kinds[name]](name, value)
+
+
+def _python_sigpipe() -> None:
+    """Give SIGPIPE back the disposition Python gave it (ignored: writes to a closed pipe raise
+    BrokenPipeError): gmsh.initialize resets it to "terminate" in C, and a later write to a pipe whose
+    reader died (a killed pool worker, sidprep.jobs.parts) ended the process silently with exit 141."""
+    handler = signal.getsignal(signal.SIGPIPE)
+    with contextlib.suppress(ValueError, TypeError):      # not the main thread / a handler set in C
+        signal.signal(signal.SIGPIPE, handler)
 
 
 def _read_gmsh(path, *, size, order) -> _RawMesh:

@@ -10,7 +10,6 @@ skips finished jobs and a killed batch resumes without lost or half-written outp
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import glob
 import hashlib
@@ -18,12 +17,8 @@ import io
 import itertools
 import json
 import math
-import multiprocessing
-import multiprocessing.forkserver
-import os
 import re
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -32,6 +27,7 @@ import numpy as np
 from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.fe.mesh import read_mesh
+from sidprep.jobs.executor import task_pool
 from sidprep.jobs.jobfile import job_from_table, split_job_table
 from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.jobs.output import output_paths, write_reduction
@@ -41,7 +37,6 @@ from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.tables import checked_table, read_toml
 
-
 #: fraction of the available memory a batch may plan for
 MEMORY_FRACTION = 0.8
 #: file endings meshed by gmsh (DOF unknown before meshing: the estimate uses GEOMETRY_DOF_GUESS)
@@ -50,8 +45,6 @@ GEOMETRY_DOF_GUESS = 100_000
 #: the first elastic frequencies kept in a job's record
 RECORD_FREQUENCIES = 6
 CACHE_DIR = ".cache"
-#: seconds to wait for a Dask scheduler before giving up
-DASK_CONNECT_S = 10
 
 
 @dataclass(frozen=True)
@@ -323,90 +316,6 @@ def available_memory_mb() -> float:
     return 4096.0
 
 
-#: every thread pool of a worker process at one thread, set before numpy, MKL, OpenBLAS or numba
-#: load (a limit set after the import does not reach OpenMP / numba): with N jobs on N cores more
-#: threads only contend (issue 27: 1.58x -> 1.77x over one by one on 2 cores)
-SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-                     "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
-#: what a reduction imports, loaded once in the fork server: every worker forks with it loaded
-#: (measured 1.5 s of imports and first calls per fresh worker)
-WORKER_PRELOAD = ("numpy", "scipy.sparse.linalg", "scipy.linalg", "h5py", "sidprep.jobs.reduce",
-                  "sidprep.jobs.output", "sidprep.fe.mesh", "sidprep.fe.assemble")
-
-
-@contextlib.contextmanager
-def single_threaded_environment():
-    """os.environ with SINGLE_THREAD_ENV while the block runs (processes started in it inherit it)."""
-    saved = {k: os.environ.get(k) for k in SINGLE_THREAD_ENV}
-    os.environ.update(SINGLE_THREAD_ENV)
-    try:
-        yield
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
-def _single_threaded_worker() -> None:
-    """Worker initializer: the thread limits, for a fork server not started by ``_LocalPool``."""
-    os.environ.update(SINGLE_THREAD_ENV)
-
-
-class _LocalPool:
-    """A process pool of ``workers`` processes, forked from a server that runs single-threaded
-    (SINGLE_THREAD_ENV) with the reduction's modules loaded (WORKER_PRELOAD), reused across jobs."""
-
-    def __init__(self, workers: int):
-
-        context = multiprocessing.get_context("forkserver")
-        with single_threaded_environment():
-            context.set_forkserver_preload(list(WORKER_PRELOAD))
-            multiprocessing.forkserver.ensure_running()
-        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker)
-        self.workers = workers
-
-    def submit(self, *args):
-        return self.pool.submit(run_job, *args)
-
-    def wait(self, futures):
-        return wait(futures, return_when=FIRST_COMPLETED).done
-
-    def close(self):
-        self.pool.shutdown(wait=True, cancel_futures=True)
-
-
-class _DaskPool:
-    """The same interface on a dask.distributed cluster (``address`` of its scheduler)."""
-
-    def __init__(self, address, workers: int | None):
-        try:
-            from distributed import Client
-        except ImportError:
-            raise InputError("scheduler: dask.distributed is not installed; pip install distributed") from None
-        try:
-            self.client = address if hasattr(address, "submit") else Client(address, timeout=DASK_CONNECT_S)
-        except (OSError, TimeoutError) as exc:
-            raise InputError(f"scheduler {address}: cannot connect ({exc}); check the address and that the "
-                             "scheduler runs") from None
-        self.own = not hasattr(address, "submit")
-        info = self.client.scheduler_info()["workers"].values()
-        self.workers = workers or max(sum(w.get("nthreads", 1) for w in info), 1)
-        self.memory_mb = sum(w.get("memory_limit", 0) or 0 for w in info) / 2**20 or None
-
-    def submit(self, *args):
-        return self.client.submit(run_job, *args, pure=False)
-
-    def wait(self, futures):
-        from distributed import wait
-        return wait(list(futures), return_when="FIRST_COMPLETED").done
-
-    def close(self):
-        if self.own:
-            self.client.close()
-
-
 def _cached(record_path: Path) -> dict | None:
     """The finished record of a job if it and all its files are on disk."""
     try:
@@ -462,8 +371,7 @@ def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, p
 
 
 def _run_pending(todo, options, client, records, cache, progress, total):
-    pool = _DaskPool(client or options.scheduler, options.workers) if (client or options.scheduler) \
-        else _LocalPool(options.workers or os.cpu_count() or 1)
+    pool = task_pool(options.scheduler, options.workers, client)
     budget = options.memory_limit_mb or getattr(pool, "memory_mb", None) or MEMORY_FRACTION * available_memory_mb()
     queue = []
     for job, key in todo:                                   # DOF and memory before starting; bad mesh -> record
@@ -480,7 +388,7 @@ def _run_pending(todo, options, client, records, cache, progress, total):
             planned = sum(m for _, _, m in running.values())
             while queue and len(running) < pool.workers and (not running or planned + queue[0][2] <= budget):
                 job, key, mem = queue.pop(0)
-                running[pool.submit(job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
+                running[pool.run(run_job, job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
                 planned += mem
                 if progress:
                     progress(None, len(records), total, [j.name for j, _, _ in running.values()])

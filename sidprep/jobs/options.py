@@ -57,7 +57,8 @@ class ReduceOptions(ModelOptions):
     dir), stored with their interpolated mode shapes (sidprep.reduction.paths). stress : None,
     "surface" or "all": modal stresses at those nodes (sidprep.reduction.stress). matrices : a file of
     K and M written by another FE code (sidprep.fe.matrices: .sti, .eig, .mtx, .pch, .full) used instead of
-    sidprep's own assembly; the mesh is then the deck they belong to (any solid elements).
+    sidprep's own assembly; the mesh is then the deck they belong to (any solid elements). parts : reduce
+    the model in that many parts (component mode synthesis, sidprep.jobs.parts; None = in one piece).
     """
 
     interfaces: tuple = ()
@@ -73,6 +74,7 @@ class ReduceOptions(ModelOptions):
     paths: tuple[str, ...] = ()
     stress: str | None = None
     matrices: str | None = None
+    parts: int | None = None
 
 
 @dataclass(frozen=True)
@@ -126,6 +128,8 @@ def check_reduce_options(o: ReduceOptions) -> None:
     if o.matrices and o.stiffening:
         raise InputError(f"stiffening = true: the geometric stiffening needs sidprep's own elements (stresses), "
                          f"not imported matrices ({o.matrices}); drop stiffening or reduce a tetrahedral mesh")
+    if o.parts is not None and o.parts < 2:
+        raise InputError(f"parts = {o.parts}: must be >= 2 (or none, to reduce the model in one piece)")
 
 
 def check_output(path) -> Path:

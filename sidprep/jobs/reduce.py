@@ -33,6 +33,7 @@ from sidprep.fe.mesh import FEMesh, connected_parts, read_mesh
 from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
     DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
+from sidprep.jobs.parts import PartsSettings, parts_reducer
 from sidprep.progress import Phases, peak_memory_mb
 from sidprep.reduction.craig_bampton import craig_bampton
 from sidprep.reduction.fe_checks import STATIC_CHECK_TOL, fe_checks, structured_checks
@@ -148,13 +149,14 @@ def default_interfaces(mesh) -> list[str]:
 
 
 def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fmax=None,
-                frm=True, cutoff_factor=DEFAULT_CUTOFF_FACTOR, load_nodes=(), phases=None) -> Reduction:
+                frm=True, cutoff_factor=DEFAULT_CUTOFF_FACTOR, load_nodes=(), phases=None, reducer=None) -> Reduction:
     """Steps 2-4 of the module docstring for an assembled FE model.
 
     interfaces : list of sidprep.reduction.interfaces.Interface; frame : "free" or an interface name;
     load_nodes : FE node indices that get 3 unit FRM forces each, besides every master DOF.
     K_fe and M_fe are only projected: a caller that keeps no reference to them lets them be freed
-    before the factorisation (peak memory).
+    before the factorisation (peak memory).  ``reducer`` : the Craig-Bampton step done otherwise,
+    (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel (in parts: sidprep.jobs.parts).
     """
 
     ph = phases or Phases(verbose=False)
@@ -170,11 +172,12 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
         rigid = rigid_modes_model(im, mesh.points)
     boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(rigid, np.arange(im.n_model))
     with ph("craig-bampton", f"{len(boundary)} boundary DOF"):
-        extent = np.ptp(mesh.points, axis=0)
-        if fmax is not None:
-            cb = craig_bampton(K_model, M_model, boundary, fmax=max(2.0, cutoff_factor) * fmax, extent=extent)
+        count = {"fmax": max(2.0, cutoff_factor) * fmax} if fmax is not None \
+            else {"n_modes": max(CB_MIN_MODES, 3 * n_modes)}
+        if reducer is None:
+            cb = craig_bampton(K_model, M_model, boundary, extent=np.ptp(mesh.points, axis=0), **count)
         else:
-            cb = craig_bampton(K_model, M_model, boundary, n_modes=max(CB_MIN_MODES, 3 * n_modes), extent=extent)
+            cb = reducer(im, K_model, M_model, boundary, **count)
     held = None if frame == "free" else im.master_dofs[names.index(frame)]
     held_r = () if held is None else np.flatnonzero(np.isin(boundary, held))
     with ph("modes", "eigen + frequency-response modes"):
@@ -259,16 +262,19 @@ def check_parts_held(mesh, interfaces, source) -> None:
                          "join the parts in the mesh (shared nodes) or add an interface on each part")
 
 
-def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None) -> ReductionResult:
+def reduce(mesh, options: ReduceOptions = ReduceOptions(), *, phases=None, scheduler=None,
+           workers: int | None = None) -> ReductionResult:
     """Reduce an FE model to a flexible body: ``mesh`` (an FEMesh or a path) -> SID and checks.
 
     Runs with one BLAS thread (sidprep.fe.linalg.single_threaded_blas); no printing, no files.
-    ``phases`` : sidprep.progress.Phases for progress lines and timings (default silent).
+    ``phases`` : sidprep.progress.Phases for progress lines and timings (default silent).  With
+    ``options.parts``, the parts run on the Dask cluster ``scheduler`` (an address or a
+    dask.distributed Client) or on a local pool of ``workers`` processes (sidprep.jobs.parts).
     """
 
     check_reduce_options(options)
     with single_threaded_blas():
-        return _reduce(mesh, options, phases)
+        return _reduce(mesh, options, phases, (scheduler, workers))
 
 
 def load_mesh(mesh, o, ph):
@@ -294,7 +300,7 @@ def model_material(o):
                f"rho = {m.rho:g} kg/m^3); set material or E, nu, rho"]
 
 
-def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
+def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> ReductionResult:
 
     ph = phases or Phases(verbose=False)
     units = unit_system(o.units)
@@ -322,8 +328,10 @@ def _reduce(mesh_in, o: ReduceOptions, phases) -> ReductionResult:
     load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
     # K_fe and M_fe are handed over (popped), so that reduce_body frees them once projected, before
     # the factorisation (peak memory); M_fe is rebuilt from Ms afterwards
+    reducer = parts_reducer(mesh, material, PartsSettings(o.parts, *cluster), notes) if o.parts else None
     red = reduce_body(mesh, assembled.pop("K"), assembled.pop("M"), interfaces, frame=o.frame, n_modes=o.modes,
-                      fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph)
+                      fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph,
+                      reducer=reducer)
     M_fe = imported.M if o.matrices else vector_mass(Ms)
     eigen_hz = [f for f, kind in zip(red.basis.frequencies_hz, red.basis.kinds) if kind == "eigen" and f > 0]
     notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0),

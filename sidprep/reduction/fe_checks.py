@@ -23,6 +23,9 @@ STATIC_BLOCK = 12
 #: the eigenvalue count's conjugate gradients: relative residual (M norm) at convergence, iteration limit
 COUNT_RTOL = 1e-10
 COUNT_MAX_ITERATIONS = 200
+#: boundary columns of the dynamic Schur complement per conjugate-gradient block (a reduction in
+#: parts has thousands of coarse DOFs; the temporaries scale with the block)
+COUNT_BLOCK = 48
 #: the count's shift sits between the checked Ritz values and the next one; the checked set grows
 #: over Ritz values within this factor (eigenvalues) of the last, so a degenerate pair is not split
 COUNT_GAP = 1.1
@@ -64,25 +67,40 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     """Number of eigenvalues below ``sigma`` of the full model (held DOFs removed), rigid ones
     included, by Sylvester's law of inertia with the interior eliminated first (Wittrick-Williams):
     count = #{fixed-interface eigenvalues < sigma} + #{negative eigenvalues of S}, with S the exact
-    dynamic Schur complement (K - sigma M)_bb - (K - sigma M)_bi (K - sigma M)_ii^-1 (K - sigma M)_ib.
+    dynamic Schur complement (:func:`dynamic_schur`).  None when it cannot be certified.  A reduction
+    in parts counts over its parts (its factor's ``eigenvalue_count``, sidprep.reduction.parts).
+    """
+    cb = red.cb
+    by_parts = getattr(cb.interior_factor, "eigenvalue_count", None)
+    if by_parts is not None:
+        return by_parts(red, sigma)
+    b = cb.boundary_dofs if red.held is None else cb.boundary_dofs[~np.isin(cb.boundary_dofs, red.held)]
+    schur = dynamic_schur(red.K_model, red.M_model, cb.interior_factor, cb.basis[:, cb.n_boundary:],
+                          (2 * np.pi * cb.fixed_interface_hz) ** 2, cb.boundary_dofs, b, sigma)
+    if schur is None:
+        return None
+    below, S = schur
+    return int(below + np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) < 0))
 
-    (K - sigma M)_ii^-1 is applied exactly: on the computed fixed-interface modes spectrally, on their
-    M_ii-orthogonal complement W by conjugate gradients on (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g with
-    the reduction's K_ii factor (condition number 1 / (1 - sigma / mu_(ncb+1))).  None when that
-    operator is not definite or the iteration does not converge (sigma above the computed
-    fixed-interface spectrum): the count cannot be certified.
+
+def dynamic_schur(K, M, factor, modes, mu, boundary, b, sigma: float):
+    """(#{mu < sigma}, S) with S (len(b), len(b)) the exact dynamic Schur complement
+    (K - sigma M)_bb - (K - sigma M)_bi (K - sigma M)_ii^-1 (K - sigma M)_ib, i = all DOFs but
+    ``boundary`` (b a subset of it); or None when it cannot be certified.
+
+    K, M : (n, n) sparse; factor : of K_ii; modes : (n, nm) fixed-interface modes, zero on the
+    boundary, M_ii-orthonormal, eigenvalues mu (nm,) ascending.  (K - sigma M)_ii^-1 is applied
+    exactly: on the modes spectrally, on their M_ii-orthogonal complement W by conjugate gradients on
+    (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g with the factor (condition number 1 / (1 - sigma /
+    mu_(nm+1))).  None when that operator is not definite or the iteration does not converge (sigma
+    above the computed fixed-interface spectrum).
     """
 
-    cb = red.cb
-    n = cb.basis.shape[0]
-    nb = cb.n_boundary
+    n = K.shape[0]
     interior = np.ones(n, bool)
-    interior[cb.boundary_dofs] = False
-    b = cb.boundary_dofs if red.held is None else cb.boundary_dofs[~np.isin(cb.boundary_dofs, red.held)]
-    mu = (2 * np.pi * cb.fixed_interface_hz) ** 2
+    interior[boundary] = False
     if len(mu) and sigma >= mu[-1]:
         return None
-    modes = cb.basis[:, nb:]                              # a view: the modes are zero on the boundary
 
     def phi_t(v):                                         # Phi^T v without an interior copy of Phi
         full = np.zeros((n, v.shape[1]))
@@ -92,45 +110,49 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     def phi(coef):
         return (modes @ coef)[interior]
 
-    A_b = (red.K_model.tocsr()[b] - sigma * red.M_model.tocsr()[b]).toarray()     # rows b of K - sigma M
-    F = A_b[:, interior].T
-
-    m_ii = interior_operator(red.M_model, interior).matmat
-
-    c = phi_t(F)
-    g = F - m_ii(phi(c))
+    A_b = (K.tocsr()[b] - sigma * M.tocsr()[b]).tocsr()      # rows b of K - sigma M (sparse)
+    F = A_b[:, np.flatnonzero(interior)].T.tocsc()          # (K - sigma M)_ib
+    m_ii = interior_operator(M, interior).matmat
 
     def solve_w(v):                                       # (K_ii^-1 v, M_ii K_ii^-1 v), projected onto W
-        w = np.asarray(cb.interior_factor.solve(v)).reshape(v.shape)
+        w = np.asarray(factor.solve(v)).reshape(v.shape)
         w -= phi(phi_t(m_ii(w)))                          # the modes' round-off (M_ii-orthonormal to 1e-10)
         return w, m_ii(w)
 
-    # (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g on W by conjugate gradients in the M_ii inner product
-    # (the operator is self-adjoint there, eigenvalues 1 - sigma / mu >= 1 - sigma / mu_(ncb+1) > 0),
-    # one column per boundary DOF, one solve and two M_ii products per step
-    r, Mr = solve_w(g)
-    y, p, Mp = np.zeros_like(r), r.copy(), Mr.copy()
-    rr = rr0 = np.einsum("ij,ij->j", r, Mr)
-    for _ in range(COUNT_MAX_ITERATIONS):
-        active = rr > COUNT_RTOL ** 2 * rr0
-        if not active.any():
-            break
-        w, Mw = solve_w(Mp)
-        pBp = np.einsum("ij,ij->j", p, Mp) - sigma * np.einsum("ij,ij->j", Mp, w)
-        if np.any(pBp[active] <= 0):                      # not definite: sigma above mu_(ncb+1)
-            return None
-        alpha = np.where(active, rr / np.where(active, pBp, 1.0), 0.0)
-        y += alpha * p
-        r -= alpha * (p - sigma * w)
-        Mr -= alpha * (Mp - sigma * Mw)
-        rr, rr_old = np.einsum("ij,ij->j", r, Mr), rr
-        beta = np.where(active, rr / np.where(active, rr_old, 1.0), 0.0)
-        p = r + beta * p
-        Mp = Mr + beta * Mp
-    else:
+    def shifted_solve(f):                                 # (K - sigma M)_ii^-1 f, exactly; None if not definite
+        c = phi_t(f)
+        g = f - m_ii(phi(c))
+        # (I - sigma K_ii^-1 M_ii) y = K_ii^-1 g on W by conjugate gradients in the M_ii inner product
+        # (the operator is self-adjoint there, eigenvalues 1 - sigma / mu >= 1 - sigma / mu_(ncb+1) > 0),
+        # one column per boundary DOF, one solve and two M_ii products per step
+        r, Mr = solve_w(g)
+        y, p, Mp = np.zeros_like(r), r.copy(), Mr.copy()
+        rr = rr0 = np.einsum("ij,ij->j", r, Mr)
+        for _ in range(COUNT_MAX_ITERATIONS):
+            active = rr > COUNT_RTOL ** 2 * rr0
+            if not active.any():
+                return phi(c / (mu - sigma)[:, None]) + y
+            w, Mw = solve_w(Mp)
+            pBp = np.einsum("ij,ij->j", p, Mp) - sigma * np.einsum("ij,ij->j", Mp, w)
+            if np.any(pBp[active] <= 0):                  # not definite: sigma above mu_(ncb+1)
+                return None
+            alpha = np.where(active, rr / np.where(active, pBp, 1.0), 0.0)
+            y += alpha * p
+            r -= alpha * (p - sigma * w)
+            Mr -= alpha * (Mp - sigma * Mw)
+            rr, rr_old = np.einsum("ij,ij->j", r, Mr), rr
+            beta = np.where(active, rr / np.where(active, rr_old, 1.0), 0.0)
+            p = r + beta * p
+            Mp = Mr + beta * Mp
         return None
-    S = A_b[:, b] - F.T @ (phi(c / (mu - sigma)[:, None]) + y)
-    return int(np.sum(mu < sigma) + np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) < 0))
+
+    S = A_b[:, b].toarray()
+    for s in range(0, len(b), COUNT_BLOCK):               # COUNT_BLOCK columns at a time (peak memory)
+        X = shifted_solve(F[:, s:s + COUNT_BLOCK].toarray())
+        if X is None:
+            return None
+        S[:, s:s + COUNT_BLOCK] -= F.T @ X
+    return int(np.sum(mu < sigma)), S
 
 
 def frequency_bounds(red, m: int) -> tuple[np.ndarray, np.ndarray, str]:

@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""A model reduced in parts (issue 28) against the monolithic reduction of the same mesh.
+
+The tet10 bar of benchmarks/scale.py (1.0 x 0.05 x 0.08 m, RBE2 masters on both end faces, 30
+modes + FRMs, all checks), meshed once to a binary .msh for the DOF target; then, alternating,
+``sidprep reduce MESH`` and ``sidprep reduce MESH --parts P --workers W``, each in a fresh process
+with one BLAS thread.  Columns: wall time (median), the driver's peak RSS (the JSON summary's
+peak_memory_mb), the largest worker peak (the parts note), the largest relative difference of the
+eigen-mode frequencies to the monolithic run, and whether the checks passed.  The machine is
+shared: quote the ratios measured side by side.
+
+    python benchmarks/parts.py --dof 200000 --parts 8 --workers 2
+    python benchmarks/parts.py --dof 1000000 --parts 16 --workers 2 --repeat 1   # the issue's 1M row
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+
+def run(mesh: Path, work: Path, parts: int | None, workers: int) -> dict:
+    from scale import timed
+
+    cmd = [sys.executable, "-m", "sidprep.cli.main", "reduce", str(mesh), "--interface", "fixed_end", "--interface",
+           "free_end", "--modes", "30", "-q", "--json", "-o", str(work / "out.sid.h5"), "--no-obj", "--no-sid-fem"]
+    if parts:
+        cmd += ["--parts", str(parts), "--workers", str(workers)]
+    out, err, wall, rss = timed(cmd, work)
+    summary = json.loads(out)
+    note = next((n for n in summary["notes"] if "parts" in n), "")
+    worker = re.search(r"worker peak (\d+) MiB", note)
+    eigen = [f for f, k in zip(read_frequencies(work / "out.sid.h5"), summary["kinds"]) if k == "eigen"]
+    return {"wall_s": wall, "driver_mb": summary["peak_memory_mb"], "tree_mb": rss,
+            "worker_mb": float(worker.group(1)) if worker else None, "passed": summary["checks"]["passed"],
+            "dof": summary["dof"], "eigen_hz": eigen, "note": note}
+
+
+def read_frequencies(path: Path) -> list[float]:
+    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
+
+    return [float(f) for f in read_sid_hdf5(path).frequencies_hz]
+
+
+def main(argv=None) -> int:
+    from scale import BAR_GEO, BOX, bar_h, write_msh
+
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--dof", type=int, default=200_000)
+    p.add_argument("--parts", type=int, nargs="+", default=[8])
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--repeat", type=int, default=1)
+    args = p.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        geo = tmp / "bar.geo"
+        geo.write_text(BAR_GEO.format(a=BOX[0], b=BOX[1], c=BOX[2], h=bar_h(args.dof, free=True)))
+        mesh = write_msh(geo)
+        rows: dict = {}
+        for _ in range(args.repeat):                        # alternate: the load hits every variant alike
+            for parts in [None, *args.parts]:
+                rows.setdefault(parts, []).append(run(mesh, tmp, parts, args.workers))
+    mono = rows[None][0]["eigen_hz"]
+    print("| DOF | run | wall s (median) | driver peak MiB | worker peak MiB | max rel. eigen freq. diff | checks |")
+    print("|---|---|---|---|---|---|---|")
+    for parts, rs in rows.items():
+        diff = max(abs(a / b - 1) for r in rs for a, b in zip(r["eigen_hz"], mono))
+        worker = max((r["worker_mb"] or 0) for r in rs)
+        print(f"| {rs[0]['dof']} | {'monolithic' if parts is None else f'{parts} parts, {args.workers} workers'} "
+              f"| {statistics.median(r['wall_s'] for r in rs):.1f} | {max(r['driver_mb'] for r in rs):.0f} "
+              f"| {worker:.0f} | {diff:.1e} | {'passed' if all(r['passed'] for r in rs) else 'FAILED'} |")
+    for parts, rs in rows.items():
+        if parts:
+            print(f"parts {parts}: {rs[-1]['note']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

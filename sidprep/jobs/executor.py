@@ -1,0 +1,109 @@
+"""Where tasks run: a local process pool or a Dask cluster, behind one small interface (``run``,
+``wait``, ``close``, ``workers``) - the executor of ``sidprep batch`` (sidprep.jobs.batch) and of
+reductions in parts (sidprep.jobs.parts)."""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import multiprocessing.forkserver
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+from sidprep.errors import InputError
+
+#: seconds to wait for a Dask scheduler before giving up
+DASK_CONNECT_S = 10
+
+
+#: every thread pool of a worker process at one thread, set before numpy, MKL, OpenBLAS or numba
+#: load (a limit set after the import does not reach OpenMP / numba): with N jobs on N cores more
+#: threads only contend (issue 27: 1.58x -> 1.77x over one by one on 2 cores)
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                     "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
+#: what a reduction imports, loaded once in the fork server: every worker forks with it loaded
+#: (measured 1.5 s of imports and first calls per fresh worker)
+WORKER_PRELOAD = ("numpy", "scipy.sparse.linalg", "scipy.linalg", "h5py", "sidprep.jobs.reduce",
+                  "sidprep.jobs.output", "sidprep.fe.mesh", "sidprep.fe.assemble")
+
+
+@contextlib.contextmanager
+def single_threaded_environment():
+    """os.environ with SINGLE_THREAD_ENV while the block runs (processes started in it inherit it)."""
+    saved = {k: os.environ.get(k) for k in SINGLE_THREAD_ENV}
+    os.environ.update(SINGLE_THREAD_ENV)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def _single_threaded_worker() -> None:
+    """Worker initializer: the thread limits, for a fork server not started by ``_LocalPool``."""
+    os.environ.update(SINGLE_THREAD_ENV)
+
+
+class _LocalPool:
+    """A process pool of ``workers`` processes, forked from a server that runs single-threaded
+    (SINGLE_THREAD_ENV) with the reduction's modules loaded (WORKER_PRELOAD), reused across tasks."""
+
+    def __init__(self, workers: int):
+        context = multiprocessing.get_context("forkserver")
+        with single_threaded_environment():
+            context.set_forkserver_preload(list(WORKER_PRELOAD))
+            multiprocessing.forkserver.ensure_running()
+        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker)
+        self.workers = workers
+
+    def run(self, fn, *args):
+        """Any task (a top-level function and its picklable arguments) on the pool."""
+        return self.pool.submit(fn, *args)
+
+    def wait(self, futures):
+        return wait(futures, return_when=FIRST_COMPLETED).done
+
+    def close(self):
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _DaskPool:
+    """The same interface on a dask.distributed cluster (``address`` of its scheduler)."""
+
+    def __init__(self, address, workers: int | None):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("scheduler: dask.distributed is not installed; pip install distributed") from None
+        try:
+            self.client = address if hasattr(address, "submit") else Client(address, timeout=DASK_CONNECT_S)
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"scheduler {address}: cannot connect ({exc}); check the address and that the "
+                             "scheduler runs") from None
+        self.own = not hasattr(address, "submit")
+        info = self.client.scheduler_info()["workers"].values()
+        self.workers = workers or max(sum(w.get("nthreads", 1) for w in info), 1)
+        self.memory_mb = sum(w.get("memory_limit", 0) or 0 for w in info) / 2**20 or None
+
+    def run(self, fn, *args):
+        """Any task (a top-level function and its picklable arguments) on the cluster."""
+        return self.client.submit(fn, *args, pure=False)
+
+    def wait(self, futures):
+        from distributed import wait
+        return wait(list(futures), return_when="FIRST_COMPLETED").done
+
+    def close(self):
+        if self.own:
+            self.client.close()
+
+
+def task_pool(scheduler=None, workers: int | None = None, client=None):
+    """The executor of batches and of reductions in parts: a Dask cluster (``client`` or the
+    ``scheduler`` address) or, without either, a local process pool of ``workers`` (default: cores)."""
+    if client or scheduler:
+        return _DaskPool(client or scheduler, workers)
+    return _LocalPool(workers or os.cpu_count() or 1)

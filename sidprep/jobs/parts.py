@@ -1,0 +1,179 @@
+"""A reduction in parts as tasks (``sidprep reduce MESH --parts N [--scheduler ADDRESS]``).
+
+The mesh is partitioned, every part's Craig-Bampton reduction runs as a task on the executor of
+``sidprep batch`` (sidprep.jobs.executor.task_pool: a local process pool, or a Dask cluster), and the
+driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduction.parts).
+
+* Memory: before any part starts, each part's reduction peak is estimated
+  (sidprep.reduction.craig_bampton.reduction_peak_bytes) against one worker's memory; a part that does
+  not fit is refused with the ``parts`` that would fit.
+* Faults: a task whose worker is lost (killed, out of memory) is run again on a fresh pool, up to
+  PART_RETRIES times; then the run stops with one line naming the part.  No result is assembled
+  from a part that did not finish.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sidprep.errors import InputError
+
+#: times a part is run again after its worker was lost
+PART_RETRIES = 2
+#: fewest fixed-interface modes of a part in the first round, which asks PART_FIRST_ROUND x
+#: PART_CUTOFF^2 x (second-level modes / parts): a part of 1/N of the body has about 1/N of its modes
+#: below a frequency, and about PART_CUTOFF^2 times as many below PART_CUTOFF x it (measured 2.4-4.4
+#: on the piston rod and the bar); parts short of PART_CUTOFF x the top frequency run again (a second
+#: round costs a whole part reduction, the margin less)
+PART_MIN_MODES = 12
+PART_FIRST_ROUND = 1.25
+#: most parts suggested when a part does not fit a worker
+MAX_SUGGESTED_PARTS = 4096
+
+
+class PartLost(RuntimeError):
+    """A part's task failed PART_RETRIES + 1 times because its worker was lost."""
+
+
+@dataclass(frozen=True)
+class PartsSettings:
+    """How a model is reduced in parts: ``n_parts`` parts, on the Dask cluster ``scheduler`` (its
+    address or a dask.distributed Client) or a local pool of ``workers`` processes (default: cores)."""
+
+    n_parts: int
+    scheduler: object = None
+    workers: int | None = None
+
+
+def worker_memory_bytes(pool) -> float:
+    """Memory one worker may use: the smallest Dask worker memory limit, or the available memory
+    (sidprep.fe.linalg.available_memory_bytes, SIDPREP_MEMORY_LIMIT) shared by the local workers."""
+    from sidprep.fe.linalg import available_memory_bytes
+
+    client = getattr(pool, "client", None)
+    if client is not None:
+        limits = [w.get("memory_limit") or 0 for w in client.scheduler_info()["workers"].values()]
+        if limits and min(limits) > 0:
+            return float(min(limits))
+        return available_memory_bytes()
+    return available_memory_bytes() / max(pool.workers, 1)
+
+
+def check_parts_fit(parts, n_dof: int, memory: float) -> None:
+    """InputError before any part starts when a part's estimated reduction peak exceeds ``memory``
+    (bytes, one worker), naming the ``parts`` that would fit."""
+    from sidprep.fe.linalg import MEMORY_HEADROOM
+    from sidprep.reduction.craig_bampton import reduction_peak_bytes
+
+    need = [reduction_peak_bytes(len(p.dofs), p.K.nnz, p.extent) for p in parts]
+    worst = int(np.argmax(need))
+    if need[worst] <= MEMORY_HEADROOM * memory:
+        return
+    n = len(parts)
+    size = len(parts[worst].dofs)
+    fits = next((m for m in range(n + 1, MAX_SUGGESTED_PARTS + 1)
+                 if reduction_peak_bytes(size * n // m, None, parts[worst].extent * (n / m) ** (1 / 3))
+                 <= MEMORY_HEADROOM * memory), None)
+    advice = f"use --parts {fits} or more (or workers with more memory)" if fits else "use workers with more memory"
+    gb = 1024.0 ** 3
+    raise InputError(f"parts = {n}: {parts[worst].name} ({size} of {n_dof} DOF) needs ~{need[worst] / gb:.2f} GB, "
+                     f"a worker has {memory / gb:.2f} GB; {advice}")
+
+
+def run_part_tasks(pools: list, settings: PartsSettings, parts, requests: dict, memory: float,
+                   results: dict) -> None:
+    """Reduce the parts ``requests`` (index -> (n_modes, fmax)) as tasks on ``pools[0]`` into
+    ``results`` (index -> PartReduction); after a lost worker, the part runs again on a fresh pool
+    (replacing ``pools[0]``; module docstring)."""
+    from sidprep.jobs.executor import task_pool
+    from sidprep.reduction.parts import reduce_part
+
+    lost = dict.fromkeys(requests, 0)
+    todo = list(requests)
+    while todo:
+        running = {pools[0].run(reduce_part, parts[i], *requests[i], memory): i for i in todo}
+        todo = []
+        while running:
+            for fut in pools[0].wait(list(running)):
+                i = running.pop(fut)
+                try:
+                    results[i] = fut.result()
+                except InputError:
+                    raise
+                except Exception as exc:                # the worker died (killed, out of memory)
+                    lost[i] += 1
+                    if lost[i] > PART_RETRIES:
+                        raise PartLost(f"{parts[i].name}: its worker was lost {lost[i]} times "
+                                       f"({type(exc).__name__}); no SID written - check the workers' "
+                                       "memory and logs, or use more parts") from None
+                    todo.append(i)
+        if todo:                                        # a local pool is broken once a worker died
+            pools[0].close()
+            pools[0] = task_pool(settings.scheduler, settings.workers)
+
+
+def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None, fmax=None):
+    """Rounds of part tasks until every part's modes reach PART_CUTOFF x the second level's highest
+    fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel)."""
+    from sidprep.reduction.parts import PART_CUTOFF, assemble_parts, second_level, short_parts
+
+    if fmax is not None:
+        first = {p: (None, PART_CUTOFF * fmax) for p in range(len(parts))}
+    else:
+        count = max(PART_MIN_MODES, int(np.ceil(PART_FIRST_ROUND * PART_CUTOFF ** 2 * n_modes / len(parts))))
+        first = {p: (count, None) for p in range(len(parts))}
+    reductions: dict = {}
+    run_part_tasks(pools, settings, parts, first, memory, reductions)
+    asked = {p: f for p, (_, f) in first.items() if f is not None}
+    while True:
+        ordered = [reductions[p] for p in range(len(parts))]
+        assembly = assemble_parts(parts, ordered, coarse)
+        level2 = second_level(assembly, boundary, n_modes=n_modes, fmax=fmax)
+        needed = PART_CUTOFF * float(level2.fixed_interface_hz.max(initial=0.0))
+        short = [p for p in short_parts(ordered, parts, needed) if asked.get(p, 0.0) < needed]
+        if not short:
+            break
+        asked.update(dict.fromkeys(short, needed))
+        run_part_tasks(pools, settings, parts, {p: (None, needed) for p in short}, memory, reductions)
+    return ordered, assembly, level2
+
+
+def sent_mb(items) -> float:
+    """MiB of the arrays of PartModels (to the workers) or PartReductions (back), once each."""
+    arrays = [a for x in items for v in vars(x).values()
+              for a in ((v.data, v.indices, v.indptr) if hasattr(v, "indptr") else (v,)) if isinstance(a, np.ndarray)]
+    return sum(a.nbytes for a in arrays) / 2.0**20
+
+
+def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None):
+    """The Craig-Bampton step of sidprep.jobs.reduce.reduce_body done in parts: a function
+    (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel; ``notes`` gets one line on
+    the parts (sizes, modes, peak memory of the workers)."""
+    from sidprep.reduction.parts import part_models, partition_cells, parts_reduced_model
+
+    labels = partition_cells(mesh.cells, settings.n_parts)
+
+    def reducer(im, K_model, M_model, boundary, n_modes=None, fmax=None):
+        from sidprep.jobs.executor import task_pool
+
+        parts, coarse = part_models(mesh, material, labels, im, boundary)
+        pools = [task_pool(settings.scheduler, settings.workers)]
+        try:
+            memory = worker_memory_bytes(pools[0])
+            check_parts_fit(parts, mesh.n_dof, memory)
+            ordered, assembly, level2 = reduce_parts(pools, settings, parts, coarse, boundary, memory,
+                                                     n_modes, fmax)
+        finally:
+            pools[0].close()
+        if notes is not None:
+            notes.append(f"reduced in {len(parts)} parts of {min(len(p.dofs) for p in parts)}-"
+                         f"{max(len(p.dofs) for p in parts)} DOF, {len(coarse)} coarse DOF, "
+                         f"{sum(len(r.frequencies_hz) for r in ordered)} part modes up to "
+                         f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
+                         f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
+                         f"{sent_mb(parts):.0f} MiB sent to the workers, {sent_mb(ordered):.0f} MiB back")
+        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2)
+
+    return reducer
