@@ -64,6 +64,7 @@ class SimulationProgress:
     def __enter__(self):
         self.t0 = time.perf_counter()
         if self.enabled and self.stream.isatty():
+            # rich costs ~0.2 s to import: only a run drawn on a terminal pays it
             from rich.console import Console
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 

@@ -19,6 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
+from sidprep.jobs.executor import task_pool
+from sidprep.reduction.craig_bampton import reduction_peak_bytes
+from sidprep.reduction.parts import (PART_CUTOFF, assemble_parts, part_models, partition_cells,
+    parts_reduced_model, reduce_part, second_level, short_parts)
+
 
 #: times a part is run again after its worker was lost
 PART_RETRIES = 2
@@ -50,7 +56,6 @@ class PartsSettings:
 def worker_memory_bytes(pool) -> float:
     """Memory one worker may use: the smallest Dask worker memory limit, or the available memory
     (sidprep.fe.linalg.available_memory_bytes, SIDPREP_MEMORY_LIMIT) shared by the local workers."""
-    from sidprep.fe.linalg import available_memory_bytes
 
     client = getattr(pool, "client", None)
     if client is not None:
@@ -64,8 +69,6 @@ def worker_memory_bytes(pool) -> float:
 def check_parts_fit(parts, n_dof: int, memory: float) -> None:
     """InputError before any part starts when a part's estimated reduction peak exceeds ``memory``
     (bytes, one worker), naming the ``parts`` that would fit."""
-    from sidprep.fe.linalg import MEMORY_HEADROOM
-    from sidprep.reduction.craig_bampton import reduction_peak_bytes
 
     need = [reduction_peak_bytes(len(p.dofs), p.K.nnz, p.extent) for p in parts]
     worst = int(np.argmax(need))
@@ -87,8 +90,6 @@ def run_part_tasks(pools: list, settings: PartsSettings, parts, requests: dict, 
     """Reduce the parts ``requests`` (index -> (n_modes, fmax)) as tasks on ``pools[0]`` into
     ``results`` (index -> PartReduction); after a lost worker, the part runs again on a fresh pool
     (replacing ``pools[0]``; module docstring)."""
-    from sidprep.jobs.executor import task_pool
-    from sidprep.reduction.parts import reduce_part
 
     lost = dict.fromkeys(requests, 0)
     todo = list(requests)
@@ -117,7 +118,6 @@ def run_part_tasks(pools: list, settings: PartsSettings, parts, requests: dict, 
 def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None, fmax=None):
     """Rounds of part tasks until every part's modes reach PART_CUTOFF x the second level's highest
     fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel)."""
-    from sidprep.reduction.parts import PART_CUTOFF, assemble_parts, second_level, short_parts
 
     if fmax is not None:
         first = {p: (None, PART_CUTOFF * fmax) for p in range(len(parts))}
@@ -151,12 +151,10 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
     """The Craig-Bampton step of sidprep.jobs.reduce.reduce_body done in parts: a function
     (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel; ``notes`` gets one line on
     the parts (sizes, modes, peak memory of the workers)."""
-    from sidprep.reduction.parts import part_models, partition_cells, parts_reduced_model
 
     labels = partition_cells(mesh.cells, settings.n_parts)
 
     def reducer(im, K_model, M_model, boundary, n_modes=None, fmax=None):
-        from sidprep.jobs.executor import task_pool
 
         parts, coarse = part_models(mesh, material, labels, im, boundary)
         pools = [task_pool(settings.scheduler, settings.workers)]

@@ -32,9 +32,19 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import pymetis
+import scipy.linalg as sla
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
+from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
+from sidprep.fe.linalg import factorize
+from sidprep.fe.mesh import _face_table
+from sidprep.progress import peak_memory_mb
+from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
+from sidprep.reduction.fe_checks import dynamic_schur
+
 
 #: the parts' fixed-interface modes reach this multiple of the highest fixed-interface frequency of
 #: the second level (the component cut-off ratio that governs CMS accuracy): 1e-4 agreement with the
@@ -52,7 +62,6 @@ PART_IMBALANCE = 1.03
 
 def face_graph(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The cells' adjacency through shared faces in CSR form (xadj (ne + 1,), adjncy)."""
-    from sidprep.fe.mesh import _face_table
 
     group, counts, _ = _face_table(np.asarray(cells)[:, :4])
     order = np.argsort(group, kind="stable")
@@ -67,8 +76,6 @@ def face_graph(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def partition_cells(cells: np.ndarray, n_parts: int) -> np.ndarray:
     """(ne,) part of every cell: N connected parts of balanced cell count whose shared faces are few
     (METIS k-way on the face graph, contiguous parts; Karypis & Kumar 1998)."""
-    import pymetis
-    from scipy.sparse.csgraph import connected_components
 
     ne = len(cells)
     if not 2 <= n_parts <= ne // 2:
@@ -128,7 +135,6 @@ def coarse_dofs(owned: list[np.ndarray], boundary) -> np.ndarray:
 def part_models(mesh, material, labels: np.ndarray, im, boundary) -> tuple[list[PartModel], np.ndarray]:
     """Each part's model matrices (T^T K_p T restricted to its DOFs, K_p from its cells) and the
     coarse DOFs G; ``boundary`` the monolithic reduction's boundary DOFs (model indices)."""
-    from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
 
     n = int(labels.max()) + 1
     cells = [mesh.cells[labels == p] for p in range(n)]
@@ -172,8 +178,6 @@ def reduce_part(part: PartModel, n_modes: int | None = None, fmax: float | None 
                 memory_limit: float | None = None) -> PartReduction:
     """Craig-Bampton of one part on its coarse DOFs: n_modes fixed-interface modes or all below fmax
     (Hz); ``memory_limit`` : bytes the worker may use (the reduction refuses to start beyond it)."""
-    from sidprep.progress import peak_memory_mb
-    from sidprep.reduction.craig_bampton import craig_bampton
 
     n_modes = None if n_modes is None else min(n_modes, len(part.dofs) - len(part.boundary) - 1)
     try:
@@ -238,7 +242,6 @@ class SubstructuredSolver:
     """
 
     def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int):
-        from sidprep.fe.linalg import factorize
 
         self.parts, self.reductions, self.assembly = parts, reductions, assembly
         self.boundary = np.asarray(boundary, dtype=np.int64)
@@ -295,7 +298,6 @@ class SubstructuredSolver:
         fixed-interface eigenvalues below sigma plus the negative eigenvalues of the sum of their exact
         dynamic Schur complements on G (sidprep.reduction.fe_checks.dynamic_schur).  None when sigma
         is above a part's computed modes."""
-        from sidprep.reduction.fe_checks import dynamic_schur
 
         a = self.assembly
         S = np.zeros((len(a.coarse), len(a.coarse)))
@@ -317,7 +319,6 @@ class SubstructuredSolver:
 
 def second_level(assembly: Assembly, boundary, n_modes=None, fmax=None):
     """Step 3: Craig-Bampton of the assembled parts on the monolithic boundary b (in b's order)."""
-    from sidprep.reduction.craig_bampton import craig_bampton
 
     b = np.searchsorted(assembly.coarse, np.asarray(boundary, dtype=np.int64))
     return craig_bampton(assembly.K, assembly.M, b, n_modes=n_modes, fmax=fmax)
@@ -327,7 +328,6 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
     """Step 4: the ReducedModel of the whole model in model DOFs, as ``craig_bampton`` returns it
     (basis with the boundary columns first, K, M projected from the model matrices), with the
     substructured K_ii solver as its factor."""
-    from sidprep.reduction.craig_bampton import ReducedModel, project
 
     n = K_model.shape[0]
     solver = SubstructuredSolver(parts, reductions, assembly, boundary, n)
@@ -343,9 +343,7 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
 def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Step 5: the lowest len(X.T) eigenpairs of K_ii, M_ii in span[X, K_ii^-1 M_ii X] (Rayleigh-Ritz
     after one block inverse iteration); (frequencies Hz (nm,), modes (ni, nm) M_ii-normalised)."""
-    import scipy.linalg as sla
 
-    from sidprep.reduction.craig_bampton import interior_operator
 
     nm = X.shape[1]
     if nm == 0:
