@@ -79,7 +79,7 @@ class NodeHistory:
 class StressRecovery:
     """What ``recover_stress`` returns for one body.
 
-    body, sid (path of the SID file); time (nt,) s; node_ids (ns,), points (ns, 3) m of the stress
+    body, sid (path of the SID file, or "analytical Beam of the scene"); time (nt,) s; node_ids (ns,), points (ns, 3) m of the stress
     nodes; envelope (ns,) largest von Mises over the run, Pa, at envelope_time (ns,) s;
     hot_spots : HotSpot tuple, largest first; hot_spot_histories : NodeHistory per hot spot;
     history : NodeHistory at the node nearest to ``at``, or None.
@@ -119,14 +119,14 @@ def beam_stress_modes(scene_text: str, body: str, results_path: Path) -> StressM
 
 
 def body_stress_modes(results_path: Path, rf, body: str | None) -> tuple[str, str, StressModes]:
-    """(body name, SID path or "beam in the scene", its StressModes) of the body asked for (or the
-    only flexible body)."""
+    """(body name, its SID path or "analytical Beam of the scene", its StressModes) of the body asked
+    for (or the only flexible body)."""
     bodies = dict(rf.bodies)
     beams = [n for n, b in bodies.items() if b["kind"] == "beam"]
     flexible = [n for n, b in bodies.items() if b["kind"] == "flexible" and b["source"]] + beams
     if body is None:
         if len(flexible) != 1:
-            raise InputError(f"{results_path}: {len(flexible)} flexible bodies with a SID file "
+            raise InputError(f"{results_path}: {len(flexible)} flexible bodies (SID file or Beam) "
                              f"({', '.join(flexible) or 'none'}); choose one with --body NAME")
         body = flexible[0]
     if body not in bodies:
