@@ -30,7 +30,8 @@ import numpy as np
 from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.fe.mesh import read_mesh
-from sidprep.jobs.jobfile import job_from_table, split_job_table
+from sidprep.jobs.guard import folder_lock, guarded, stop_workers, worker_setup
+from sidprep.jobs.jobfile import check_inside, job_from_table, split_job_table
 from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.jobs.output import output_paths, write_reduction
 from sidprep.jobs.reduce import reduce
@@ -185,14 +186,15 @@ def jobs_from_meshes(meshes, options: ReduceOptions = ReduceOptions()) -> list[B
     return unique_names([BatchJob(_safe(Path(f).name.split(".")[0]), f, options) for f in files])
 
 
-def read_study(path) -> tuple[list[BatchJob], dict]:
+def read_study(path, safe: bool = False) -> tuple[list[BatchJob], dict]:
     """Jobs and [batch] settings of a study manifest (docs/batch.md).
 
     [job] : a base job (job-file keys; ``mesh`` relative to the manifest); [sweep] : key -> list of
     values (``mesh`` entries may be globs), combined as the cartesian product (``combine =
     "product"``, default) or element-wise (``combine = "zip"``); [[case]] : explicit override tables
     (each crossed with the sweep); [batch] : outdir (relative to the manifest), workers, scheduler,
-    memory_limit_mb, sid_fem, obj.
+    memory_limit_mb, sid_fem, obj.  An outdir or output leaving the manifest's folder is named in a
+    warning, or refused when ``safe`` (sidprep.jobs.jobfile.check_inside).
     """
 
     path = Path(path)
@@ -228,7 +230,7 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             params = dict(zip(keys, point))
             table = {**base, **case, **params}
             context = f"[case {c + 1}]" if len(cases) > 1 else ("[sweep]" if params else "[job]")
-            data = split_job_table(table, path, path.parent, context=context)
+            data = split_job_table(table, path, path.parent, context=context, safe=safe)
             if data.get("mesh") is None:
                 raise InputError(f"{path}: [job] needs mesh = \"FILE\" or [sweep] mesh = [...]")
             job = job_from_table(data)
@@ -237,6 +239,8 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             name = _safe(Path(job.mesh).name.split(".")[0] + (f"-{label}" if label else ""))
             jobs.append(BatchJob(name, job.mesh, job.options, tuple(sorted(shown.items()))))
     settings = checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")
+    if "outdir" in settings:
+        check_inside("[batch] outdir", settings["outdir"], path.parent, path, safe)
     try:
         BatchOptions(**settings)
     except InputError as exc:
@@ -295,15 +299,22 @@ def available_memory_mb() -> float:
 
 
 class _LocalPool:
-    """A process pool of ``workers`` processes (forkserver: clean workers, reused across jobs)."""
+    """A process pool of ``workers`` processes (spawn: clean workers, reused across jobs, children of
+    the batch process; with forkserver a SIGKILL of the batch left the server and workers blocked
+    on pipes whose write ends leaked into their siblings: sidprep.jobs.guard)."""
 
     def __init__(self, workers: int):
 
-        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
+        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                        initializer=worker_setup, initargs=(os.getpid(),))
         self.workers = workers
 
     def submit(self, *args):
-        return self.pool.submit(run_job, *args)
+        return self.pool.submit(guarded, run_job, *args)
+
+    def stop(self, futures):
+        """Stop the running jobs now (^C, SIGTERM): sidprep.jobs.guard.stop_workers."""
+        stop_workers(list(getattr(self.pool, "_processes", {}).values()))
 
     def wait(self, futures):
         return wait(futures, return_when=FIRST_COMPLETED).done
@@ -336,6 +347,9 @@ class _DaskPool:
     def wait(self, futures):
         from distributed import wait
         return wait(list(futures), return_when="FIRST_COMPLETED").done
+
+    def stop(self, futures):
+        self.client.cancel(list(futures))
 
     def close(self):
         if self.own:
@@ -372,27 +386,29 @@ def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, p
     outdir = Path(options.outdir)
     cache = outdir / CACHE_DIR
     try:
-        cache.mkdir(parents=True, exist_ok=True)
+        outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"{outdir}: cannot create the output folder ({exc.strerror}); choose a writable folder") from None
-    jobs = unique_names(list(jobs))
-    records: dict[str, dict] = {}
-    todo = []
-    for job in jobs:
-        key = job_key(job, options)
-        hit = _cached(cache / f"{key}.json")
-        if hit is not None:
-            records[job.name] = {**hit, "status": "cached", "params": dict(job.params)}
-        else:
-            todo.append((job, key))
-    total = len(jobs)
-    if progress:
-        for r in records.values():
-            progress(r, len(records), total, [])
-    if todo:
-        _run_pending(todo, options, client, records, cache, progress, total)
-    report = BatchReport([records[j.name] for j in jobs], str(outdir), time.perf_counter() - t0)
-    report.files = write_report(report)
+    with folder_lock(outdir):                               # one batch per folder; .part files go with it
+        cache.mkdir(exist_ok=True)
+        jobs = unique_names(list(jobs))
+        records: dict[str, dict] = {}
+        todo = []
+        for job in jobs:
+            key = job_key(job, options)
+            hit = _cached(cache / f"{key}.json")
+            if hit is not None:
+                records[job.name] = {**hit, "status": "cached", "params": dict(job.params)}
+            else:
+                todo.append((job, key))
+        total = len(jobs)
+        if progress:
+            for r in records.values():
+                progress(r, len(records), total, [])
+        if todo:
+            _run_pending(todo, options, client, records, cache, progress, total)
+        report = BatchReport([records[j.name] for j in jobs], str(outdir), time.perf_counter() - t0)
+        report.files = write_report(report)
     return report
 
 
@@ -431,6 +447,9 @@ def _run_pending(todo, options, client, records, cache, progress, total):
                 records[job.name] = record
                 if progress:
                     progress(record, len(records), total, [j.name for j, _, _ in running.values()])
+    except BaseException:                                   # ^C, SIGTERM: the running jobs stop too
+        pool.stop(list(running))
+        raise
     finally:
         pool.close()
 

@@ -281,12 +281,59 @@ def inertia_about_cm(sid: SID) -> np.ndarray:
     return inertia_matrix(sid.J.M0) - sid.mass * (c @ c * np.eye(3) - np.outer(c, c))
 
 
+#: the modal Taylor members of a SID, in file order
+MODAL_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
+
+
+def member_shapes(nq: int) -> dict:
+    """{member: M0 shape} of a SID with nq modal coordinates (sid-spec.md section 3; the SID
+    docstring); M1 is (nrow, nq, ncol).  Node members are prefixed "node "."""
+    return {"mdCM": (3, 1), "J": (6, 1), "Ct": (nq, 3), "Cr": (nq, 3), "Me": (nq, nq), "Gr": (3, 3 * nq),
+            "Ge": (nq, 3 * nq), "Oe": (nq, 6), "ksigma": (nq, 1), "Ke": (nq, nq), "De": (nq, nq),
+            "node origin": (3, 1), "node phi": (3, nq), "node psi": (3, nq), "node AP": (3, 3), "node sigma": (6, 1)}
+
+
+def structure_problem(sid: SID) -> str | None:
+    """What makes ``sid`` not a SID at all (a member of the wrong shape or not numbers, labels or
+    paths not matching nq), or None.  Checked by every reader before any other check."""
+    nq = len(sid.labels)
+    shapes = member_shapes(nq)
+    members = [(m, getattr(sid, m)) for m in MODAL_MEMBERS]
+    members += [(f"node {m}", getattr(n, m)) for n in sid.nodes for m in ("origin", "phi", "psi", "AP", "sigma")
+                if getattr(n, m) is not None]
+    if not isinstance(sid.mass, (int, float, np.number)) or isinstance(sid.mass, bool):
+        return f"mass is {sid.mass!r}, not a number"
+    for name, T in members:
+        for part, value, shape in (("M0", T.M0, shapes[name]),
+                                   ("M1", T.M1, (shapes[name][0], nq, shapes[name][1]))):
+            if part == "M1" and value is None:
+                continue
+            a = np.asarray(value)
+            if not np.issubdtype(a.dtype, np.number):
+                return f"{name}.{part} holds {a.dtype} values, not numbers"
+            if a.shape != shape:
+                return f"{name}.{part} is {a.shape}, expected {shape} for {nq} modal coordinates"
+    if len(np.atleast_1d(sid.frequencies_hz)) != nq or len(sid.mode_kinds) != nq:
+        return f"{nq} labels but {len(np.atleast_1d(sid.frequencies_hz))} frequencies and {len(sid.mode_kinds)} mode kinds"
+    for key, value in sid.stiffening.items():
+        a = np.asarray(value)
+        if not np.issubdtype(a.dtype, np.number) or a.ndim != 3 or a.shape[1:] != (nq, nq):
+            return f"stiffening part {key} is {a.shape} {a.dtype}, expected (k, {nq}, {nq}) numbers"
+    for name, p in sid.paths.items():
+        arrays = [np.asarray(getattr(p, m)) for m in ("s", "points", "phi", "psi")]
+        n = arrays[0].shape[0] if arrays[0].ndim == 1 else -1
+        if n < 2 or any(not np.issubdtype(a.dtype, np.number) for a in arrays) or \
+                [a.shape for a in arrays[1:]] != [(n, 3), (n, 3, nq), (n, 3, nq)] or not np.all(np.diff(arrays[0]) > 0):
+            return f"path {name} is not n >= 2 increasing arc lengths with (n, 3) points and (n, 3, {nq}) shapes"
+    return None
+
+
 def numeric_arrays(sid: SID):
     """(name, array) of every number of a SID that enters the equations: mass, the Taylor members
     of the modal part and of each node, the stiffening parts, the path tables (not the label
     frequencies, which are NaN where a coordinate has none)."""
     yield "mass", np.asarray(sid.mass, dtype=float)
-    members = [(m, getattr(sid, m)) for m in ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")]
+    members = [(m, getattr(sid, m)) for m in MODAL_MEMBERS]
     members += [(f"node {n.node_id} {m}", getattr(n, m)) for n in sid.nodes
                 for m in ("origin", "phi", "psi", "AP", "sigma") if getattr(n, m) is not None]
     for name, T in members:

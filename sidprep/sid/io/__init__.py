@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Callable
 
 from sidprep.errors import InputError
-from sidprep.sid.checks import physical_problems
+from sidprep.sid.checks import physical_problems, structure_problem
 from sidprep.sid.io.obj import write_obj
 from sidprep.sid.io.sid_fem import read_sid_fem, write_sid_fem
 from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
@@ -71,6 +71,9 @@ def read_sid(path, physical: str = "warn"):
         (``check``, which lists every check itself).
     """
     sid = _read(Path(path))
+    problem = structure_problem(sid)
+    if problem:
+        raise InputError(f"{path}: not a consistent SID ({problem}); re-export the file")
     if physical != "off":
         problems = physical_problems(sid)
         fix = f"regenerate the SID (sidprep check {path} lists every check)"
