@@ -179,6 +179,13 @@ def full_disk_reduce(tmp):
 
 
 @case("internal", full_disk=True)
+def full_disk_batch(tmp):
+    """The job fails with the disk-full error as its record (exit 1); the report still fits."""
+    return (["batch", BAR, "--modes", 2, "-q", "-o", tmp / "full" / "out"], 1,
+            r"^sidprep batch: bar failed: .*full/out/bar\.(sid\.h5|SID_FEM|obj): could not be written")
+
+
+@case("internal", full_disk=True)
 def full_disk_view(tmp):
     return (["view", PENDULUM / "bar.sid.h5", "-o", tmp / "full" / "bar.html"], 2,
             r"full/bar\.html: could not be written")
@@ -312,9 +319,10 @@ def damaged_sid_fem(tmp: Path, mass: str) -> Path:
 
 
 WARNING = r"^sidprep: warning: .*{}.*sidprep check"
-for _edit, _needle in (("nan_mass", "entries finite fails.*mass"), ("neg_mass", "mass > 0 fails"),
-                       ("nan_J", "entries finite fails.*J.M0"), ("neg_Jyy", "inertia about CM positive definite fails"),
-                       ("inf_Ke", "entries finite fails.*Ke.M0")):
+for _edit, _needle in (("nan_mass", r"non-finite number mass\[0\] = nan"), ("neg_mass", r"mass = -2 kg \(must be > 0\)"),
+                       ("nan_J", r"non-finite number J\.M0\[1, 0\] = nan"),
+                       ("neg_Jyy", "inertia about the centre of mass not positive definite"),
+                       ("inf_Ke", r"non-finite number Ke\.M0\[0, 0\] = inf")):
     CASES[f"info_{_edit}"] = Case(f"info_{_edit}", "sid-check", lambda tmp, e=_edit, n=_needle: (
         ["info", damaged_hdf5(tmp, e)], 0, WARNING.format(n)))
     CASES[f"simulate_{_edit}"] = Case(f"simulate_{_edit}", "sid-check", lambda tmp, e=_edit, n=_needle: (
@@ -322,12 +330,12 @@ for _edit, _needle in (("nan_mass", "entries finite fails.*mass"), ("neg_mass", 
          "-o", tmp / "r.h5"], 2, r"not a physically possible body: " + n))
 for _mass in ("1.0D+999", "NaN"):
     CASES[f"info_sid_fem_mass_{_mass}"] = Case(f"info_sid_fem_mass_{_mass}", "sid-check", lambda tmp, m=_mass: (
-        ["info", damaged_sid_fem(tmp, m)], 0, WARNING.format("entries finite fails.*mass")))
+        ["info", damaged_sid_fem(tmp, m)], 0, WARNING.format(r"non-finite number mass")))
     CASES[f"simulate_sid_fem_mass_{_mass}"] = Case(f"simulate_sid_fem_mass_{_mass}", "sid-check", lambda tmp, m=_mass: (
         ["simulate", pendulum(tmp, {'sid = "bar.sid.h5"': f'sid = "{damaged_sid_fem(tmp, m)}"'}), "-q",
-         "-o", tmp / "r.h5"], 2, r"not a physically possible body: entries finite fails.*mass"))
+         "-o", tmp / "r.h5"], 2, r"not a physically possible body: non-finite number mass"))
 CASES["view_nan_J"] = Case("view_nan_J", "sid-check", lambda tmp: (
-    ["view", damaged_hdf5(tmp, "nan_J"), "-o", tmp / "v.html"], 0, WARNING.format("entries finite fails.*J.M0")))
+    ["view", damaged_hdf5(tmp, "nan_J"), "-o", tmp / "v.html"], 0, WARNING.format(r"non-finite number J\.M0")))
 
 
 @case("internal")
