@@ -27,6 +27,8 @@ def register(subparsers) -> None:
     p.add_argument("--obj", action=argparse.BooleanOptionalAction, default=None, help="also write .obj")
     p.add_argument("--json", action="store_true", help="print the batch report as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--safe", action="store_true",
+                   help="refuse a study whose outdir or output leaves the study file's folder (a study from someone else)")
     p.set_defaults(func=run)
 
 
@@ -43,7 +45,7 @@ def batch_from_args(args):
     if args.outdir:
         given["outdir"] = args.outdir
     if len(args.inputs) == 1 and args.inputs[0].lower().endswith(".toml"):
-        jobs, settings = read_study(args.inputs[0])
+        jobs, settings = read_study(args.inputs[0], safe=args.safe)
         overrides = options_given(args, ReduceOptions)
         jobs = [replace(j, options=replace(j.options, **overrides)) for j in jobs]
         return jobs, BatchOptions(**{**settings, **given})

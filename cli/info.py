@@ -16,6 +16,7 @@ def register(subparsers) -> None:
 def format_table(summary: dict) -> str:
     """Human-readable form of ``body_summary``."""
     from sidprep.sid.checks import format_checks
+    from sidprep.errors import printable
 
     def row(v):
         return "  ".join(f"{float('nan') if x is None else x: .6e}" for x in v)
@@ -30,10 +31,10 @@ def format_table(summary: dict) -> str:
     for k, (f, kind, label) in enumerate(zip(summary["frequencies_hz"], summary["mode_kinds"],
                                              summary["labels"])):
         freq = "      -     " if f is None else f"{f:12.4f}"
-        lines.append(f"  {k + 1:4d}  {freq} Hz  {kind:<10s} {label}")
+        lines.append(f"  {k + 1:4d}  {freq} Hz  {printable(kind):<10s} {printable(label)}")
     lines.append(f"nodes           {len(summary['nodes'])}")
     for n in summary["nodes"]:
-        lines.append(f"  {n['id']:>8d}  {row(n['position'])} m  {n['name']}")
+        lines.append(f"  {n['id']:>8d}  {row(n['position'])} m  {printable(n['name'])}")
     if summary["geometric_stiffness"]:
         lines.append(f"stiffening parts (raw): {', '.join(summary['geometric_stiffness'])}")
     if summary["sid_fem_dialect"]:

@@ -20,7 +20,7 @@ import warnings
 
 from sidprep import cli
 from sidprep import __version__
-from sidprep.errors import InputError, Terminated, terminate_on_sigterm
+from sidprep.errors import InputError, Terminated, printable, terminate_on_sigterm
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings as one line on stderr, ``sidprep: warning: ...`` (no source line, no location)."""
-    print(f"sidprep: warning: {message}", file=sys.stderr)
+    print(f"sidprep: warning: {printable(message)}", file=sys.stderr)
 
 
 def check_finite_options(args) -> None:
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         check_finite_options(args)
         return int(args.func(args) or 0)
     except InputError as exc:
-        print(f"sidprep: error: {exc}", file=sys.stderr)
+        print(f"sidprep: error: {printable(exc)}", file=sys.stderr)
         return InputError.exit_code
     except BrokenPipeError:            # stdout closed early (``sidprep info X | head``): not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # an internal error, not bad input
         if args.debug:
             raise
-        print(f"sidprep: internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)",
+        print(f"sidprep: internal error: {type(exc).__name__}: {printable(exc)} (rerun with --debug for the traceback)",
               file=sys.stderr)
         return 3
 

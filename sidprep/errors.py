@@ -13,6 +13,12 @@ class InputError(Exception):
     exit_code = 2
 
 
+def printable(text: str) -> str:
+    """``text`` with control characters (newline, tab, ANSI escape, ...) written as escapes
+    (``\\n``, ``\\x1b``): user text echoed in a message stays one line and cannot drive the terminal."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 class SimulationFailed(InputError):
     """A simulation stopped before t_end (Newton failure, divergence, max_steps); ``result``
     holds everything computed up to the last accepted step (``result.stats["failed"]`` says

@@ -20,6 +20,7 @@ import numpy as np
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
 from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.path_range import path_marker_problems
 from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
@@ -86,6 +87,9 @@ class Run:
         if not (t_end > 0 and math.isfinite(t_end)):
             raise InputError(f"simulate: t_end = {t_end} s must be > 0 and finite; fix the [solver] value")
         check_run_size(t_end, settings.h, settings.output_dt, settings.tolerance is None, settings.max_steps)
+        path_errors, path_notes = path_marker_problems(system, t_end)
+        if path_errors:
+            raise InputError(f"simulate: {path_errors[0]}")
         try:
             system.check()
         except ValueError as exc:
@@ -97,7 +101,7 @@ class Run:
         self.weights, self.length = length_weights(system, self.terms, self.L)
         self.refs = np.zeros(len(system.joints))
         self.names = row_names(system)
-        self.notes: list[str] = []
+        self.notes: list[str] = list(path_notes)
         self.free = np.arange(int(self.L.uoff[-1]))
         self.kept = np.arange(constraint_count(system))
         self.kept_3d = self.kept

@@ -87,7 +87,7 @@ def leftovers(folder: Path) -> list[Path]:
 
 def check_outcome(proc, code: int, pattern: str) -> None:
     assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, proc.stderr[-3000:]
-    assert "RuntimeWarning" not in proc.stderr, proc.stderr[-3000:]
+    assert "RuntimeWarning" not in proc.stderr and "\x1b" not in proc.stderr, proc.stderr[-3000:]
     assert proc.returncode == code, (proc.returncode, proc.stderr[-3000:])
     if code == 2:   # one line: the error, last
         last = proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else ""
@@ -150,6 +150,15 @@ def mixed_tet4_tet10_msh41_reduce(tmp):
     return ["reduce", mixed_msh41(tmp), "-q", "-o", tmp / "m.sid.h5"], 2, "volume 1 mixes element types"
 
 
+@case("crash")
+def msh22_element_on_undefined_node(tmp):
+    """Found by tests/test_fuzz_readers.py: gmsh.merge segfaults on it."""
+    path = tmp / "undefined.msh"
+    path.write_text("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
+                    "5 1 1 1\n$EndNodes\n$Elements\n2\n1 4 2 0 0 1 2 3 4\n2 4 2 0 0 6 3 4 5\n$EndElements\n")
+    return ["modes", path, "--count", 2, "-q"], 2, r"refers to node 6, which the file does not define"
+
+
 @case("crash", full_disk=True)
 def full_disk_beam(tmp):
     return (["beam", "--length", 1, "--section", "circle:0.02", "--modes", "xz:1-20,xy:1-20", "-o",
@@ -167,6 +176,13 @@ def full_disk_simulate(tmp):
 def full_disk_reduce(tmp):
     return (["reduce", BAR, "--modes", 2, "-q", "-o", tmp / "full" / "bar.sid.h5"], 2,
             r"full/bar\.(sid\.h5|SID_FEM|obj): could not be written")
+
+
+@case("internal", full_disk=True)
+def full_disk_batch(tmp):
+    """The job fails with the disk-full error as its record (exit 1); the report still fits."""
+    return (["batch", BAR, "--modes", 2, "-q", "-o", tmp / "full" / "out"], 1,
+            r"^sidprep batch: bar failed: .*full/out/bar\.(sid\.h5|SID_FEM|obj): could not be written")
 
 
 @case("internal", full_disk=True)
@@ -303,9 +319,10 @@ def damaged_sid_fem(tmp: Path, mass: str) -> Path:
 
 
 WARNING = r"^sidprep: warning: .*{}.*sidprep check"
-for _edit, _needle in (("nan_mass", "entries finite fails.*mass"), ("neg_mass", "mass > 0 fails"),
-                       ("nan_J", "entries finite fails.*J.M0"), ("neg_Jyy", "inertia about CM positive definite fails"),
-                       ("inf_Ke", "entries finite fails.*Ke.M0")):
+for _edit, _needle in (("nan_mass", r"non-finite number mass\[0\] = nan"), ("neg_mass", r"mass = -2 kg \(must be > 0\)"),
+                       ("nan_J", r"non-finite number J\.M0\[1, 0\] = nan"),
+                       ("neg_Jyy", "inertia about the centre of mass not positive definite"),
+                       ("inf_Ke", r"non-finite number Ke\.M0\[0, 0\] = inf")):
     CASES[f"info_{_edit}"] = Case(f"info_{_edit}", "sid-check", lambda tmp, e=_edit, n=_needle: (
         ["info", damaged_hdf5(tmp, e)], 0, WARNING.format(n)))
     CASES[f"simulate_{_edit}"] = Case(f"simulate_{_edit}", "sid-check", lambda tmp, e=_edit, n=_needle: (
@@ -313,12 +330,12 @@ for _edit, _needle in (("nan_mass", "entries finite fails.*mass"), ("neg_mass", 
          "-o", tmp / "r.h5"], 2, r"not a physically possible body: " + n))
 for _mass in ("1.0D+999", "NaN"):
     CASES[f"info_sid_fem_mass_{_mass}"] = Case(f"info_sid_fem_mass_{_mass}", "sid-check", lambda tmp, m=_mass: (
-        ["info", damaged_sid_fem(tmp, m)], 0, WARNING.format("entries finite fails.*mass")))
+        ["info", damaged_sid_fem(tmp, m)], 0, WARNING.format(r"non-finite number mass")))
     CASES[f"simulate_sid_fem_mass_{_mass}"] = Case(f"simulate_sid_fem_mass_{_mass}", "sid-check", lambda tmp, m=_mass: (
         ["simulate", pendulum(tmp, {'sid = "bar.sid.h5"': f'sid = "{damaged_sid_fem(tmp, m)}"'}), "-q",
-         "-o", tmp / "r.h5"], 2, r"not a physically possible body: entries finite fails.*mass"))
+         "-o", tmp / "r.h5"], 2, r"not a physically possible body: non-finite number mass"))
 CASES["view_nan_J"] = Case("view_nan_J", "sid-check", lambda tmp: (
-    ["view", damaged_hdf5(tmp, "nan_J"), "-o", tmp / "v.html"], 0, WARNING.format("entries finite fails.*J.M0")))
+    ["view", damaged_hdf5(tmp, "nan_J"), "-o", tmp / "v.html"], 0, WARNING.format(r"non-finite number J\.M0")))
 
 
 @case("internal")
@@ -374,6 +391,68 @@ def animate_results_with_external_link(tmp):
     return ["animate", foreign_hdf5(tmp, "external_link", tmp / "r.h5", "time")], 2, r"/time is an external link"
 
 
+@case("security")
+def job_output_outside_its_folder(tmp):
+    (tmp / "jobs").mkdir()
+    job = tmp / "jobs" / "job.toml"
+    job.write_text(f'mesh = "{BAR}"\nmodes = 2\noutput = "../escaped.sid.h5"\nsid_fem = false\nobj = false\n')
+    return ["reduce", job, "-q"], 0, r"^sidprep: warning: .*job\.toml: output = '\.\./escaped\.sid\.h5' writes outside"
+
+
+@case("security")
+def study_outdir_outside_its_folder_with_safe(tmp):
+    return (["batch", study(tmp, 'outdir = "/tmp/elsewhere"'), "-q", "--safe"], 2,
+            r"\[batch\] outdir = '/tmp/elsewhere' writes outside the file's folder .*refused with --safe")
+
+
+# ------------------------------------------------------------------------------------------------
+# 7. silent wrong successes, 8. smaller
+# ------------------------------------------------------------------------------------------------
+
+@case("silent")
+def beam_output_txt(tmp):
+    return (["beam", "--length", 1, "--section", "circle:0.02", "--modes", "xz:1", "-o", tmp / "b.txt"], 2,
+            r"b\.txt.*(unknown file type|\.sid\.h5)")
+
+
+def moving_force(tmp: Path, old: str, new: str) -> Path:
+    text = (ROOT / "examples" / "moving_force" / "scene.toml").read_text()
+    assert old in text, old
+    (tmp / "scene.toml").write_text(text.replace(old, new))
+    return tmp / "scene.toml"
+
+
+@case("silent")
+def path_marker_starting_beyond_the_beam(tmp):
+    return (["simulate", moving_force(tmp, "start = 0.0 ", "start = 20.0 "), "-q", "-o", tmp / "r.h5"], 2,
+            r"path marker load starts at s = 20 m, off its path \(s = 0 \.\. 15 m\)")
+
+
+@case("silent")
+def mass_released_beyond_the_rail(tmp):
+    text = (ROOT / "examples" / "moving_mass" / "scene.toml").read_text()
+    (tmp / "scene.toml").write_text(text.replace("position = [2.0, 0.0, 0.0]", "position = [20.0, 0.0, 0.0]"))
+    return (["simulate", tmp / "scene.toml", "-q", "--t-end", 0.1, "-o", tmp / "r.h5"], 2,
+            r"marker slider starts 5 m beyond the end of the path of rail")
+
+
+def test_moving_force_driven_past_the_path_end_gets_a_note(tmp_path):
+    """10 m/s from s = 0 on the 15 m axis leaves it at t = 1.5 s (the sampled time within 1 ms)."""
+    proc = sidprep("simulate", moving_force(tmp_path, "t_end = 2.0", "t_end = 1.6"), "-q", "-o", tmp_path / "r.h5")
+    check_outcome(proc, 0, "")
+    assert re.search(r"note: path marker load leaves its path \(s = 0 \.\. 15 m\) at t = 1\.50\d* s", proc.stdout), \
+        proc.stdout
+
+
+@case("smaller")
+def scene_make_text_with_control_characters(tmp):
+    scene = pendulum(tmp, {'sid = "bar.sid.h5"': 'sid = "missing.sid.h5"',
+                           'make = "sidprep reduce': 'make = "evil\\n\\u001b[31m red; sidprep reduce'})
+    return ["simulate", scene, "-q", "-o", tmp / "r.h5"], 2, r"make it with `evil\\n\\x1b\[31m red"
+
+
+# 6. interrupted work and shared folders (batch, simulate): the tests after the corpus run
+
 # ------------------------------------------------------------------------------------------------
 # the corpus run
 # ------------------------------------------------------------------------------------------------
@@ -387,3 +466,138 @@ def test_bad_input_case(name, tmp_path):
         found = leftovers(tmp_path)
     check_outcome(proc, code, pattern)
     assert not found, found
+
+
+# ------------------------------------------------------------------------------------------------
+# 6. interrupts and locks
+# ------------------------------------------------------------------------------------------------
+
+#: seconds to wait for a batch's workers to start (imports and the DOF estimates come first)
+START_S = 90
+#: seconds a worker may outlive a killed batch (its watchdog polls every 0.5 s, grace 5 s)
+ORPHAN_S = 15
+
+
+def descendants(pid: int) -> set[int]:
+    """Process ids below ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+def alive(pids) -> set[int]:
+    return {p for p in pids if Path(f"/proc/{p}").exists() and "(Z)" not in _state(p)}
+
+
+def _state(pid: int) -> str:
+    with contextlib.suppress(OSError):
+        return "(" + Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] + ")"
+    return "(Z)"
+
+
+def running_batch(tmp: Path) -> tuple[subprocess.Popen, Path]:
+    """A batch of four reductions of the bar with two workers, once its workers run."""
+    import time
+
+    study = tmp / "study.toml"
+    study.write_text(f'[job]\nmesh = "{BAR}"\n[sweep]\nmodes = [2, 3, 4, 5]\n[batch]\noutdir = "out"\nworkers = 2\n')
+    proc = subprocess.Popen([sys.executable, "-m", "sidprep.cli.main", "batch", str(study), "-q"], env=env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + START_S
+    while len(descendants(proc.pid)) < 3 and time.monotonic() < deadline:   # forkserver + 2 workers
+        time.sleep(0.2)
+    assert proc.poll() is None and len(descendants(proc.pid)) >= 3, "the batch's workers did not start"
+    time.sleep(1.0)
+    return proc, tmp / "out"
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["batch_sigint", "batch_sigterm"])
+def test_signal_stops_batch_workers_cleanly(tmp_path, sig, code):
+    import time
+
+    proc, out = running_batch(tmp_path)
+    workers = descendants(proc.pid)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=TIMEOUT_S)
+    assert proc.returncode == code, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] in ("sidprep: interrupted", "sidprep: terminated"), err
+    deadline = time.monotonic() + ORPHAN_S
+    while alive(workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not alive(workers)
+    assert not leftovers(out) and not (out / ".sidprep-batch.lock").exists()
+
+
+def test_batch_sigkill_leaves_no_worker(tmp_path):
+    import time
+
+    proc, out = running_batch(tmp_path)
+    workers = descendants(proc.pid)
+    proc.kill()
+    proc.communicate()
+    deadline = time.monotonic() + ORPHAN_S
+    while alive(workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not alive(workers), [Path(f"/proc/{p}/cmdline").read_text()[:120] for p in alive(workers)]
+
+
+def test_second_batch_into_a_locked_folder_stops_naming_the_first(tmp_path):
+    import json
+    import socket
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".sidprep-batch.lock").write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
+                                                         "started_unix_s": 0}))
+    proc = sidprep("batch", BAR, "--modes", 2, "-q", "-o", out)
+    check_outcome(proc, 2, rf"another sidprep batch writes this folder \(pid {os.getpid()} on")
+    assert sorted(p.name for p in out.iterdir()) == [".sidprep-batch.lock"]
+
+
+def test_stale_lock_is_taken_over_and_part_files_removed(tmp_path):
+    import json
+    import socket
+
+    from sidprep.jobs.guard import LOCK_NAME, folder_lock
+
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    (tmp_path / LOCK_NAME).write_text(json.dumps({"pid": dead.pid, "host": socket.gethostname()}))
+    (tmp_path / ".job.sid.h5.x1.part").write_text("half")
+    with folder_lock(tmp_path) as lock:
+        assert json.loads(lock.read_text())["pid"] == os.getpid()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_simulate_sigterm_exits_143_without_traceback_or_part_file(tmp_path):
+    import time
+
+    scene = pendulum(tmp_path)
+    proc = subprocess.Popen([sys.executable, "-m", "sidprep.cli.main", "simulate", str(scene), "-o",
+                             str(tmp_path / "r.h5")], env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    deadline = time.monotonic() + START_S
+    while proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+        if "simulate" in Path(f"/proc/{proc.pid}/cmdline").read_text() and _stderr_so_far(proc):
+            break
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=TIMEOUT_S)
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "sidprep: terminated", err
+    assert not leftovers(tmp_path)
+
+
+def _stderr_so_far(proc) -> bool:
+    """True once the run printed its first progress line (the scene is loaded, the run starts)."""
+    import select
+
+    return bool(select.select([proc.stderr], [], [], 0)[0])

@@ -107,6 +107,9 @@ class FEMesh:
 # ---------------------------------------------------------------------------------------------
 #: nodes closer than this fraction of the bounding-box diagonal are merged as duplicates
 DUPLICATE_NODE_RTOL = 1e-9
+#: largest |coordinate| of a node (any length unit): 1e12 m is beyond any body, and keeps squared
+#: distances and volumes (x^3) far from floating-point overflow
+MAX_COORDINATE = 1e12
 #: an element with |V| / l_rms**3 below this is flat (a regular tetrahedron has 0.118)
 FLAT_ELEMENT_TOL = 1e-8
 #: allowed relative gap between the sum of element volumes and the volume enclosed by the
@@ -274,7 +277,7 @@ def _read_gmsh(path, *, size, order) -> _RawMesh:
     with _gmsh_session(options) as gmsh:
         try:
             if suffix == ".msh":
-                _refuse_mixed_volume_entities(gmsh, path)
+                _refuse_native_crashes(gmsh, path)
             gmsh.merge(str(path))
             if suffix != ".msh" and not _gmsh_volume_types(gmsh):
                 gmsh.model.mesh.generate(3)
@@ -290,19 +293,44 @@ def _read_gmsh(path, *, size, order) -> _RawMesh:
             ) from None
 
 
-def _refuse_mixed_volume_entities(gmsh, path) -> None:
-    """Refuse a .msh file with two kinds of volume element in one entity, before gmsh reads it.
+def _refuse_native_crashes(gmsh, path) -> None:
+    """Refuse, before gmsh reads it, a .msh file that crashes gmsh's reader (the process, not
+    with an error): two kinds of volume element in one entity, and (MSH 2.2 ASCII) an element
+    on a node the file does not define (a segmentation fault in ``gmsh.merge``).
 
     gmsh keeps all tetrahedra of a volume entity in one list and sizes its output arrays by the
     type of the first (``getElementsByType``): a tet10 after a tet4 writes past the array and
     aborts the process in malloc.  So the element types per entity are counted from the file's
     ``$Elements`` section first (``msh_volume_types``).
     """
+    node = msh2_undefined_node(path)
+    if node is not None:
+        raise InputError(f"{path}: an element refers to node {node}, which the file does not define; fix the file")
     for entity, types in msh_volume_types(path, gmsh.model.mesh.getElementProperties).items():
         if len(types) > 1:
             names = ", ".join(sorted(gmsh.model.mesh.getElementProperties(t)[0] for t in types))
             raise InputError(f"{path}: volume {entity} mixes element types ({names}); re-mesh it with one "
                              "element order (all tet4 or all tet10)")
+
+
+def msh2_undefined_node(path) -> int | None:
+    """The first node number an element of an MSH 2.2 ASCII file uses but $Nodes does not define
+    (None: all defined, or another layout; gmsh reports those itself)."""
+    data = path.read_bytes()
+    if not re.search(rb"\$MeshFormat\s+2\.\d+\s+0\s", data):
+        return None
+    try:
+        nodes = data[data.index(b"$Nodes"):].split(b"\n")
+        defined = {int(line.split(None, 1)[0]) for line in nodes[2:2 + int(nodes[1])]}
+        elements = data[data.index(b"$Elements"):].split(b"\n")
+        for line in elements[2:2 + int(elements[1])]:
+            f = [int(v) for v in line.split()]
+            missing = [n for n in f[3 + f[2]:] if n not in defined]
+            if missing:
+                return missing[0]
+    except (ValueError, IndexError):
+        return None
+    return None
 
 
 def msh_volume_types(path, properties) -> dict[int, set[int]]:
@@ -539,6 +567,11 @@ def _abaqus_ids(lines) -> tuple[np.ndarray, np.ndarray]:
 def _validated(raw: _RawMesh, path) -> FEMesh:
     """Run the checks on a raw mesh; raise ``InputError`` or repair and note."""
     notes = []
+    outside = (raw.cells < 0) | (raw.cells >= len(raw.points))
+    if outside.any():
+        row = int(np.argmax(outside.any(axis=1)))
+        raise InputError(f"{path}: element {raw.cell_ids[row]} refers to node index {raw.cells[outside][0]}, which "
+                         f"the file does not define ({len(raw.points)} nodes); fix the file")
     keep_nodes, cells = _drop_unreferenced(raw.points, raw.cells)
     n_dropped = len(raw.points) - len(keep_nodes)
     if n_dropped:
@@ -547,10 +580,10 @@ def _validated(raw: _RawMesh, path) -> FEMesh:
     node_map = np.full(len(raw.points), -1, dtype=np.int64)
     node_map[keep_nodes] = np.arange(len(keep_nodes))
 
-    bad = ~np.isfinite(points).all(axis=1)
+    bad = ~(np.abs(points) <= MAX_COORDINATE).all(axis=1)
     if bad.any():
         raise InputError(
-            f"{path}: {int(bad.sum())} nodes have NaN or infinite coordinates "
+            f"{path}: {int(bad.sum())} nodes have NaN, infinite or larger than {MAX_COORDINATE:g} coordinates "
             f"(first: node {node_ids[bad][0]}); fix the coordinates in the mesh file"
         )
 

@@ -28,7 +28,8 @@ from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.executor import task_pool
-from sidprep.jobs.jobfile import job_from_table, split_job_table
+from sidprep.jobs.guard import folder_lock
+from sidprep.jobs.jobfile import check_inside, job_from_table, split_job_table
 from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.jobs.output import output_paths, write_reduction
 from sidprep.jobs.reduce import reduce
@@ -180,14 +181,15 @@ def jobs_from_meshes(meshes, options: ReduceOptions = ReduceOptions()) -> list[B
     return unique_names([BatchJob(_safe(Path(f).name.split(".")[0]), f, options) for f in files])
 
 
-def read_study(path) -> tuple[list[BatchJob], dict]:
+def read_study(path, safe: bool = False) -> tuple[list[BatchJob], dict]:
     """Jobs and [batch] settings of a study manifest (docs/batch.md).
 
     [job] : a base job (job-file keys; ``mesh`` relative to the manifest); [sweep] : key -> list of
     values (``mesh`` entries may be globs), combined as the cartesian product (``combine =
     "product"``, default) or element-wise (``combine = "zip"``); [[case]] : explicit override tables
     (each crossed with the sweep); [batch] : outdir (relative to the manifest), workers, scheduler,
-    memory_limit_mb, sid_fem, obj.
+    memory_limit_mb, sid_fem, obj.  An outdir or output leaving the manifest's folder is named in a
+    warning, or refused when ``safe`` (sidprep.jobs.jobfile.check_inside).
     """
 
     path = Path(path)
@@ -224,7 +226,7 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             table = {**base, **case, **params}
             tables.append(table)
             context = f"[case {c + 1}]" if len(cases) > 1 else ("[sweep]" if params else "[job]")
-            data = split_job_table(table, path, path.parent, context=context)
+            data = split_job_table(table, path, path.parent, context=context, safe=safe)
             if data.get("mesh") is None:
                 raise InputError(f"{path}: [job] needs mesh = \"FILE\" or [sweep] mesh = [...]")
             job = job_from_table(data)
@@ -234,6 +236,8 @@ def read_study(path) -> tuple[list[BatchJob], dict]:
             jobs.append(BatchJob(name, job.mesh, job.options, tuple(sorted(shown.items()))))
     settings = {**study_file_switches(tables, doc.get("batch", {}), path),
                 **checked_table(doc.get("batch", {}), BatchOptions, path, context="[batch]")}
+    if "outdir" in settings:
+        check_inside("[batch] outdir", settings["outdir"], path.parent, path, safe)
     try:
         BatchOptions(**settings)
     except InputError as exc:
@@ -346,27 +350,29 @@ def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, p
     outdir = Path(options.outdir)
     cache = outdir / CACHE_DIR
     try:
-        cache.mkdir(parents=True, exist_ok=True)
+        outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"{outdir}: cannot create the output folder ({exc.strerror}); choose a writable folder") from None
-    jobs = unique_names(list(jobs))
-    records: dict[str, dict] = {}
-    todo = []
-    for job in jobs:
-        key = job_key(job, options)
-        hit = _cached(cache / f"{key}.json")
-        if hit is not None:
-            records[job.name] = {**hit, "status": "cached", "params": dict(job.params)}
-        else:
-            todo.append((job, key))
-    total = len(jobs)
-    if progress:
-        for r in records.values():
-            progress(r, len(records), total, [])
-    if todo:
-        _run_pending(todo, options, client, records, cache, progress, total)
-    report = BatchReport([records[j.name] for j in jobs], str(outdir), time.perf_counter() - t0)
-    report.files = write_report(report)
+    with folder_lock(outdir):                               # one batch per folder; .part files go with it
+        cache.mkdir(exist_ok=True)
+        jobs = unique_names(list(jobs))
+        records: dict[str, dict] = {}
+        todo = []
+        for job in jobs:
+            key = job_key(job, options)
+            hit = _cached(cache / f"{key}.json")
+            if hit is not None:
+                records[job.name] = {**hit, "status": "cached", "params": dict(job.params)}
+            else:
+                todo.append((job, key))
+        total = len(jobs)
+        if progress:
+            for r in records.values():
+                progress(r, len(records), total, [])
+        if todo:
+            _run_pending(todo, options, client, records, cache, progress, total)
+        report = BatchReport([records[j.name] for j in jobs], str(outdir), time.perf_counter() - t0)
+        report.files = write_report(report)
     return report
 
 
@@ -405,6 +411,9 @@ def _run_pending(todo, options, client, records, cache, progress, total):
                 records[job.name] = record
                 if progress:
                     progress(record, len(records), total, [j.name for j, _, _ in running.values()])
+    except BaseException:                                   # ^C, SIGTERM: the running jobs stop too
+        pool.stop(list(running))
+        raise
     finally:
         pool.close()
 

@@ -4,13 +4,12 @@ reductions in parts (sidprep.jobs.parts)."""
 
 from __future__ import annotations
 
-import contextlib
 import multiprocessing
-import multiprocessing.forkserver
 import os
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from sidprep.errors import InputError
+from sidprep.jobs.guard import guarded, stop_workers, worker_setup
 
 #: seconds to wait for a Dask scheduler before giving up
 DASK_CONNECT_S = 10
@@ -21,50 +20,36 @@ DASK_CONNECT_S = 10
 #: threads only contend (issue 27: 1.58x -> 1.77x over one by one on 2 cores)
 SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                      "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
-#: what a reduction imports, loaded once in the fork server: every worker forks with it loaded
-#: (measured 1.5 s of imports and first calls per fresh worker)
-WORKER_PRELOAD = ("numpy", "scipy.sparse.linalg", "scipy.linalg", "h5py", "sidprep.jobs.reduce",
-                  "sidprep.jobs.output", "sidprep.fe.mesh", "sidprep.fe.assemble")
 
 
-@contextlib.contextmanager
-def single_threaded_environment():
-    """os.environ with SINGLE_THREAD_ENV while the block runs (processes started in it inherit it)."""
-    saved = {k: os.environ.get(k) for k in SINGLE_THREAD_ENV}
+def _worker_start(parent_pid: int) -> None:
+    """Initializer of every local worker, run before the task's modules are imported (this module
+    imports no numerical library): the thread limits, then the batch's hold on the worker
+    (sidprep.jobs.guard.worker_setup: ^C is the parent's, SIGTERM unwinds, no worker outlives it)."""
     os.environ.update(SINGLE_THREAD_ENV)
-    try:
-        yield
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
-def _single_threaded_worker() -> None:
-    """Worker initializer: the thread limits, for a fork server not started by ``_LocalPool``."""
-    os.environ.update(SINGLE_THREAD_ENV)
+    worker_setup(parent_pid)
 
 
 class _LocalPool:
-    """A process pool of ``workers`` processes, forked from a server that runs single-threaded
-    (SINGLE_THREAD_ENV) with the reduction's modules loaded (WORKER_PRELOAD), reused across tasks."""
+    """A process pool of ``workers`` processes, reused across tasks. Spawned, children of this
+    process: with forkserver a SIGKILL of the batch left the server and workers blocked on pipes
+    whose write ends leaked into their siblings (sidprep.jobs.guard)."""
 
     def __init__(self, workers: int):
-        context = multiprocessing.get_context("forkserver")
-        with single_threaded_environment():
-            context.set_forkserver_preload(list(WORKER_PRELOAD))
-            multiprocessing.forkserver.ensure_running()
-        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker)
+        self.pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                        initializer=_worker_start, initargs=(os.getpid(),))
         self.workers = workers
 
     def run(self, fn, *args):
         """Any task (a top-level function and its picklable arguments) on the pool."""
-        return self.pool.submit(fn, *args)
+        return self.pool.submit(guarded, fn, *args)
 
     def wait(self, futures):
         return wait(futures, return_when=FIRST_COMPLETED).done
+
+    def stop(self, futures):
+        """Stop the running tasks now (^C, SIGTERM): sidprep.jobs.guard.stop_workers."""
+        stop_workers(list(getattr(self.pool, "_processes", {}).values()))
 
     def close(self):
         self.pool.shutdown(wait=True, cancel_futures=True)
@@ -95,6 +80,9 @@ class _DaskPool:
     def wait(self, futures):
         from distributed import wait
         return wait(list(futures), return_when="FIRST_COMPLETED").done
+
+    def stop(self, futures):
+        self.client.cancel(list(futures))
 
     def close(self):
         if self.own:

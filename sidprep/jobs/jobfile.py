@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -27,12 +28,32 @@ class _JobTable(ReduceOptions, OutputOptions):
     mesh: str | None = None
 
 
-def split_job_table(table: dict, source, base: Path, *, context: str = "") -> dict:
-    """A checked job table with ``mesh``, ``output`` and ``matrices`` resolved against ``base``."""
+class OutsideWarning(UserWarning):
+    """A job or study file writes outside its own folder."""
+
+
+def check_inside(key: str, value: str, base: Path, source, safe: bool = False) -> None:
+    """An output path from a file (``key = value``, resolved) that leaves the file's folder
+    ``base`` (``../..``, an absolute path) is named in an OutsideWarning, or refused (``safe``:
+    a study run with ``--safe``, e.g. one received from someone else)."""
+    target, folder = (Path(base) / value).resolve(), Path(base).resolve()
+    if target == folder or folder in target.parents:
+        return
+    message = f"{source}: {key} = {value!r} writes outside the file's folder {folder} (to {target})"
+    if safe:
+        raise InputError(f"{message}; refused with --safe: write inside the study's folder")
+    warnings.warn(f"{message}; check that this is meant", OutsideWarning, stacklevel=2)
+
+
+def split_job_table(table: dict, source, base: Path, *, context: str = "", safe: bool = False) -> dict:
+    """A checked job table with ``mesh``, ``output`` and ``matrices`` resolved against ``base``; an ``output``
+    outside ``base`` is named or refused (``check_inside``)."""
     data = checked_table(table, _JobTable, source, context=context)
     for key in ("mesh", "output", "matrices"):
         if data.get(key) is not None and not Path(data[key]).is_absolute():
             data[key] = str((base / data[key]).resolve())
+    if data.get("output") is not None:
+        check_inside("output", table["output"], base, source, safe)
     return data
 
 

@@ -281,48 +281,55 @@ def inertia_about_cm(sid: SID) -> np.ndarray:
     return inertia_matrix(sid.J.M0) - sid.mass * (c @ c * np.eye(3) - np.outer(c, c))
 
 
-def numeric_arrays(sid: SID):
-    """(name, array) of every number of a SID that enters the equations: mass, the Taylor members
-    of the modal part and of each node, the stiffening parts, the path tables (not the label
-    frequencies, which are NaN where a coordinate has none)."""
-    yield "mass", np.asarray(sid.mass, dtype=float)
-    members = [(m, getattr(sid, m)) for m in ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")]
-    members += [(f"node {n.node_id} {m}", getattr(n, m)) for n in sid.nodes
-                for m in ("origin", "phi", "psi", "AP", "sigma") if getattr(n, m) is not None]
+def member_shapes(nq: int) -> dict:
+    """{member: M0 shape} of a SID with nq modal coordinates (sid-spec.md section 3; the SID
+    docstring); M1 is (nrow, nq, ncol).  Node members are prefixed "node "."""
+    return {"mdCM": (3, 1), "J": (6, 1), "Ct": (nq, 3), "Cr": (nq, 3), "Me": (nq, nq), "Gr": (3, 3 * nq),
+            "Ge": (nq, 3 * nq), "Oe": (nq, 6), "ksigma": (nq, 1), "Ke": (nq, nq), "De": (nq, nq),
+            "node origin": (3, 1), "node phi": (3, nq), "node psi": (3, nq), "node AP": (3, 3), "node sigma": (6, 1)}
+
+
+def structure_problem(sid: SID) -> str | None:
+    """What makes ``sid`` not a SID at all (a member of the wrong shape or not numbers, labels or
+    paths not matching nq), or None.  Checked by every reader before any other check."""
+    nq = len(sid.labels)
+    shapes = member_shapes(nq)
+    members = [(m, getattr(sid, m)) for m in TAYLOR_MEMBERS]
+    members += [(f"node {m}", getattr(n, m)) for n in sid.nodes for m in ("origin", "phi", "psi", "AP", "sigma")
+                if getattr(n, m) is not None]
+    if not isinstance(sid.mass, (int, float, np.number)) or isinstance(sid.mass, bool):
+        return f"mass is {sid.mass!r}, not a number"
     for name, T in members:
-        yield f"{name}.M0", np.asarray(T.M0, dtype=float)
-        if T.M1 is not None:
-            yield f"{name}.M1", np.asarray(T.M1, dtype=float)
+        for part, value, shape in (("M0", T.M0, shapes[name]),
+                                   ("M1", T.M1, (shapes[name][0], nq, shapes[name][1]))):
+            if part == "M1" and value is None:
+                continue
+            a = np.asarray(value)
+            if not np.issubdtype(a.dtype, np.number):
+                return f"{name}.{part} holds {a.dtype} values, not numbers"
+            if a.shape != shape:
+                return f"{name}.{part} is {a.shape}, expected {shape} for {nq} modal coordinates"
+    if len(np.atleast_1d(sid.frequencies_hz)) != nq or len(sid.mode_kinds) != nq:
+        return f"{nq} labels but {len(np.atleast_1d(sid.frequencies_hz))} frequencies and {len(sid.mode_kinds)} mode kinds"
     for key, value in sid.stiffening.items():
-        yield f"stiffening {key}", np.asarray(value, dtype=float)
-    for name, path in sid.paths.items():
-        for member in ("s", "points", "phi", "psi"):
-            yield f"path {name} {member}", np.asarray(getattr(path, member), dtype=float)
+        a = np.asarray(value)
+        if not np.issubdtype(a.dtype, np.number) or a.ndim != 3 or a.shape[1:] != (nq, nq):
+            return f"stiffening part {key} is {a.shape} {a.dtype}, expected (k, {nq}, {nq}) numbers"
+    for name, p in sid.paths.items():
+        arrays = [np.asarray(getattr(p, m)) for m in ("s", "points", "phi", "psi")]
+        n = arrays[0].shape[0] if arrays[0].ndim == 1 else -1
+        if n < 2 or any(not np.issubdtype(a.dtype, np.number) for a in arrays) or \
+                [a.shape for a in arrays[1:]] != [(n, 3), (n, 3, nq), (n, 3, nq)] or not np.all(np.diff(arrays[0]) > 0):
+            return f"path {name} is not n >= 2 increasing arc lengths with (n, 3) points and (n, 3, {nq}) shapes"
+    return None
 
 
 def finite_entries(sid: SID) -> dict:
-    """Every number of the SID is finite (a NaN or inf makes every other check meaningless)."""
-    bad = [name for name, a in numeric_arrays(sid) if not np.isfinite(a).all()]
-    shown = f" ({', '.join(bad[:4])}{' ...' if len(bad) > 4 else ''})" if bad else ""
+    """Every number of the SID is finite (``non_finite_entries``; a NaN or inf makes every other
+    check meaningless)."""
+    bad = non_finite_entries(sid)
+    shown = f" ({', '.join(bad[:3])}{' ...' if len(bad) > 3 else ''})" if bad else ""
     return {"entries finite": _entry(len(bad), 0, f"members with NaN or inf entries{shown}; value = their number")}
-
-
-#: the checks whose failure makes a SID physically impossible: ``simulate`` refuses it, ``info`` and
-#: ``view`` warn (``physical_problems``)
-PHYSICAL = ("entries finite", "mass > 0", "inertia about CM positive definite", "inertia triangle inequalities",
-            "Ke positive semidefinite", "node orientations AP0 are rotations", "Me symmetric positive definite")
-
-
-def physical_problems(sid: SID) -> list[str]:
-    """One line per failed PHYSICAL check of ``sid``: "NAME (description)"; empty when it is a body
-    that can exist.  Non-finite entries are reported alone (nothing else can be judged then)."""
-    with np.errstate(all="ignore"):
-        checks = finite_entries(sid)
-        if checks["entries finite"]["passed"]:
-            checks.update(physical_checks(sid))
-            checks.update(modal_checks(sid))
-    return [f"{name} fails ({checks[name]['description']})" for name in PHYSICAL
-            if name in checks and not checks[name]["passed"]]
 
 
 def physical_checks(sid: SID) -> dict:
@@ -359,6 +366,79 @@ def physical_checks(sid: SID) -> dict:
             max(rotation_defect(n.AP.M0) for n in sid.nodes), ROTATION_TOL,
             "AP0 maps node-frame to body-frame components (3.2): value max |AP0^T AP0 - E|, |det - 1|")
     return out
+
+
+#: the SID members a solver integrates with, in file order (sid-spec 3)
+TAYLOR_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
+#: J components as the SID_FEM file orders them (sid-spec 3.5)
+J_NAMES = ("Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz")
+
+
+def _first_non_finite(name: str, array) -> str | None:
+    """'name[i, j] = value' of the first non-finite entry of ``array``, or None."""
+    a = np.asarray(array, dtype=float)
+    bad = np.argwhere(~np.isfinite(a))
+    if not bad.size:
+        return None
+    index = tuple(int(i) for i in bad[0])
+    return f"{name}{list(index)} = {a[index]}"
+
+
+def non_finite_entries(sid: SID) -> list[str]:
+    """The first non-finite entry of every SID member that has one ('Ke.M0[2, 3] = inf')."""
+    found = [_first_non_finite("mass", [sid.mass])]
+    for name in TAYLOR_MEMBERS:
+        t = getattr(sid, name)
+        found += [_first_non_finite(f"{name}.M0", t.M0), None if t.M1 is None else _first_non_finite(f"{name}.M1", t.M1)]
+    for n in sid.nodes:
+        for part in ("origin", "phi", "psi", "AP"):
+            t = getattr(n, part)
+            found += [_first_non_finite(f"node {n.node_id} {part}.M0", t.M0),
+                      None if t.M1 is None else _first_non_finite(f"node {n.node_id} {part}.M1", t.M1)]
+    return [f for f in found if f]
+
+
+def physical_problems(sid: SID) -> list[str]:
+    """What makes ``sid`` physically impossible for a simulation, one phrase each naming the
+    entry (empty when it is possible): non-finite numbers; mass <= 0; inertia about the centre
+    of mass with a negative principal moment, two zero ones, or breaking the triangle inequalities
+    (one zero moment is the limit of a thin rod, point masses on a line); Me not symmetric
+    positive definite; Ke not symmetric positive semidefinite (tolerances IDENTITY_RTOL,
+    KE_PSD_RTOL, TRIANGLE_RTOL).  Shared by the solver (refuses to load), ``sidprep check``
+    and the viewers' warnings."""
+    bad = non_finite_entries(sid)
+    if bad:
+        return [f"non-finite number {b}" for b in bad]
+    problems = []
+    if not sid.mass > 0:
+        return [f"mass = {sid.mass:.6g} kg (must be > 0)"]
+    j_cm = inertia_about_cm(sid)
+    p = np.sort(np.linalg.eigvalsh(0.5 * (j_cm + j_cm.T)))
+    scale = max(abs(p[-1]), 1e-300)
+    diagonal = ", ".join(f"{n} {v:.6g}" for n, v in zip(J_NAMES[:3], np.diag(j_cm)))
+    if p[0] < -TRIANGLE_RTOL * scale or not p[1] > 0:  # one zero moment: point masses on a line (thin-rod limit)
+        problems.append(f"inertia about the centre of mass not positive definite (J.M0 with mdCM: {diagonal}; "
+                        f"principal moments {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2)")
+    elif (p[2] - p[0] - p[1]) / scale > TRIANGLE_RTOL:
+        problems.append(f"inertia about the centre of mass physically impossible (J.M0 with mdCM: principal "
+                        f"moments {p[0]:.6g} + {p[1]:.6g} < {p[2]:.6g} kg m^2, triangle inequality)")
+    if sid.nq:
+        me, ke = np.asarray(sid.Me.M0, float), np.asarray(sid.Ke.M0, float)
+        if _relative(me - me.T, me) > IDENTITY_RTOL:
+            problems.append(f"Me.M0 not symmetric (max |Me - Me^T| / max |Me| = {_relative(me - me.T, me):.3g})")
+        elif not np.all(np.linalg.eigvalsh(me) > 0):
+            k = int(np.argmin(np.diag(me)))
+            problems.append(f"Me.M0 not positive definite (smallest eigenvalue {np.linalg.eigvalsh(me)[0]:.6g}; "
+                            f"Me[{k}, {k}] = {me[k, k]:.6g})")
+        if _relative(ke - ke.T, ke) > IDENTITY_RTOL:
+            problems.append(f"Ke.M0 not symmetric (max |Ke - Ke^T| / max |Ke| = {_relative(ke - ke.T, ke):.3g})")
+        else:
+            ev = np.linalg.eigvalsh(ke)
+            if -ev[0] > KE_PSD_RTOL * max(abs(ev).max(), 1e-300):
+                k = int(np.argmin(np.diag(ke)))
+                problems.append(f"Ke.M0 not positive semidefinite (smallest eigenvalue {ev[0]:.6g}; "
+                                f"Ke[{k}, {k}] = {ke[k, k]:.6g})")
+    return problems
 
 
 def rotation_defect(A: np.ndarray) -> float:

@@ -8,8 +8,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from sidprep.errors import InputError
-from sidprep.sid.checks import physical_problems
+from sidprep.sid.checks import physical_problems, structure_problem
 from sidprep.sid.io.obj import write_obj
 from sidprep.sid.io.sid_fem import read_sid_fem, write_sid_fem
 from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
@@ -66,13 +68,17 @@ def read_sid(path, physical: str = "warn"):
     """Read a SID file chosen by its ending: ``.sid.h5``/``.h5``/``.hdf5`` or ``.SID_FEM``.
 
     physical : what a SID that fails the physical checks (``sidprep.sid.checks.physical_problems``:
-        finite entries, mass, inertia, Me, Ke, node orientations) gives: "error" an InputError
+        finite entries, mass, inertia, Me, Ke) gives: "error" an InputError
         (``simulate``), "warn" one SIDWarning per problem (``info``, ``view``), "off" nothing
         (``check``, which lists every check itself).
     """
     sid = _read(Path(path))
+    problem = structure_problem(sid)
+    if problem:
+        raise InputError(f"{path}: not a consistent SID ({problem}); re-export the file")
     if physical != "off":
-        problems = physical_problems(sid)
+        with np.errstate(all="ignore"):          # huge entries: the check fails, silently
+            problems = physical_problems(sid)
         fix = f"regenerate the SID (sidprep check {path} lists every check)"
         if problems and physical == "error":
             more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""

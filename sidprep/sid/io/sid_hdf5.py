@@ -266,7 +266,8 @@ def read_sid_hdf5(path) -> SID:
                              f"reads 1..{VERSION}); upgrade sidprep or re-export the file")
         try:
             return _read(f)
-        except (KeyError, ValueError, TypeError) as exc:
+        except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:   # a member missing,
+            # of another kind (dataset for group) or shape: the file's structure is not a SID's
             raise InputError(f"{path}: incomplete SID HDF5 file ({exc}); re-export it") from None
 
 

@@ -1,0 +1,74 @@
+"""Path markers on their paths, checked before a run (``sidprep.solver.run.Run``).
+
+A path marker carries its load only while its arc length s lies on the path (0 .. s_end of the
+SID's BodyPath).  A marker that starts off the path (a motion starting at s = 20 m on a 15 m
+Beam axis, a mass released beyond the end of the rail it slides on) is an input error; one that
+a motion drives off the path during the run (a vehicle leaving the bridge) is legitimate and
+gets a note naming the time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sidprep.solver.equations.curves import motion_state
+from sidprep.solver.equations.layout import _Curves, motion_row
+from sidprep.solver.model.bodies import PathMarker
+
+#: samples of s(t) over 0 .. t_end when looking for the time a motion leaves its path
+MOTION_SAMPLES = 2001
+#: a point counts as on the path within this fraction of the path length beyond an end
+PATH_END_RTOL = 1e-6
+
+
+def path_marker_problems(system, t_end: float) -> tuple[list[str], list[str]]:
+    """(errors, notes) of the path markers of ``system`` over 0 .. ``t_end`` (s)."""
+    errors, notes = [], []
+    for body in system.bodies:
+        for m in getattr(body, "markers", ()):
+            if isinstance(m, PathMarker) and m.motion is not None:
+                _motion_on_path(m, t_end, errors, notes)
+    for joint in system.joints:
+        if joint.kind == "on_path":
+            _partner_on_path(joint, errors)
+    return errors, notes
+
+
+def _span(m: PathMarker) -> tuple[float, float, float]:
+    s0, s1 = float(m.path.s[0]), float(m.path.s[-1])
+    return s0, s1, PATH_END_RTOL * (s1 - s0)
+
+
+def _motion_on_path(m: PathMarker, t_end: float, errors: list, notes: list) -> None:
+    """s(0) on the path (else an error); the first sampled time s(t) leaves it (a note)."""
+    curves = _Curves()
+    kind, params, curve = motion_row(m.motion, curves)
+    x, c = (m.motion.x, m.motion.c) if curve >= 0 else (np.zeros(2), np.zeros((4, 1)))
+    s0, s1, tol = _span(m)
+    times = np.linspace(0.0, t_end, MOTION_SAMPLES)
+    s = np.array([motion_state(kind, params, x, c, t)[0] for t in times])
+    off = (s < s0 - tol) | (s > s1 + tol)
+    if off[0]:
+        errors.append(f"path marker {m.name} starts at s = {s[0]:g} m, off its path (s = {s0:g} .. {s1:g} m); "
+                      "give a motion start on the path")
+    elif off.any():
+        k = int(np.argmax(off))
+        notes.append(f"path marker {m.name} leaves its path (s = {s0:g} .. {s1:g} m) at t = {times[k]:.4g} s "
+                     f"(s = {s[k]:.4g} m); from then on its load is off the body")
+
+
+def _partner_on_path(joint, errors: list) -> None:
+    """Marker 2 of an on_path joint starts over the path of marker 1 (undeformed, t = 0)."""
+    m, partner = joint.marker1, joint.marker2
+    body, other = m.body, partner.body
+    world = np.asarray(other.position0) + np.asarray(other.rotation0) @ np.asarray(partner.position)
+    local = np.asarray(body.rotation0).T @ (world - np.asarray(body.position0))
+    points = np.asarray(m.path.points)
+    s0, s1, tol = _span(m)
+    for end, inward in ((points[0], points[1] - points[0]), (points[-1], points[-2] - points[-1])):
+        inward = inward / np.linalg.norm(inward)
+        beyond = -float((local - end) @ inward)
+        if beyond > tol:
+            errors.append(f"on_path joint {joint.name}: marker {partner.name} starts {beyond:g} m beyond the end "
+                          f"of the path of {m.name} (s = {s0:g} .. {s1:g} m); place it over the path")
+            return
