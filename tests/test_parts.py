@@ -156,9 +156,15 @@ def test_cli_reduces_in_parts_and_rejects_a_scheduler_without_parts(tmp_path):
 
 
 def pool_workers():
-    """The local pool's worker processes: grandchildren of this process (under the forkserver)."""
-    me = psutil.Process()
-    return [g for c in me.children() for g in c.children()]
+    """The local pool's worker processes: spawned children of this process (sidprep.jobs.executor)."""
+    workers = []
+    for child in psutil.Process().children():
+        try:
+            if "spawn_main" in " ".join(child.cmdline()):
+                workers.append(child)
+        except psutil.NoSuchProcess:
+            pass
+    return workers
 
 
 def killer(stop: threading.Event, every: bool, killed: list):
