@@ -317,6 +317,79 @@ def physical_checks(sid: SID) -> dict:
     return out
 
 
+#: the SID members a solver integrates with, in file order (sid-spec 3)
+TAYLOR_MEMBERS = ("mdCM", "J", "Ct", "Cr", "Me", "Gr", "Ge", "Oe", "ksigma", "Ke", "De")
+#: J components as the SID_FEM file orders them (sid-spec 3.5)
+J_NAMES = ("Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz")
+
+
+def _first_non_finite(name: str, array) -> str | None:
+    """'name[i, j] = value' of the first non-finite entry of ``array``, or None."""
+    a = np.asarray(array, dtype=float)
+    bad = np.argwhere(~np.isfinite(a))
+    if not bad.size:
+        return None
+    index = tuple(int(i) for i in bad[0])
+    return f"{name}{list(index)} = {a[index]}"
+
+
+def non_finite_entries(sid: SID) -> list[str]:
+    """The first non-finite entry of every SID member that has one ('Ke.M0[2, 3] = inf')."""
+    found = [_first_non_finite("mass", [sid.mass])]
+    for name in TAYLOR_MEMBERS:
+        t = getattr(sid, name)
+        found += [_first_non_finite(f"{name}.M0", t.M0), None if t.M1 is None else _first_non_finite(f"{name}.M1", t.M1)]
+    for n in sid.nodes:
+        for part in ("origin", "phi", "psi", "AP"):
+            t = getattr(n, part)
+            found += [_first_non_finite(f"node {n.node_id} {part}.M0", t.M0),
+                      None if t.M1 is None else _first_non_finite(f"node {n.node_id} {part}.M1", t.M1)]
+    return [f for f in found if f]
+
+
+def physical_problems(sid: SID) -> list[str]:
+    """What makes ``sid`` physically impossible for a simulation, one phrase each naming the
+    entry (empty when it is possible): non-finite numbers; mass <= 0; inertia about the centre
+    of mass with a negative principal moment, two zero ones, or breaking the triangle inequalities
+    (one zero moment is the limit of a thin rod, point masses on a line); Me not symmetric
+    positive definite; Ke not symmetric positive semidefinite (tolerances IDENTITY_RTOL,
+    KE_PSD_RTOL, TRIANGLE_RTOL).  Shared by the solver (refuses to load), ``sidprep check``
+    and the viewers' warnings."""
+    bad = non_finite_entries(sid)
+    if bad:
+        return [f"non-finite number {b}" for b in bad]
+    problems = []
+    if not sid.mass > 0:
+        return [f"mass = {sid.mass:.6g} kg (must be > 0)"]
+    j_cm = inertia_about_cm(sid)
+    p = np.sort(np.linalg.eigvalsh(0.5 * (j_cm + j_cm.T)))
+    scale = max(abs(p[-1]), 1e-300)
+    diagonal = ", ".join(f"{n} {v:.6g}" for n, v in zip(J_NAMES[:3], np.diag(j_cm)))
+    if p[0] < -TRIANGLE_RTOL * scale or not p[1] > 0:  # one zero moment: point masses on a line (thin-rod limit)
+        problems.append(f"inertia about the centre of mass not positive definite (J.M0 with mdCM: {diagonal}; "
+                        f"principal moments {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2)")
+    elif (p[2] - p[0] - p[1]) / scale > TRIANGLE_RTOL:
+        problems.append(f"inertia about the centre of mass physically impossible (J.M0 with mdCM: principal "
+                        f"moments {p[0]:.6g} + {p[1]:.6g} < {p[2]:.6g} kg m^2, triangle inequality)")
+    if sid.nq:
+        me, ke = np.asarray(sid.Me.M0, float), np.asarray(sid.Ke.M0, float)
+        if _relative(me - me.T, me) > IDENTITY_RTOL:
+            problems.append(f"Me.M0 not symmetric (max |Me - Me^T| / max |Me| = {_relative(me - me.T, me):.3g})")
+        elif not np.all(np.linalg.eigvalsh(me) > 0):
+            k = int(np.argmin(np.diag(me)))
+            problems.append(f"Me.M0 not positive definite (smallest eigenvalue {np.linalg.eigvalsh(me)[0]:.6g}; "
+                            f"Me[{k}, {k}] = {me[k, k]:.6g})")
+        if _relative(ke - ke.T, ke) > IDENTITY_RTOL:
+            problems.append(f"Ke.M0 not symmetric (max |Ke - Ke^T| / max |Ke| = {_relative(ke - ke.T, ke):.3g})")
+        else:
+            ev = np.linalg.eigvalsh(ke)
+            if -ev[0] > KE_PSD_RTOL * max(abs(ev).max(), 1e-300):
+                k = int(np.argmin(np.diag(ke)))
+                problems.append(f"Ke.M0 not positive semidefinite (smallest eigenvalue {ev[0]:.6g}; "
+                                f"Ke[{k}, {k}] = {ke[k, k]:.6g})")
+    return problems
+
+
 def rotation_defect(A: np.ndarray) -> float:
     """How far a 3x3 matrix is from a rotation: max(|A^T A - E|, |det A - 1|)."""
     return max(float(np.max(np.abs(A.T @ A - np.eye(3)))), abs(float(np.linalg.det(A)) - 1.0))

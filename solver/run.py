@@ -18,6 +18,7 @@ import numpy as np
 
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
+from sidprep.solver.energy import balance_warning, energy_balance
 from sidprep.solver.equations.assemble import evaluate
 from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
 from sidprep.solver.integrators.base import Problem, Samples, State
@@ -57,6 +58,23 @@ def choose_terms(system, spec):
 def row_names(system) -> list[str]:
     """The joint or driver name of every constraint row."""
     return [c.name for c in system.joints for _ in c.rows] + [d.name for d in system.drivers]
+
+
+#: a failed run whose energy grew by more than this fraction of the energy exchanged before the
+#: failure names the integration as the likely cause
+GROWTH_BEFORE_FAILURE = 0.1
+
+
+def numerical_cause(balance: dict, settings) -> str:
+    """'; before it ...' naming the integration as the cause of a failure when the energy grew
+    by more than GROWTH_BEFORE_FAILURE of the energy exchanged (else '')."""
+    if not (balance["change"] > 0 and balance["balance_error"] > GROWTH_BEFORE_FAILURE):
+        return ""
+    fix = ("halve h or lower rho_inf (0.9 or less)" if settings.method == "genalpha"
+           else "tighten rtol or use method = \"genalpha\"")
+    return (f"; before it the energy grew by {balance['change']:.3g} J ({balance['balance_error']:.2g} of the "
+            f"{balance['exchanged']:.3g} J exchanged) with no work put in: a numerical instability, not the scene; "
+            f"{fix}")
 
 
 class _CompileNotice:
@@ -256,8 +274,12 @@ class Run:
                             cpu_integration=cpu_integration, dropped_constraint_rows=dropped,
                             n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
                             n_constraints=int(self.kept.size))
+        st = self.settings
+        balance = energy_balance(result.energy, st.energy_tol)
+        balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance)
+        result.stats["energy_balance"] = balance
         if stepper.status == "failed":
-            message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}"
+            message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}{numerical_cause(balance, st)}"
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         return result

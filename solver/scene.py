@@ -3,7 +3,8 @@
 The format is documented with a complete example in ``docs/scenes.md``.  Tables::
 
     [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names]), planar
-    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol, deformation_limit
+    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol, deformation_limit,
+                       energy_tol
     [output]           rate (samples/s), signals, plot, csv, animate
     [bodies.<name>]    type = "flexible" (sid, make, q0, qd0, effects) | "rigid" (mass, com,
                        inertia, obj); position, rotation, velocity, omega
@@ -65,7 +66,7 @@ class Scene:
     path : the scene file; text, sha256 : its content (provenance); title : [scene] title;
     system : the built System; simulate_kwargs : keyword arguments of ``System.simulate``
     (t_end, h, method, rho_inf, rtol, output_dt, static_start; atol, newton_tol,
-    deformation_limit if given);
+    deformation_limit, energy_tol if given);
     output : OutputSettings; sources : {body name: {"kind", "source"}} (results provenance);
     """
 
@@ -244,7 +245,7 @@ def _solver_settings(file: Path, root: dict, t_end_override: float | None) -> di
         "rtol": t.number("rtol", None, positive=True),
         "static_start": t.boolean("static_start", False),
     }
-    for key in ("atol", "newton_tol", "deformation_limit"):   # the solver's own defaults unless given
+    for key in ("atol", "newton_tol", "deformation_limit", "energy_tol"):   # the solver's own defaults unless given
         if t.has(key):
             kw[key] = t.number(key, positive=True)
     if t_end_override is not None:
@@ -289,7 +290,8 @@ def _flexible_body(name: str, t: _Table, pose: dict):
         t.fail("sid", f"cannot read {path} ({exc})", "regenerate the SID file")
     q0 = t.array("q0", None, shape=(sid.nq,))
     qd0 = t.array("qd0", None, shape=(sid.nq,))
-    body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), **pose)
+    body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), source=str(path),
+                        **pose)
     return body, {"kind": "flexible", "source": str(path)}
 
 
@@ -577,7 +579,8 @@ def empty_result(system):
         joints={c.name: JointHistory(c.name, getattr(c, "kind", "driver"), z, z, z, z, np.zeros(0), np.zeros(0),
                                      np.zeros(0)) for c in list(system.joints) + list(system.drivers)},
         markers={m.name: z for b in [system.ground] + list(system.bodies) for m in b.markers},
-        energy={k: np.zeros(0) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "total")},
+        energy={k: np.zeros(0) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening",
+                                         "total")},
         constraint_error=np.zeros(0), effects=None)
 
 

@@ -274,17 +274,19 @@ def test_flexible_loop_under_gravity_conserves_energy():
 
 
 def test_a_diverging_body_stops_early_and_keeps_its_results():
-    """A body with negative modal stiffness (unstable) diverges: the run stops when the elastic
-    deflection passes 20 % of the body's size, not after minutes, with a one-line message naming
-    the body, and the Result up to there is kept."""
+    """A body preloaded beyond buckling (net modal stiffness Ke + ksigma.M1 = -Ke: unstable; a
+    negative Ke itself is refused at load) diverges: the run stops when the elastic deflection
+    passes 20 % of the body's size, not after minutes, with a one-line message naming the body,
+    and the Result up to there is kept."""
     from dataclasses import replace
 
     from sidprep.errors import SimulationFailed
 
     sid = bar_sid()
-    sid = replace(sid, Ke=replace(sid.Ke, M0=-sid.Ke.M0))
+    ke = sid.Ke.M0
+    sid = replace(sid, ksigma=replace(sid.ksigma, M0=np.zeros((sid.nq, 1)), M1=(-2.0 * ke)[:, :, None]))
     s = System(gravity=(0, 0, 0))
-    s.add(FlexibleBody(sid, name="bar", q0=np.full(sid.nq, 1e-6)))
+    s.add(FlexibleBody(sid, name="bar", q0=np.full(sid.nq, 1e-6), effects=["preload"]))
     with pytest.raises(SimulationFailed, match="body 'bar' left the small-deformation range") as failure:
         s.simulate(1.0, h=1e-4)
     result = failure.value.result

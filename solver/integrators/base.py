@@ -17,7 +17,7 @@ from numba import types
 from numba.np.linalg import _LAPACK
 
 from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2
+from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
@@ -129,13 +129,19 @@ def expand(lam, kept, m_all):  # pragma: no cover - compiled
 
 
 @jit
-def advance_pose(L, R, A, Q, dx):  # pragma: no cover - compiled
-    """Positions moved by the increment dx (n,): r + dr, A exp(dtheta), q + dq (Lie group)."""
+def advance_pose(L, R, A, Q, dx, body_frame=False):  # pragma: no cover - compiled
+    """Positions moved by the increment dx (n,): r + dr, A exp(dtheta), q + dq (Lie group
+    R^3 x SO(3)); ``body_frame``: dr in body components, moved along the SE(3) exponential,
+    r + A V(dtheta) dr (se3_jacobian; integrators/se3.py)."""
     R2, A2, Q2 = R.copy(), np.empty_like(A), Q.copy()
     for i in range(R.shape[0]):
         s = L.uoff[i]
-        add(R2[i], 0, dx[s:s + 3])
-        put2(A2[i], 0, 0, matmul(A[i], exp_so3(dx[s + 3:s + 6].copy())))
+        theta = dx[s + 3:s + 6].copy()
+        if body_frame:
+            add(R2[i], 0, matvec(A[i], matvec(se3_jacobian(theta), dx[s:s + 3].copy())))
+        else:
+            add(R2[i], 0, dx[s:s + 3])
+        put2(A2[i], 0, 0, matmul(A[i], exp_so3(theta)))
         nq = L.qoff[i + 1] - L.qoff[i]
         add(Q2, L.qoff[i], dx[s + 6:s + 6 + nq])
     return R2, A2, Q2

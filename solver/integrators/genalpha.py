@@ -1,5 +1,7 @@
 """Lie-group generalised-alpha for the index-3 DAE (Arnold & Bruls 2007; Bruls, Cardona &
-Arnold 2012), on R^3 x SO(3) x R^nq per body:
+Arnold 2012), on SE(3) x R^nq per body (se3.py: body-frame translational velocities, so that a
+uniform rotation about any fixed axis is integrated exactly; on R^3 x SO(3) a body whirling
+about a hinge away from its frame origin gained energy ~ h^2 Omega^3, issue 22):
 
     x_{n+1} = x_n (+) h dx,  dx = u_n + h (1/2 - beta) a_n + h beta a_{n+1}
     u_{n+1} = u_n + h (1 - gamma) a_n + h gamma a_{n+1}
@@ -14,7 +16,7 @@ h^2 beta' K_t (finite differences) is re-used over steps until convergence slows
 when the position correction is below newton_tol L and the constraint residual before it
 below newton_tol L (the correction shrinks it further); the state is then not evaluated once
 more: the power flows and joint angles of the step come from the last evaluation, within the
-Newton tolerance.  Constraints hold at position level exactly (no drift).
+Newton tolerance.  Constraints hold at position level to the Newton tolerance (no drift).
 
 Error control (rtol given): the local error of the step against the third-order Taylor
 expansion written with the true accelerations ud (not the alpha-lagged a),
@@ -35,6 +37,8 @@ from sidprep.solver.equations.assemble import constraint_power, evaluate, moving
 from sidprep.solver.equations.rotations import jit, matvec, put, put2
 from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, advance_pose, expand, lu_factor, lu_solve,
                                              restrict, store_sample)
+from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_velocities,
+                                            evaluate_se3, inertial_accelerations, inertial_velocities)
 
 #: maximum Newton iterations with one iteration matrix
 MAX_NEWTON = 6
@@ -64,7 +68,7 @@ def ga_state(L, udn, R, A, Q, u, ud, a, h, prm):  # pragma: no cover - compiled
     """(a_{n+1}, R, A, Q, u_{n+1}) of the update for ud_{n+1} (module doc)."""
     am, af, gamma, beta = prm[0], prm[1], prm[2], prm[3]
     an = (af * ud + (1 - af) * udn - am * a) / (1 - am)
-    R2, A2, Q2 = advance_pose(L, R, A, Q, h * u + h * h * ((0.5 - beta) * a + beta * an))
+    R2, A2, Q2 = advance_pose(L, R, A, Q, h * u + h * h * ((0.5 - beta) * a + beta * an), True)
     return an, R2, A2, Q2, u + h * ((1 - gamma) * a + gamma * an)
 
 
@@ -75,7 +79,7 @@ def ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept):  
     updated state."""
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     _, R2, A2, Q2, un = ga_state(L, udn, R, A, Q, u, ud, a, h, prm)
-    M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R2, A2, Q2, un, t, expand(lamn, kept, m_all), refs)
+    M, f, g, B, BF, bt, C, coords, loads, flows = evaluate_se3(L, R2, A2, Q2, un, t, expand(lamn, kept, m_all), refs)
     nf, m = free.shape[0], kept.shape[0]
     r = np.empty(nf + m)
     full = matvec(M, udn)
@@ -126,7 +130,11 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
     rejected, newton iterations, jacobians, h_min, h_max, status, max_steps, body, deflection]
     (the last two: the body that left its small-deformation range, ``limits`` (nb,) m, and its
     deflection, m).  Returns the new state, step size, next output time and the samples.
+    u, ud in and out and the samples are inertial (v_O); the steps are taken in the SE(3)
+    coordinates of se3.py, in which ``a`` is kept.
     """
+    u = body_velocities(L, A, u)
+    ud = body_accelerations(L, A, u, ud)
     nf, m, n = free.shape[0], kept.shape[0], u.shape[0]
     nj = refs.shape[0]
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
@@ -254,7 +262,9 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         stats[5] = max(stats[5], h)
         # the drives' power through their rows with the converged multipliers (the last evaluation
         # predates them), and that of the moving masses with the converged ud
-        flows[3] += constraint_power(L, B, bt, u, expand(lamn, kept, m_all)) + moving_masses(L, R, A, Q, u, ud, t)[0]
+        u_O, ud_O = inertial_velocities(L, A, u), inertial_accelerations(L, A, u, ud)
+        flows[3] += (constraint_power(L, B, bt, u, expand(lamn, kept, m_all))
+                     + moving_masses(L, R, A, Q, u_O, ud_O, t)[0])
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
@@ -263,7 +273,7 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
             refs[j] = coords[j, 0]
         final = t >= t_end - end_tol
         if final or out_dt <= 0.0 or t >= next_out - 1e-12 * max(1.0, abs(t)):
-            store_sample(ns, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work)
+            store_sample(ns, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u_O, ud_O, lam, refs, work)
             ns += 1
             while out_dt > 0.0 and next_out <= t + 1e-12 * max(1.0, abs(t)):
                 next_out += out_dt
@@ -275,6 +285,8 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
             break
     if t >= t_end - end_tol and stats[6] == RUNNING:
         stats[6] = FINISHED
+    ud = inertial_accelerations(L, A, u, ud)
+    u = inertial_velocities(L, A, u)
     return (R, A, Q, u, ud, a, lam, t, h, next_out, ts[:ns], Rs[:ns], As[:ns], Qs[:ns], us[:ns], uds[:ns], lams[:ns],
             refss[:ns], works[:ns])
 
@@ -288,7 +300,9 @@ class GeneralizedAlpha(Stepper):
         super().__init__(problem, state, settings)
         am, af, gamma, beta = genalpha_parameters(settings.rho_inf)
         self.prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
-        self.a = state.ud.copy()
+        u_k = body_velocities(problem.L, state.A, state.u)
+        self.a = body_accelerations(problem.L, state.A, u_k, state.ud)  # in the coordinates of se3.py
+        self.free = body_frame_free(problem.free, problem.L.uoff)
         self.h = settings.h
         self.next_out = settings.output_dt or 0.0
         self.work = np.zeros(3)
@@ -303,7 +317,7 @@ class GeneralizedAlpha(Stepper):
 
     def advance(self, t_stop: float) -> Samples:
         p, s, st = self.problem, self.state, self.settings
-        out = ga_loop(p.L, s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam, s.t, t_stop, self.h, st.h, self.prm, p.free, p.kept,
+        out = ga_loop(p.L, s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam, s.t, t_stop, self.h, st.h, self.prm, self.free, p.kept,
                       p.weights, p.length, st.deformation_limit * p.sizes, st.newton_tol, st.tolerance or 0.0, st.atol,
                       st.output_dt or 0.0,
                       self.next_out, p.refs, self.work, self.flows, self.raw, CHUNK)

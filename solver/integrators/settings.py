@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from sidprep.errors import InputError
+from sidprep.solver.energy import ENERGY_TOL
 
 #: integration methods: implicit index-3 Lie-group generalised-alpha, and explicit Runge-Kutta
 #: on the index-1 form (fixed-step classic RK4; RK45 / DOP853 with error control)
@@ -33,6 +34,8 @@ class SolverSettings:
         fraction of its size (the floating frame's small-deformation range; docs/solver.md)
     max_steps : the run stops with an error after this many steps
     baumgarte : constraint stabilisation rate of the explicit methods, 1/s
+    energy_tol : energy balance error (relative to the energy exchanged, solver/energy.py) above
+        which the run warns
     effects : None (the System's choice), "auto", "all" or a list of effect names
     """
 
@@ -47,6 +50,7 @@ class SolverSettings:
     deformation_limit: float = 0.2
     max_steps: int = 10_000_000
     baumgarte: float = 20.0
+    energy_tol: float = ENERGY_TOL
     effects: object = None
 
     def __post_init__(self):
@@ -61,8 +65,9 @@ class SolverSettings:
             if value is not None and not value > 0:
                 raise InputError(f"{name} must be > 0 (or not given), got {value}")
         if not (self.atol > 0 and self.newton_tol > 0 and self.deformation_limit > 0 and self.baumgarte >= 0
-                and self.max_steps > 0):
-            raise InputError("atol, newton_tol, deformation_limit and max_steps must be > 0 and baumgarte >= 0")
+                and self.max_steps > 0 and self.energy_tol > 0):
+            raise InputError("atol, newton_tol, deformation_limit, energy_tol and max_steps must be > 0 and "
+                             "baumgarte >= 0")
 
     @property
     def tolerance(self) -> float | None:

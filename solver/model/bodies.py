@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sidprep.checks import physical_problems
+from sidprep.errors import InputError
 from sidprep.sid import ge_tensor, gr_tensor, inertia_matrix
 from sidprep.solver.effects import MASS_MATRIX_EFFECTS
 from sidprep.solver.equations.rotations import as_rotation
@@ -170,15 +172,24 @@ class FlexibleBody(_MassBody):
     effects : None (use the system's choice), "auto", "all" or a list of effect names
     mode_pairs : optional (3, 3, nq, nq) mode-pair integrals P_ab for I2 / Gr1; derived from
         ``sid.stiffening['Kom'|'Kr']`` or from a pure-Kom Oe.M1 when not given
+    source : what to call the SID in messages (default: its path, or "SID of body '<name>'")
+
+    Raises InputError (one line naming the SID and the entry) when the SID is physically
+    impossible (sidprep.checks.physical_problems), before any step.
     """
 
     def __init__(self, sid, *, name="flex", position=None, rotation=None, velocity=None, omega=None,
-                 q0=None, qd0=None, effects=None, mode_pairs=None):
+                 q0=None, qd0=None, effects=None, mode_pairs=None, source=None):
         super().__init__(name, position, rotation, velocity, omega)
         if isinstance(sid, (str, Path)):
             from sidprep.io import read_sid
 
+            source = source or str(sid)
             sid = read_sid(sid)
+        problems = physical_problems(sid)
+        if problems:
+            raise InputError(f"{source or f'SID of body {name!r}'}: {problems[0]}: a physically impossible body; "
+                             "regenerate the SID (sidprep reduce) or correct that entry (sidprep check lists all)")
         self.sid = sid
         self.nq = sid.nq
         self.q0 = np.zeros(self.nq) if q0 is None else np.asarray(q0, float).copy()
