@@ -107,6 +107,11 @@ def test_engine_placed_roughly_assembles(engine_dir):
 
 #: planar against 3D coordinates of the same scene: every joint signal, relative to its peak
 PLANAR_RTOL = 1e-6
+#: ... the joint forces: the multipliers of index-3 generalised-alpha carry the constraint
+#: residual (within newton_tol L) divided by h^2 beta'; on SE(3) the rows are nonlinear in the
+#: step and the two runs converge to different residuals (measured 3.4e-5; 1e-6 on R^3 x SO(3),
+#: where the rows at a frame origin were linear)
+PLANAR_FORCE_RTOL = 1e-4
 
 
 def test_engine_planar_runs_give_the_3d_answer(engine_dir):
@@ -129,7 +134,8 @@ def test_engine_planar_runs_give_the_3d_answer(engine_dir):
             ref, got = getattr(joint, field), getattr(runs[None].joints[name], field)
             if np.all(np.isnan(ref)):
                 continue
-            assert np.max(np.abs(got - ref)) <= PLANAR_RTOL * max(np.max(np.abs(ref)), 1e-9), (name, field)
+            tol = PLANAR_FORCE_RTOL if field == "force" else PLANAR_RTOL
+            assert np.max(np.abs(got - ref)) <= tol * max(np.max(np.abs(ref)), 1e-9), (name, field)
     flexible = load_scene(engine_dir / "scene.toml")
     r = flexible.system.simulate(**{**flexible.simulate_kwargs, "t_end": 0.01})
     assert not r.stats["planar"] and any("run in 3D" in n and "rod" in n for n in r.effects.notes)
