@@ -324,7 +324,7 @@ def run_estimates(body, chosen: set, samples: dict) -> dict[str, tuple[float, st
     samples: q, qd, omega, rotation, acceleration (nt, ...) of the body and gravity (3,).
     """
     from sidprep.solver.equations.body import body_equations
-    from sidprep.solver.equations.layout import pack_terms
+    from sidprep.solver.compile.layout import pack_terms
 
     avail = body.available()
     left_out = [e for e in BODY_EFFECTS if avail[e] and e not in chosen]

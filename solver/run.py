@@ -19,7 +19,7 @@ import numpy as np
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
 from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
+from sidprep.solver.compile.layout import FE_SPRING, build_layout, constraint_count
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha

@@ -21,7 +21,7 @@ AXIS_Y = np.column_stack([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
 def angular_momentum(result, body, effects):
     """Angular momentum about the inertial origin from the body's generalised momentum."""
-    from sidprep.solver.equations.layout import body_matrices
+    from sidprep.solver.compile.layout import body_matrices
 
     terms = body.terms(effects, gravity=False)
     h = result.bodies[body.name]

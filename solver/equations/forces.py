@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.curves import curve_value
-from sidprep.solver.equations.layout import FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_SPRING, FE_TORQUE
+from sidprep.solver.compile.layout import FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_SPRING, FE_TORQUE
 from sidprep.solver.equations.rotations import add, dot, jit, matvec, put
 
 
