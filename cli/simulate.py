@@ -101,8 +101,7 @@ def run(args) -> int:
     def beside(suffix: str) -> Path:
         return out.with_name(base + suffix)
 
-    kw = scene.simulate_kwargs
-    with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
+    with phases("simulate", f"0 .. {scene.t_end:g} s, {scene.settings.method}, step {scene.settings.h:g} s"):
         try:
             result = simulate(scene)
         except SimulationFailed as exc:  # keep what was computed: the motion up to the failure

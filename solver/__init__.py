@@ -10,7 +10,7 @@ Never imports sidprep's FE side (mesh, assemble, linalg, reduce, ...): its only 
 there are SID files, read through ``sidprep.sid`` and ``sidprep.io`` (numpy/h5py only).
 The public names below are imported on first use::
 
-    from sidprep.solver import System, FlexibleBody, Revolute, SolverSettings
+    from sidprep.solver import System, FlexibleBody, Revolute, SolverSettings, simulate
 """
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ _PUBLIC = {
                                     "JOINT_TYPES", "Driver", "ConstantSpeed", "SmoothStart", "TabulatedMotion"),
     "sidprep.solver.model.forces": ("PointForce", "PointTorque", "SpringDamper", "BumpStop", "bump_stop",
                                     "JointForce", "JointFriction", "MovingMass", "Table"),
-    "sidprep.solver.effects": ("EFFECTS",),
+    "sidprep.solver.model.effects": ("EFFECTS",),
     "sidprep.solver.integrators.settings": ("SolverSettings", "METHODS"),
     "sidprep.solver.results": ("Result", "BodyHistory", "JointHistory"),
+    "sidprep.solver.run": ("simulate",),
 }
 _WHERE = {name: module for module, names in _PUBLIC.items() for name in names}
 __all__ = sorted(_WHERE)

@@ -21,8 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: default tolerance of the balance error, relative to the energy exchanged (SolverSettings.energy_tol)
-ENERGY_TOL = 1e-3
+from sidprep.solver.integrators.settings import ENERGY_TOL
 #: booked energy terms (postprocess.ENERGY_KINDS without the total)
 BOOKED = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
 

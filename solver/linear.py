@@ -21,6 +21,8 @@ import scipy.linalg
 
 from sidprep.solver.equations.assemble import evaluate
 from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.integrators.settings import SolverSettings
+from sidprep.solver.run import Run
 
 #: relative finite-difference step on the length-weighted coordinates (central differences)
 FD_STEP = 1e-6
@@ -68,11 +70,8 @@ def tangent_stiffness(L, R, A, Q, refs, weights, length) -> np.ndarray:
 def mechanism_modes(system, settings=None, **overrides) -> MechanismModes:
     """The eigenmodes of ``system`` linearised at its assembled start (module doc).
 
-    settings, overrides : as ``System.simulate`` (the effects choose the terms of K).
+    settings, overrides : as ``solver.run.simulate`` (the effects choose the terms of K).
     """
-    from sidprep.solver.integrators.settings import SolverSettings
-    from sidprep.solver.run import Run
-
     run = Run(system, 1.0, replace(settings or SolverSettings(), **overrides))
     state = run.consistent_start()
     L, free, kept = run.L, run.free, run.kept

@@ -39,6 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
+from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.io.atomic import atomic_path
 from sidprep.solver.effects import EffectEntry, EffectsReport
@@ -236,9 +237,8 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
 
     scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
     """
-    import h5py
+    import h5py  # deferred: 0.03 CPU-s of import, needed only to write or read a results file
 
-    from sidprep import __version__
 
     path = Path(path)
     bodies = bodies or {}
@@ -283,7 +283,7 @@ def _effects_from_dict(d: Mapping) -> EffectsReport:
 
 def read_results(path: str | os.PathLike) -> ResultsFile:
     """Read a results file written by ``write_results``."""
-    import h5py
+    import h5py  # deferred: 0.03 CPU-s of import, needed only to write or read a results file
 
     path = Path(path)
     if not path.is_file():
@@ -326,10 +326,10 @@ def write_csv(result: Result, names: list[str], path: str | os.PathLike) -> Path
 
 def plot_signals(result: Result, names: list[str], path: str | os.PathLike, title: str = "") -> Path:
     """One PNG with a panel per unit (signals sharing a unit share a panel), against time."""
-    import matplotlib
+    import matplotlib  # deferred: 0.45 CPU-s of import (with pyplot), needed only for plots
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: see above
 
     panels: dict[str, list[tuple[str, np.ndarray]]] = {}
     for n in names:

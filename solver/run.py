@@ -13,21 +13,27 @@ import copy
 import sys
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from sidprep.errors import InputError, SimulationFailed
-from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
+from sidprep.solver.effects import choose_effects
+from sidprep.solver.model.effects import EFFECTS, parse_effects
 from sidprep.solver.energy import balance_warning, energy_balance
-from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
+from sidprep.solver.equations.assemble import evaluate, markers
+from sidprep.solver.compile.layout import build_layout, constraint_count
+from sidprep.solver.equations.forces import FE_SPRING
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
                                                 independent_rows, length_weights, project_velocities, quasi_static_elastic)
 from sidprep.solver.integrators.planar import planar_coordinates
+from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.model.bodies import RigidBody
+from sidprep.solver.model.joints import ConstantSpeed, Driver
+from sidprep.solver.postprocess import postprocess
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
 #: the start reports bodies moved by more than this (m or rad) from their placed positions
@@ -130,8 +136,6 @@ class Run:
     def resolve_spring_lengths(self, R, A, Q) -> None:
         """Springs without a length take the marker distance at the assembled start (this
         run's layout; the System is not changed)."""
-        from sidprep.solver.equations.assemble import markers
-
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
             P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True)[0]
@@ -200,8 +204,6 @@ class Run:
         """(layout, all its rows, row names) of the system plus a temporary driver per joint with
         an ``initial`` coordinate (which = "initial": held at it) or ``initial_rate`` (moving at
         it from its current value); None when no joint asks for one."""
-        from sidprep.solver.model.joints import ConstantSpeed, Driver
-
         jindex = {id(j): i for i, j in enumerate(self.system.joints)}
         extra = [Driver(j, ConstantSpeed(j.initial_rate or 0.0 if which == "initial_rate" else 0.0,
                                          j.initial if which == "initial" else self.refs[jindex[id(j)]]),
@@ -248,8 +250,6 @@ class Run:
     # ------------------------------------------------------------------ run
     def execute(self):
         """Integrate and return the Result (solver/results.py)."""
-        from sidprep.solver.postprocess import postprocess
-
         cpu0 = time.process_time()
         with _CompileNotice():
             state = self.consistent_start()
@@ -283,3 +283,13 @@ class Run:
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         return result
+
+
+def simulate(system, t_end: float, settings: SolverSettings | None = None, **overrides):
+    """Integrate ``system`` (model.System) from t = 0 to t_end (s) and return the Result
+    (solver/results.py).
+
+    settings : a SolverSettings (its defaults when None); overrides : any of its fields by name,
+    e.g. ``simulate(system, 1.0, h=1e-3, method="rk4", rtol=1e-6)``.
+    """
+    return Run(system, t_end, replace(settings or SolverSettings(), **overrides)).execute()

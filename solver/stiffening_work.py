@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.assemble import energies, evaluate
-from sidprep.solver.equations.layout import build_layout
+from sidprep.solver.compile.layout import build_layout
 from sidprep.solver.integrators.base import advance_pose
 
 #: effects whose work is booked here (preload is a potential, booked in the strain energy)

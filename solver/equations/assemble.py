@@ -19,8 +19,7 @@ from sidprep.solver.equations.body import DE, F_DAMPING, body_equations, body_po
 from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_kinematics,
                                                   stiffened_jacobian)
 from sidprep.solver.equations.curves import motion_state, path_shapes
-from sidprep.solver.equations.forces import force_elements, motion_curve
-from sidprep.solver.equations.layout import FE_MOVING_MASS
+from sidprep.solver.equations.forces import FE_MOVING_MASS, force_elements, motion_curve
 from sidprep.solver.equations.rotations import add, align, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
 
 #: time step of the second central difference giving a path point's convective acceleration, s

@@ -12,8 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.curves import curve_value
-from sidprep.solver.equations.layout import FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_SPRING, FE_TORQUE
 from sidprep.solver.equations.rotations import add, dot, jit, matvec, put
+
+#: force element kinds, column 0 of the layout's fe_int table (compile/layout.py writes them)
+FE_FORCE, FE_TORQUE, FE_SPRING, FE_JOINT_FORCE, FE_FRICTION, FE_MOVING_MASS = range(6)
 
 
 @jit

@@ -196,15 +196,3 @@ def quaternion_rate(e: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
             e0 * w3 + e1 * w2 - e2 * w1,
         ]
     )
-
-
-def as_rotation(value) -> np.ndarray:
-    """A rotation matrix from None (identity), a (3, 3) matrix or a rotation vector (3,)."""
-    if value is None:
-        return np.eye(3)
-    a = np.asarray(value, dtype=float)
-    if a.shape == (3, 3):
-        return a
-    if a.shape == (3,):
-        return exp_so3(a)
-    raise ValueError(f"rotation must be a 3x3 matrix or a rotation vector, got shape {a.shape}")

@@ -27,7 +27,7 @@ GAMMA_STEP = 1e-6
 
 @dataclass
 class Problem:
-    """A run's compiled problem: the layout L (equations/layout.py), the integrated coordinates
+    """A run's compiled problem: the layout L (compile/layout.py), the integrated coordinates
     ``free`` (indices into u; all but the out-of-plane ones of a planar run), the kept
     constraint rows ``kept`` (indices; redundant rows dropped), per-coordinate length weights
     (m per unit), the system length (m), the joints' angle references ``refs`` (nj,), updated

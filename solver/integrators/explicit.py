@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from scipy.integrate import DOP853, RK45
 
 from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
@@ -177,8 +178,6 @@ class ScipyRungeKutta(_Explicit):
 
     def __init__(self, problem, state, settings):
         super().__init__(problem, state, settings)
-        from scipy.integrate import DOP853, RK45
-
         cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
         self.name = settings.method
         params = self.params

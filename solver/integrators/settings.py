@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from sidprep.errors import InputError
-from sidprep.solver.energy import ENERGY_TOL
 
 #: integration methods: implicit index-3 Lie-group generalised-alpha, and explicit Runge-Kutta
 #: on the index-1 form (fixed-step classic RK4; RK45 / DOP853 with error control)
@@ -14,6 +13,8 @@ METHODS = ("genalpha", "rk4", "rk45", "dop853")
 ADAPTIVE_ONLY = ("rk45", "dop853")
 #: rtol of RK45 / DOP853 when none is given
 ADAPTIVE_RTOL = 1e-8
+#: energy balance error above which a run warns, relative to the energy exchanged (solver/energy.py)
+ENERGY_TOL = 1e-3
 
 
 @dataclass(frozen=True)
