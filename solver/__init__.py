@@ -1,10 +1,12 @@
 """Floating-frame-of-reference (FFR) multibody solver that consumes SID files.
 
 The package reads as the flow of a simulation: ``model`` (bodies, markers, joints, drivers,
-force elements, System: descriptions and checks) -> ``equations`` (the one compiled
-implementation of the body equations, constraints, force elements and energies) ->
-``integrators`` (settings, generalised-alpha, Runge-Kutta, consistent start, planar scenes)
--> ``run`` (one simulation, owning its state) -> ``postprocess`` / ``results`` (Result, files).
+force elements, effect names, System: descriptions and checks) -> ``equations`` (the one compiled
+implementation of the body equations, constraints, force elements and energies) -> ``compile``
+(a System into the kernels' tables) -> ``integrators`` (settings, generalised-alpha, Runge-Kutta,
+consistent start, planar scenes) -> ``run`` (``simulate(system, t_end, settings)``: one
+simulation, owning its state) -> ``Result`` (results.py) ; scene files on top (scene.py,
+absolute_nodal/).  Each layer imports only those before it (tests/test_layering.py).
 
 Never imports sidprep's FE side (mesh, assemble, linalg, reduce, ...): its only inputs from
 there are SID files, read through ``sidprep.sid`` and ``sidprep.io`` (numpy/h5py only).

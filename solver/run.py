@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import copy
 import sys
-import threading
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
+from numba.core import event
 
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import choose_effects
@@ -38,8 +39,6 @@ from sidprep.solver.postprocess import postprocess
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
 #: the start reports bodies moved by more than this (m or rad) from their placed positions
 MOVED_TOL = 1e-9
-#: seconds of silent compilation after which the run says what it is doing
-COMPILE_NOTICE_S = 2.0
 
 
 def choose_terms(system, spec):
@@ -83,22 +82,35 @@ def numerical_cause(balance: dict, settings) -> str:
             f"{fix}")
 
 
-class _CompileNotice:
-    """Prints once to stderr when the first evaluation is still compiling after a few seconds
-    (numba compiles the kernels on the first run after install and caches them)."""
+class CompileNotice(event.Listener):
+    """Says on stderr, while numba compiles, which solver kernel it compiles and how many it has
+    compiled (numba compiles a kernel on its first use after install, then reads it from the
+    kernel cache; nothing is printed then)."""
 
     def __init__(self):
-        self.timer = threading.Timer(COMPILE_NOTICE_S, lambda: print(
-            "sidprep: compiling the solver kernels (first run after install; cached afterwards) ...",
-            file=sys.stderr, flush=True))
-        self.timer.daemon = True
+        self.depth = 0
+        self.count = 0
+        self.started = 0.0
 
-    def __enter__(self):
-        self.timer.start()
-        return self
+    def on_start(self, ev):
+        self.count += 1
+        if self.depth == 0:
+            self.started = time.process_time()
+            print(f"sidprep: compiling solver kernel {ev.data['dispatcher'].py_func.__name__} "
+                  f"(kernel {self.count} of this process; cached afterwards) ...", file=sys.stderr, flush=True)
+        self.depth += 1
 
-    def __exit__(self, *exc):
-        self.timer.cancel()
+    def on_end(self, ev):
+        self.depth -= 1
+        if self.depth == 0:
+            print(f"sidprep: ... {self.count} kernels compiled so far ({time.process_time() - self.started:.1f} CPU-s "
+                  "for this one)", file=sys.stderr, flush=True)
+
+    @contextmanager
+    def watching(self):
+        """Report the compilations of the block."""
+        with event.install_listener("numba:compile", self):
+            yield self
 
 
 class Run:
@@ -138,7 +150,7 @@ class Run:
         run's layout; the System is not changed)."""
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True)[0]
+            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True).P
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 
@@ -147,16 +159,17 @@ class Run:
         L, w, st = self.L, self.weights, self.settings
         R, A, Q, u = self.initial_positions()
         R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names, self.length)
-        self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+        self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
         R, A, Q, u = self.start_from_joints(R, A, Q, u)
         self.note_moved_bodies(R, A)
         self.resolve_spring_lengths(R, A, Q)
-        g, B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[2:4]
+        e = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)
+        g, B = e.g, e.B
         self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
         self.note_inconsistent_rows(g)
         if st.static_start:
             v = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
-            R, A, Q = quasi_static_elastic(L, R, A, Q, v, 0.0, self.refs, self.free, self.kept, w, self.length,
+            R, A, Q = quasi_static_elastic(L, (R, A, Q), v, 0.0, self.refs, self.free, self.kept, w, self.length,
                                            self.names)
         u = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
         state = State(0.0, R, A, Q, u, np.zeros_like(u), np.zeros(self.kept.size))
@@ -166,7 +179,7 @@ class Run:
             if note:
                 self.notes.append(note)
             if free is not None:
-                B = evaluate(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs)[3]
+                B = evaluate(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs).B
                 self.free = free
                 self.kept = rows[independent_rows(B[rows][:, free])]
             elif self.system.planar:
@@ -223,11 +236,11 @@ class Run:
         if layout is not None:
             R, A, Q = assemble_positions(layout[0], R, A, Q, 0.0, self.refs, layout[1], self.weights, layout[2],
                                          self.length)
-            self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+            self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
         layout = self.start_layout("initial_rate")
         if layout is not None:
             L0, rows, _ = layout
-            B = evaluate(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs)[3]
+            B = evaluate(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs).B
             u = project_velocities(L0, R, A, Q, u, 0.0, self.refs, rows[independent_rows(B)], self.weights)
         return R, A, Q, u
 
@@ -251,21 +264,23 @@ class Run:
     def execute(self):
         """Integrate and return the Result (solver/results.py)."""
         cpu0 = time.process_time()
-        with _CompileNotice():
+        notice = CompileNotice()
+        with notice.watching():
             state = self.consistent_start()
-        problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
-                          body_sizes(self.system, self.terms))
-        first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None], state.ud[None],
-                        state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
-        stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
+            problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
+                              body_sizes(self.system, self.terms))
+            first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
+                            state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
+            stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
         cpu_setup = time.process_time() - cpu0
         chunks = [first]
-        with _CompileNotice():
+        with notice.watching():
             while stepper.status == "running":
                 chunks.append(stepper.advance(self.t_end))
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
-        result = postprocess(self, samples)
+        with notice.watching():
+            result = postprocess(self, samples)
         dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
                    np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
         result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,

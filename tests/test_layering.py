@@ -151,3 +151,18 @@ def test_solver_does_not_import_fe_side():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+#: the most parameters a function of solver/ may take (named structures carry the rest)
+MAX_PARAMETERS = 12
+
+
+def test_no_solver_function_takes_more_than_twelve_parameters():
+    wide = []
+    for path in (ROOT / "solver").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                count = len(node.args.posonlyargs) + len(node.args.args) + len(node.args.kwonlyargs)
+                if count > MAX_PARAMETERS:
+                    wide.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name} ({count})")
+    assert wide == []

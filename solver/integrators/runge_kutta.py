@@ -33,6 +33,13 @@ def rk4_combine(y, h, k1, k2, k3, k4):  # pragma: no cover - compiled
     return y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
+@jit
+def hermite(theta):  # pragma: no cover - compiled
+    """The cubic Hermite basis (h00, h10, h01, h11) at theta in [0, 1]."""
+    t2, t3 = theta * theta, theta * theta * theta
+    return 2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + theta, 3.0 * t2 - 2.0 * t3, t3 - t2
+
+
 # not cached: a jitted ``rhs`` argument is a new type in every process, so a disk cache would
 # only grow, never hit
 @numba.njit(cache=False)

@@ -31,8 +31,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.rotations import cross, jit, matvec, put, tmatvec
+from sidprep.solver.equations.assemble import Evaluation, evaluate
+from sidprep.solver.equations.rotations import (SMALL_ANGLE, cross, jit, matmul, matvec, put, se3_jacobian,
+                                                tmatvec)
 
 @jit
 def rotate_translations(L, A, u, inverse):  # pragma: no cover - compiled
@@ -102,10 +103,11 @@ def left_multiply(X, L, A):  # pragma: no cover - compiled
 
 @jit
 def evaluate_se3(L, R, A, Q, u_K, t, lam, refs):  # pragma: no cover - compiled
-    """``evaluate`` (assemble.py) at velocities u_K, with M, f, B, B_F in the coordinates of
-    this module (module doc); the other outputs as evaluate gives them."""
-    M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, inertial_velocities(L, A, u_K), t, lam, refs)
-    rhs = (f - matvec(M, convective(L, A, u_K))).reshape((-1, 1))
+    """``evaluate`` (assemble.py) at velocities u_K: its Evaluation with M, f, B, B_F in the
+    coordinates of this module (module doc), the rest as evaluate gives it."""
+    e = evaluate(L, R, A, Q, inertial_velocities(L, A, u_K), t, lam, refs)
+    M, B, BF = e.M, e.B, e.BF
+    rhs = (e.f - matvec(M, convective(L, A, u_K))).reshape((-1, 1))
     left_multiply(rhs, L, A)
     right_multiply(M, L, A)
     left_multiply(M, L, A)
@@ -115,7 +117,28 @@ def evaluate_se3(L, R, A, Q, u_K, t, lam, refs):  # pragma: no cover - compiled
         stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
     if stiffened:
         right_multiply(BF, L, A)
-    return M, rhs[:, 0].copy(), g, B, BF, bt, C, coords, loads, flows
+    return Evaluation(M, rhs[:, 0].copy(), e.g, B, BF, e.bt, e.C, e.coords, e.loads, e.flows)
+
+
+@jit
+def body_increment(L, R0, A0, R1, A1, Q0, Q1):  # pragma: no cover - compiled
+    """The increment dx (n,) = [rho, theta, dq] per body with R1, A1, Q1 = the pose R0, A0, Q0
+    moved by dx (base.advance_pose with body_frame): theta = log(A0^T A1),
+    rho = V(theta)^-1 A0^T (R1 - R0)."""
+    n = L.uoff[-1]
+    dx = np.empty(n)
+    for i in range(R0.shape[0]):
+        s = L.uoff[i]
+        rot = matmul(A0[i].T, A1[i])
+        angle = np.arccos(min(1.0, max(-1.0, 0.5 * (rot[0, 0] + rot[1, 1] + rot[2, 2] - 1.0))))
+        scale = 0.5 if angle < SMALL_ANGLE else 0.5 * angle / np.sin(angle)
+        theta = np.array([scale * (rot[2, 1] - rot[1, 2]), scale * (rot[0, 2] - rot[2, 0]),
+                          scale * (rot[1, 0] - rot[0, 1])])
+        put(dx, s + 3, theta)
+        put(dx, s, np.linalg.solve(se3_jacobian(theta), tmatvec(A0[i], R1[i] - R0[i])))
+        for k in range(L.qoff[i + 1] - L.qoff[i]):
+            dx[s + 6 + k] = Q1[L.qoff[i] + k] - Q0[L.qoff[i] + k]
+    return dx
 
 
 def body_frame_free(free: np.ndarray, uoff: np.ndarray) -> np.ndarray:
