@@ -32,8 +32,9 @@ CASES = ((4, 2.5e-4), (8, 1.25e-4), (16, 5e-5))
 def main(argv=None):
     from dataclasses import replace
 
-    from sidprep.solver.absolute_nodal import AbsoluteNodalSettings, assemble, integrate, load_absolute_nodal_scene
-    from sidprep.solver.scene import read_toml
+    from sidprep.solver.absolute_nodal import assemble, integrate, load_absolute_nodal_scene
+    from sidprep.solver.integrators.settings import SolverSettings
+    from sidprep.tables import read_toml
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--repeat", type=int, default=7)
@@ -46,11 +47,11 @@ def main(argv=None):
     for ne, h in CASES:
         m = replace(model, beams=tuple(replace(b, elements=ne) for b in model.beams))
         asm = assemble(m)
-        settings = AbsoluteNodalSettings(t_end=T_END, step=h, rate=100.0)
-        integrate(asm, replace(settings, t_end=10 * h))               # warm-up (compile)
+        settings = SolverSettings(method="rk4", h=h, output_dt=1 / 100.0)
+        integrate(asm, 10 * h, settings)                               # warm-up (compile)
         cpu = []
         for _ in range(args.repeat):
-            _, _, c = integrate(asm, settings)
+            _, _, c = integrate(asm, T_END, settings)
             cpu.append(c)
         med = float(np.median(cpu))
         print(f"| {ne} | {2 * len(asm.free)} | {h:g} | {round(T_END / h)} | {med:.4f} | {med / T_END:.4f} | "

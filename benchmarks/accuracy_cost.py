@@ -254,7 +254,7 @@ def pendulum_run(sid, h, *, rtol=None, newton_tol=1e-8, effects="auto", rho_inf=
     simulated s, stats)."""
     from solver_speed import OUTPUT_DT, T_END, pendulum
 
-    res = pendulum(sid, planar=False).simulate(T_END, h=h, rtol=rtol, newton_tol=newton_tol, output_dt=OUTPUT_DT,
+    res = simulate(pendulum(sid, planar=False), T_END, h=h, rtol=rtol, newton_tol=newton_tol, output_dt=OUTPUT_DT,
                                                static_start=True, effects=effects, rho_inf=rho_inf)
     deflection = res.bodies["bar"].q @ sid.nodes[1].phi.M0.T
     return res.t, res.joints["hinge"].coordinate, deflection, res.stats["cpu_integration"] / T_END, res.stats

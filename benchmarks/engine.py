@@ -42,7 +42,7 @@ def prepared_folder(tmp: Path) -> Path:
 
 def main() -> None:
     from sidprep.solver.linear import mechanism_modes
-    from sidprep.solver.scene import load_scene
+    from sidprep.solver.scene import load_scene, simulate as run_scene
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeat", type=int, default=3)
@@ -57,16 +57,14 @@ def main() -> None:
               "q3 error | target |")
         print("|---|---|---|---|---|---|---|")
         for label, scene in (("flexible", flexible), ("rigid", rigid)):
-            kw = dict(scene.simulate_kwargs)
-
             def run(h):
-                return scene.system.simulate(**{**kw, "h": h})
+                return run_scene(scene, h=h)
 
             ref = run(REFERENCE_STEP)
             for h in STEPS:
                 run(h)
                 results = [run(h) for _ in range(args.repeat)]
-                cpu = float(np.median([r.stats["cpu_integration"] for r in results])) / kw["t_end"]
+                cpu = float(np.median([r.stats["cpu_integration"] for r in results])) / scene.t_end
                 r = results[-1]
                 w, w_ref = r.joints["crank_joint"].rate, np.interp(r.t, ref.t, ref.joints["crank_joint"].rate)
                 err_w = np.max(np.abs(w - w_ref)) / np.max(np.abs(w_ref))

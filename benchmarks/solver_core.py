@@ -55,12 +55,11 @@ def median_cpu(make_and_run, repeat: int):
 
 
 def pendulum(repeat: int) -> None:
-    from sidprep.solver.scene import load_scene
+    from sidprep.solver.scene import load_scene, simulate as run_scene
 
     scene = load_scene(ROOT / "examples/flexible_pendulum/scene.toml")
-    kw = dict(scene.simulate_kwargs)
-    integ, total, r = median_cpu(lambda: scene.system.simulate(**kw), repeat)
-    t_end = kw["t_end"]
+    integ, total, r = median_cpu(lambda: run_scene(scene), repeat)
+    t_end = scene.t_end
     print("\n### Flexible pendulum (examples/flexible_pendulum, h = 1 ms)\n")
     print("| coordinates | steps | CPU s / simulated s (integration) | total CPU s | target |")
     print("|---|---|---|---|---|")
@@ -71,6 +70,7 @@ def pendulum(repeat: int) -> None:
 def engine_system():
     """Crank (flywheel 0.05 kg m^2, radius 0.05 m), rod 0.15 m, 0.5 kg piston, gas force."""
     from sidprep.solver import PointForce, Prismatic, Revolute, RigidBody, System, Table
+    from sidprep.solver.run import simulate
 
     crank_r, rod_l = 0.05, 0.15
     s = System(gravity=(0, -9.81, 0))
@@ -91,24 +91,23 @@ def engine_system():
 
 def engine(repeat: int) -> None:
     t_end = 1.0
-    ref = engine_system().simulate(t_end, h=1e-5, output_dt=0.01).joints["main"].rate
+    ref = simulate(engine_system(), t_end, h=1e-5, output_dt=0.01).joints["main"].rate
     print("\n### Rigid one-cylinder engine (gas force over crank angle, 1 s from 150 rad/s)\n")
     print("| h (s) | coordinates | CPU s / simulated s | crank speed error (rad/s, max) | target |")
     print("|---|---|---|---|---|")
     for h in (1e-4, 1e-3):
-        integ, _, r = median_cpu(lambda: engine_system().simulate(t_end, h=h, output_dt=0.01), repeat)
+        integ, _, r = median_cpu(lambda: simulate(engine_system(), t_end, h=h, output_dt=0.01), repeat)
         err = np.max(np.abs(r.joints["main"].rate - ref))
         print(f"| {h:g} | {r.stats['n_coordinates']} | {integ / t_end:.4f} | {err:.2e} | <= {ENGINE_TARGET} |")
 
 
 def slider_crank(repeat: int) -> None:
-    from sidprep.solver.scene import load_scene
+    from sidprep.solver.scene import load_scene, simulate as run_scene
 
     scene = load_scene(ROOT / "examples/beam_slider_crank/scene.toml")
-    base = dict(scene.simulate_kwargs)
 
     def run(**kw):
-        return scene.system.simulate(**{**base, **kw})
+        return run_scene(scene, **kw)
 
     def signals(r):
         return [r.joints["slider_joint"].coordinate, r.bodies["conrod"].q[:, 0], r.bodies["crank"].q[:, 0]]
@@ -130,11 +129,12 @@ COMPILE_SCRIPT = """
 import time
 t0 = time.time()
 import numpy as np
-from sidprep.solver import System, RigidBody, Revolute
+from sidprep.solver import System, RigidBody, Revolute, simulate
+from sidprep.solver.run import simulate
 s = System(gravity=(0, 0, -9.81))
 b = s.add(RigidBody(1.0, (0.5, 0, 0), [1e-3, 1e-3, 1e-3], name="rod"))
 s.add(Revolute(s.ground.marker(rotation=(np.pi / 2, 0, 0)), b.marker(rotation=(np.pi / 2, 0, 0))))
-s.simulate(0.1, h=1e-3)
+simulate(s, 0.1, h=1e-3)
 print(time.time() - t0)
 """
 

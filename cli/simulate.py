@@ -70,12 +70,14 @@ def summary(scene, result, outputs: dict) -> dict:
     from sidprep.solver.results import energy_summary
 
     stats = result.stats
+    balance = stats.get("energy_balance", {})
     return {
         "scene": str(scene.path),
         "t_end": float(result.t[-1]),
         "steps": int(stats.get("steps", 0)),
         "cpu_s": float(stats.get("cpu_time", float("nan"))),
-        "energy": energy_summary(result),
+        "energy": {**energy_summary(result), **{k: balance[k] for k in ("balance_error", "tolerance", "warning")
+                                                 if k in balance}},
         "effects": effects_summary(result.effects),
         "bodies": {name: {"position": b.position[-1].tolist(), "rotation": b.rotation[-1].tolist(),
                           "q": b.q[-1].tolist()} for name, b in result.bodies.items()},
@@ -134,8 +136,7 @@ def run(args) -> int:
     def beside(suffix: str) -> Path:
         return out.with_name(base + suffix)
 
-    kw = scene.simulate_kwargs
-    with phases("simulate", f"0 .. {kw['t_end']:g} s, {kw['method']}, step {kw['h']:g} s"):
+    with phases("simulate", f"0 .. {scene.t_end:g} s, {scene.settings.method}, step {scene.settings.h:g} s"):
         try:
             with SimulationProgress(scene.t_end, enabled=not args.quiet) as progress:
                 result = simulate(scene, **solver_overrides(args), progress=progress)
@@ -157,15 +158,21 @@ def run(args) -> int:
             outputs["animation"] = str(write_animation(result, animation_surfaces(scene), beside(".pvd")))
     report = result.effects.text()
     if args.json:
+        s = summary(scene, result, outputs)
         if not args.quiet:
             print(report, file=sys.stderr)
-        print(json.dumps(json_safe(summary(scene, result, outputs))))
+        if s["energy"].get("warning"):
+            print(f"WARNING: {s['energy']['warning']}", file=sys.stderr)
+        print(json.dumps(json_safe(s)))
     else:
         s = summary(scene, result, outputs)
         e = s["energy"]
         print(report)
         print(f"{scene.title}: {s['steps']} steps to t = {s['t_end']:g} s in {s['cpu_s']:.2f} s CPU; "
-              f"energy {e['initial']:.6g} -> {e['final']:.6g} J (max relative drift {e['max_rel_drift']:.2e})")
+              f"energy {e['initial']:.6g} -> {e['final']:.6g} J (balance error {e.get('balance_error', 0.0):.2e} "
+              "of the energy exchanged)")
+        if e.get("warning"):
+            print(f"WARNING: {e['warning']}")
         for kind, path in outputs.items():
             print(f"  {kind}: {path}")
     return 0

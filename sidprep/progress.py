@@ -65,7 +65,7 @@ class SimulationProgress:
         self.t0 = time.perf_counter()
         if self.enabled and self.stream.isatty():
             # rich costs ~0.2 s to import: only a run drawn on a terminal pays it
-            from rich.console import Console
+            from rich.console import Console  # deferred: 0.2 s import, terminals only
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
             self.bar = Progress(TextColumn("  simulate"), BarColumn(),

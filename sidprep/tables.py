@@ -1,46 +1,61 @@
 """One typed reader for the TOML tables of job, study and scene files.
 
-Each table is checked against a frozen dataclass: unknown keys, missing required keys and values
-of the wrong type give one-line InputErrors naming the file, the key and the expected type.
+A table is checked against a frozen dataclass (``read_table``: job and study files) or read key by
+key with typed getters (``TomlTable``: scene files, whose tables hold arrays, paths and named
+entries): unknown keys, missing required keys and values of the wrong type give one-line
+InputErrors naming the file, the table, the key and the fix.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
+import sys
 import types
 import typing
 from dataclasses import MISSING, fields
 from pathlib import Path
 
+import numpy as np
+
 from sidprep.errors import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+_REQUIRED = object()
 
 _NAMES = {float: "a number", int: "an integer", str: "a string", bool: "true or false",
           tuple: "a list", dict: "a table", type(None): "absent"}
 
 
-def read_toml(path, what: str = "file") -> dict:
-    """The TOML document at ``path``; "file not found" and syntax errors as one-line InputErrors."""
+def read_toml_text(path, what: str = "file") -> tuple[dict, str]:
+    """The TOML document at ``path`` and its text; "file not found" and syntax errors as
+    one-line InputErrors."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: {what} not found; check the path")
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text file; a {what} is TOML text") from None
-    return parse_toml(text, path)
+    return parse_toml(text, path), text
 
 
 def parse_toml(text: str, source) -> dict:
     """The TOML document ``text`` (e.g. a scene kept in a results file); syntax errors as one-line
     InputErrors naming ``source``."""
     try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        import tomli as tomllib
-    try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{source}: invalid TOML ({exc}); fix the syntax") from None
+        raise InputError(f"{source}: invalid TOML (TOML syntax error: {exc}); fix the syntax") from None
+
+
+def read_toml(path, what: str = "file") -> dict:
+    """The TOML document at ``path`` (read_toml_text without the text)."""
+    return read_toml_text(path, what)[0]
 
 
 def _matches(value, hint) -> bool:
@@ -127,3 +142,110 @@ def require_toml(path, what: str = "scene file", hint: str = "") -> Path:
     if not path.is_file():
         raise InputError(f"{path}: {what} not found; check the path")
     return path
+
+
+class TomlTable:
+    """One TOML table with typed getters; every error names the file, the table and the key."""
+
+    def __init__(self, file: Path, where: str, data):
+        self.file, self.where = file, where
+        if not isinstance(data, dict):
+            self.fail("", f"must be a table, got {type(data).__name__}", f"write it as [{where}] with key = value lines")
+        self.data = data
+        self.used: set[str] = set()
+
+    def fail(self, key: str, problem: str, fix: str):
+        at = f"[{self.where}] {key}: " if key else f"[{self.where}]: "
+        raise InputError(f"{self.file}: {at}{problem}; {fix}")
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def raw(self, key: str, default=_REQUIRED, fix: str = ""):
+        self.used.add(key)
+        if key in self.data:
+            return self.data[key]
+        if default is _REQUIRED:
+            self.fail(key, "missing", fix or f"add `{key} = ...` to [{self.where}]")
+        return default
+
+    def number(self, key: str, default=_REQUIRED, *, positive=False, nonnegative=False) -> float:
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            self.fail(key, f"must be a number, got {v!r}", f"write e.g. `{key} = 1.0`")
+        if positive and v <= 0:
+            self.fail(key, f"must be > 0, got {v!r}", "give a positive value (SI units)")
+        if nonnegative and v < 0:
+            self.fail(key, f"must be >= 0, got {v!r}", "give a non-negative value (SI units)")
+        return float(v)
+
+    def integer(self, key: str, default=_REQUIRED) -> int:
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(key, f"must be an integer, got {v!r}", f"write e.g. `{key} = 1`")
+        return v
+
+    def string(self, key: str, default=_REQUIRED, choices=None) -> str:
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        if not isinstance(v, str):
+            self.fail(key, f"must be a string, got {v!r}", f'write e.g. `{key} = "..."`')
+        if choices is not None and v not in choices:
+            self.fail(key, f"unknown value {v!r}", f"use one of: {', '.join(choices)}")
+        return v
+
+    def boolean(self, key: str, default=False) -> bool:
+        v = self.raw(key, default)
+        if not isinstance(v, bool):
+            self.fail(key, f"must be true or false, got {v!r}", f"write `{key} = true` or `{key} = false`")
+        return v
+
+    def array(self, key: str, default=_REQUIRED, shape=None) -> np.ndarray:
+        """A numeric array; ``shape`` (tuple, -1 = any length) is checked."""
+        v = self.raw(key, default)
+        if v is None:
+            return None
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.dtype == object or not np.all(np.isfinite(a)) or any(isinstance(x, bool) for x in np.ravel(v)):
+            self.fail(key, f"must be numbers, got {v!r}", f"write e.g. `{key} = [0.0, 0.0, 1.0]`")
+        if shape is not None and (a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape))):
+            want = " x ".join("n" if s == -1 else str(s) for s in shape)
+            self.fail(key, f"must have shape {want}, got {a.shape}", f"give {want} numbers")
+        return a
+
+    def vector(self, key: str, default=_REQUIRED) -> np.ndarray:
+        return self.array(key, default, shape=(3,))
+
+    def strings(self, key: str, default=_REQUIRED) -> tuple[str, ...]:
+        v = self.raw(key, default)
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            self.fail(key, f"must be a list of strings, got {v!r}", f'write e.g. `{key} = ["a", "b"]`')
+        return tuple(v)
+
+    def path(self, key: str, default=_REQUIRED) -> Path | None:
+        v = self.string(key, default)
+        return None if v is None else (self.file.parent / v)
+
+    def finish(self) -> None:
+        """Reject keys nobody asked for (typos), suggesting the closest known key."""
+        for key in self.data:
+            if key not in self.used:
+                close = difflib.get_close_matches(key, sorted(self.used), n=1)
+                hint = f"did you mean `{close[0]}`?" if close else f"known keys here: {', '.join(sorted(self.used))}"
+                self.fail(key, "unknown key", hint)
+
+
+def subtables(file: Path, root: dict, name: str):
+    """(name, TomlTable) for every [<name>.<entry>] table."""
+    group = root.get(name, {})
+    if not isinstance(group, dict):
+        raise InputError(f"{file}: `{name}` must be a table of named entries; write [{name}.<entry name>] tables")
+    return [(entry, TomlTable(file, f"{name}.{entry}", data)) for entry, data in group.items()]

@@ -30,7 +30,7 @@ MAX_VTU_FILES = 100
 
 def frame_mesh(result, surfaces: dict[str, Surface], i: int):
     """meshio.Mesh of all bodies at output index ``i``."""
-    import meshio
+    import meshio  # deferred: 0.07 CPU-s of import, needed only to write meshes
 
     points, disp, cells, body_ids, vm = [], [], [], [], []
     offset = 0
@@ -56,7 +56,7 @@ def write_animation(result, surfaces: dict[str, Surface], pvd_path: str | os.Pat
                     max_files: int = MAX_VTU_FILES) -> Path:
     """Write ``<stem>.pvd`` and ``<stem>_vtu/<stem>_NNNNN.vtu`` (every k-th output time, at most
     ``max_files`` files, the last time always included); returns the .pvd path."""
-    import meshio
+    import meshio  # deferred: 0.07 CPU-s of import, needed only to write meshes
 
     pvd_path = Path(pvd_path)
     if not surfaces:

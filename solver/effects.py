@@ -6,25 +6,7 @@ A scene names the effects it wants, or ``"auto"``.  Each effect switches a group
 estimate of its relative size measured along the simulated motion, with a WARNING above
 :data:`WARN_LEVEL`.
 
-Effects (names used in scenes and in the API):
-
-=========================  =====================================================================
-name                        SID terms
-=========================  =====================================================================
-gravity                     uniform gravity on every body: M(q)[:, :3] g_K  (incl. Ct g_K)
-coupling                    rigid-elastic inertia coupling Ct0, Cr0 in the mass matrix
-coriolis                    Gr0 (rotation row), Ge (elastic row), 2 w~ Ct^T qd (translation row)
-centrifugal                 Oe0 w_hat, the centrifugal load on the modes
-inertia_change              first-order mass-matrix change: mdCM.M1, J.M1 (I1), Kr part of Cr.M1
-second_order_inertia        I2 and Gr1 (needs the mode-pair integrals P_ab, sec. 4.5; exact model)
-centrifugal_stiffening      Oe.M1 = Kom + K0omega, switched as ONE term (never one part alone)
-acceleration_stiffening     Ct.M1 (K0t) and the symmetric K0r part of Cr.M1
-load_stiffening             phi.M1 / psi.M1 (K0F, K0M) at nodes carrying loads or joints
-preload                     ksigma (M0 force and M1 stiffness)
-damping                     De qd (modal damping)
-=========================  =====================================================================
-
-The elastic stiffness Ke q and the rigid-body terms (w~ I w, w~ w~ md) are always assembled.
+The effect names and their SID terms: solver/model/effects.py.
 """
 
 from __future__ import annotations
@@ -32,57 +14,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 
-EFFECTS = (
-    "gravity",
-    "coupling",
-    "coriolis",
-    "centrifugal",
-    "inertia_change",
-    "second_order_inertia",
-    "centrifugal_stiffening",
-    "acceleration_stiffening",
-    "load_stiffening",
-    "preload",
-    "damping",
-)
-
-#: effects that make the mass matrix depend on q (then it is re-assembled every evaluation)
-MASS_MATRIX_EFFECTS = frozenset({"inertia_change", "second_order_inertia", "acceleration_stiffening"})
+from sidprep.solver.compile.layout import pack_terms
+from sidprep.solver.equations.body import body_equations
+from sidprep.solver.model.bodies import Ground
+from sidprep.solver.model.effects import DESCRIPTIONS, EFFECTS
 
 #: a left-out effect whose estimated relative size exceeds this gets a WARNING in the report
 WARN_LEVEL = 0.01
-
-DESCRIPTIONS = {
-    "gravity": "uniform gravity (m g, md~ g, Ct g)",
-    "coupling": "rigid-elastic inertia coupling Ct0, Cr0",
-    "coriolis": "Coriolis terms Gr0, Ge, 2 w~ Ct^T qd",
-    "centrifugal": "centrifugal modal load Oe0 w_hat",
-    "inertia_change": "first-order inertia change mdCM.M1, J.M1, Kr",
-    "second_order_inertia": "second-order inertia I2, Gr1",
-    "centrifugal_stiffening": "centrifugal stiffening Oe.M1 (Kom + K0omega together)",
-    "acceleration_stiffening": "stiffening by accelerations Ct.M1 (K0t), K0r",
-    "load_stiffening": "stiffening by node loads phi.M1, psi.M1 (K0F, K0M)",
-    "preload": "preload ksigma",
-    "damping": "modal damping De",
-}
-
-
-def parse_effects(spec) -> set[str] | str:
-    """Normalise an effects specification: ``"auto"``, ``"all"``, or an iterable of names.
-
-    Raises ValueError naming the unknown effect and the valid names.
-    """
-    if spec is None or (isinstance(spec, str) and spec == "auto"):
-        return "auto"
-    if isinstance(spec, str) and spec == "all":
-        return set(EFFECTS)
-    names = [spec] if isinstance(spec, str) else list(spec)
-    unknown = [n for n in names if n not in EFFECTS]
-    if unknown:
-        raise ValueError(f"unknown effect(s) {unknown}; valid names: {', '.join(EFFECTS)} or 'auto'")
-    return set(names)
-
 
 @dataclass(frozen=True)
 class EffectEntry:
@@ -164,8 +104,6 @@ class EffectsReport:
 # ---------------------------------------------------------------------------- choosing effects
 def _scene_facts(system, body) -> dict:
     """Properties of the scene that decide ``auto`` for one body."""
-    from sidprep.solver.model.bodies import Ground
-
     attached = [j for j in system.joints if body in (j.marker1.body, j.marker2.body)]
     fixed_to_ground = any(j.kind == "fixed" and isinstance(
         (j.marker2 if j.marker1.body is body else j.marker1).body, Ground) for j in attached)
@@ -227,8 +165,6 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
 # ---------------------------------------------------------------------------- size estimates
 def _lowest_modal_stiffness(model) -> float:
     """omega_1^2 = smallest eigenvalue of (Ke, Me), 1/s^2."""
-    import scipy.linalg
-
     if model.nq == 0:
         return float("nan")
     lam = scipy.linalg.eigh(model.Ke, model.Me, eigvals_only=True)
@@ -323,9 +259,6 @@ def run_estimates(body, chosen: set, samples: dict) -> dict[str, tuple[float, st
 
     samples: q, qd, omega, rotation, acceleration (nt, ...) of the body and gravity (3,).
     """
-    from sidprep.solver.equations.body import body_equations
-    from sidprep.solver.equations.layout import pack_terms
-
     avail = body.available()
     left_out = [e for e in BODY_EFFECTS if avail[e] and e not in chosen]
     q, qd, w, rot, acc = (samples[k] for k in ("q", "qd", "omega", "rotation", "acceleration"))

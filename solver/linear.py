@@ -21,6 +21,8 @@ import scipy.linalg
 
 from sidprep.solver.equations.assemble import evaluate
 from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.integrators.settings import SolverSettings
+from sidprep.solver.run import Run
 
 #: relative finite-difference step on the length-weighted coordinates (central differences)
 FD_STEP = 1e-6
@@ -59,8 +61,8 @@ def tangent_stiffness(L, R, A, Q, refs, weights, length) -> np.ndarray:
         e = FD_STEP * length / weights[j]
         dx = np.zeros(n)
         dx[j] = e
-        fp = evaluate(L, *advance_pose(L, R, A, Q, dx), zero_u, 0.0, lam, refs)[1]
-        fm = evaluate(L, *advance_pose(L, R, A, Q, -dx), zero_u, 0.0, lam, refs)[1]
+        fp = evaluate(L, *advance_pose(L, R, A, Q, dx), zero_u, 0.0, lam, refs).f
+        fm = evaluate(L, *advance_pose(L, R, A, Q, -dx), zero_u, 0.0, lam, refs).f
         K[:, j] = -(fp - fm) / (2 * e)
     return K
 
@@ -68,16 +70,14 @@ def tangent_stiffness(L, R, A, Q, refs, weights, length) -> np.ndarray:
 def mechanism_modes(system, settings=None, **overrides) -> MechanismModes:
     """The eigenmodes of ``system`` linearised at its assembled start (module doc).
 
-    settings, overrides : as ``System.simulate`` (the effects choose the terms of K).
+    settings, overrides : as ``solver.run.simulate`` (the effects choose the terms of K).
     """
-    from sidprep.solver.integrators.settings import SolverSettings
-    from sidprep.solver.run import Run
-
     run = Run(system, 1.0, replace(settings or SolverSettings(), **overrides))
     state = run.consistent_start()
     L, free, kept = run.L, run.free, run.kept
     lam = np.zeros(len(run.names))
-    M, _, _, B = evaluate(L, state.R, state.A, state.Q, np.zeros_like(state.u), 0.0, lam, run.refs)[:4]
+    e = evaluate(L, state.R, state.A, state.Q, np.zeros_like(state.u), 0.0, lam, run.refs)
+    M, B = e.M, e.B
     K = tangent_stiffness(L, state.R, state.A, state.Q, run.refs, run.weights, run.length)
     N = scipy.linalg.null_space(B[np.ix_(kept, free)]) if kept.size else np.eye(free.size)
     Nf = np.zeros((M.shape[0], N.shape[1]))

@@ -10,8 +10,9 @@ from sidprep.solver.effects import build_report, estimate_sizes, run_estimates
 from sidprep.solver.equations.assemble import energies, evaluate, markers, moving_masses
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
+from sidprep.solver.stiffening_work import base_layout, stiffening_power
 
-ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external")
+ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
 
 
 def postprocess(run, s) -> Result:
@@ -39,6 +40,8 @@ def postprocess(run, s) -> Result:
     offsets = np.cumsum([0] + [len(c.rows) for c in system.joints] + [1] * len(system.drivers))
     jindex = {id(j): i for i, j in enumerate(system.joints)}
     mindex = {id(m): k for k, m in enumerate(all_markers)}
+    L0 = base_layout(run)
+    power = np.zeros(nt)  # of the geometric-stiffening terms, W (stiffening_work.py)
     for k in range(nt):
         R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
         lam = np.zeros(m_all)
@@ -57,6 +60,8 @@ def postprocess(run, s) -> Result:
         energy["spring"][k] = flows[2]
         energy["dissipated"][k] = s.work[k, 1]
         energy["external"][k] = s.work[k, 0] + s.work[k, 2]
+        if L0 is not None:
+            power[k] = stiffening_power(run, L0, R, A, Q, u, t, lam, refs)
         reactions = {}
         for c_index, c in enumerate(constraints):
             r0, r1 = offsets[c_index], offsets[c_index + 1]
@@ -80,8 +85,9 @@ def postprocess(run, s) -> Result:
             at = A[flexible[m.body.name]].T
             force[k] = at @ (loads[key, :3] + extra[0])
             torque[k] = at @ (loads[key, 3:] + extra[1])
+    energy["stiffening"][1:] = -np.cumsum(0.5 * np.diff(s.t) * (power[1:] + power[:-1]))
     energy["total"] = (energy["kinetic"] + energy["strain"] + energy["gravity"] + energy["spring"]
-                       + energy["dissipated"] - energy["external"])
+                       + energy["dissipated"] - energy["external"] + energy["stiffening"])
     estimates = {}
     for name, (b, chosen, _) in run.choices.items():
         h = bodies[name]

@@ -39,6 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
+from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_hdf5, atomic_path
 from sidprep.sid.io.hdf5 import open_hdf5
@@ -237,7 +238,6 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
 
     scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
     """
-    from sidprep import __version__
 
     path = Path(path)
     bodies = bodies or {}
@@ -321,10 +321,10 @@ def write_csv(result: Result, names: list[str], path: str | os.PathLike) -> Path
 
 def plot_signals(result: Result, names: list[str], path: str | os.PathLike, title: str = "") -> Path:
     """One PNG with a panel per unit (signals sharing a unit share a panel), against time."""
-    import matplotlib
+    import matplotlib  # deferred: 0.45 CPU-s of import (with pyplot), needed only for plots
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: see above
 
     panels: dict[str, list[tuple[str, np.ndarray]]] = {}
     for n in names:

@@ -12,30 +12,35 @@ from __future__ import annotations
 import copy
 import math
 import sys
-import threading
 import time
+from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
+from numba.core import event
 
 from sidprep.errors import InputError, SimulationFailed
-from sidprep.solver.effects import EFFECTS, choose_effects, parse_effects
-from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.path_range import path_marker_problems
-from sidprep.solver.equations.layout import FE_SPRING, build_layout, constraint_count
+from sidprep.solver.compile.layout import build_layout, constraint_count
+from sidprep.solver.compile.path_range import path_marker_problems
+from sidprep.solver.effects import choose_effects
+from sidprep.solver.energy import balance_warning, energy_balance
+from sidprep.solver.equations.assemble import evaluate, markers
+from sidprep.solver.equations.forces import FE_SPRING
 from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
-                                                independent_rows, length_weights, project_velocities, quasi_static_elastic)
+    independent_rows, length_weights, project_velocities, quasi_static_elastic)
 from sidprep.solver.integrators.planar import planar_coordinates
-from sidprep.solver.integrators.settings import check_run_size
+from sidprep.solver.integrators.settings import SolverSettings, check_run_size
 from sidprep.solver.model.bodies import RigidBody
+from sidprep.solver.model.effects import EFFECTS, parse_effects
+from sidprep.solver.model.joints import ConstantSpeed, Driver
+from sidprep.solver.postprocess import postprocess
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
 #: the start reports bodies moved by more than this (m or rad) from their placed positions
 MOVED_TOL = 1e-9
-#: seconds of silent compilation after which the run says what it is doing
-COMPILE_NOTICE_S = 2.0
 
 
 def choose_terms(system, spec):
@@ -62,22 +67,52 @@ def row_names(system) -> list[str]:
     return [c.name for c in system.joints for _ in c.rows] + [d.name for d in system.drivers]
 
 
-class _CompileNotice:
-    """Prints once to stderr when the first evaluation is still compiling after a few seconds
-    (numba compiles the kernels on the first run after install and caches them)."""
+#: a failed run whose energy grew by more than this fraction of the energy exchanged before the
+#: failure names the integration as the likely cause
+GROWTH_BEFORE_FAILURE = 0.1
+
+
+def numerical_cause(balance: dict, settings) -> str:
+    """'; before it ...' naming the integration as the cause of a failure when the energy grew
+    by more than GROWTH_BEFORE_FAILURE of the energy exchanged (else '')."""
+    if not (balance["change"] > 0 and balance["balance_error"] > GROWTH_BEFORE_FAILURE):
+        return ""
+    fix = ("halve h or lower rho_inf (0.9 or less)" if settings.method == "genalpha"
+           else "tighten rtol or use method = \"genalpha\"")
+    return (f"; before it the energy grew by {balance['change']:.3g} J ({balance['balance_error']:.2g} of the "
+            f"{balance['exchanged']:.3g} J exchanged) with no work put in: a numerical instability, not the scene; "
+            f"{fix}")
+
+
+class CompileNotice(event.Listener):
+    """Says on stderr, while numba compiles, which solver kernel it compiles and how many it has
+    compiled (numba compiles a kernel on its first use after install, then reads it from the
+    kernel cache; nothing is printed then)."""
 
     def __init__(self):
-        self.timer = threading.Timer(COMPILE_NOTICE_S, lambda: print(
-            "sidprep: compiling the solver kernels (first run after install; cached afterwards) ...",
-            file=sys.stderr, flush=True))
-        self.timer.daemon = True
+        self.depth = 0
+        self.count = 0
+        self.started = 0.0
 
-    def __enter__(self):
-        self.timer.start()
-        return self
+    def on_start(self, ev):
+        self.count += 1
+        if self.depth == 0:
+            self.started = time.process_time()
+            print(f"sidprep: compiling solver kernel {ev.data['dispatcher'].py_func.__name__} "
+                  f"(kernel {self.count} of this process; cached afterwards) ...", file=sys.stderr, flush=True)
+        self.depth += 1
 
-    def __exit__(self, *exc):
-        self.timer.cancel()
+    def on_end(self, ev):
+        self.depth -= 1
+        if self.depth == 0:
+            print(f"sidprep: ... {self.count} kernels compiled so far ({time.process_time() - self.started:.1f} CPU-s "
+                  "for this one)", file=sys.stderr, flush=True)
+
+    @contextmanager
+    def watching(self):
+        """Report the compilations of the block."""
+        with event.install_listener("numba:compile", self):
+            yield self
 
 
 class Run:
@@ -119,11 +154,9 @@ class Run:
     def resolve_spring_lengths(self, R, A, Q) -> None:
         """Springs without a length take the marker distance at the assembled start (this
         run's layout; the System is not changed)."""
-        from sidprep.solver.equations.assemble import markers
-
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True)[0]
+            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True).P
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 
@@ -132,16 +165,17 @@ class Run:
         L, w, st = self.L, self.weights, self.settings
         R, A, Q, u = self.initial_positions()
         R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names, self.length)
-        self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+        self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
         R, A, Q, u = self.start_from_joints(R, A, Q, u)
         self.note_moved_bodies(R, A)
         self.resolve_spring_lengths(R, A, Q)
-        g, B = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[2:4]
+        e = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)
+        g, B = e.g, e.B
         self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
         self.note_inconsistent_rows(g)
         if st.static_start:
             v = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
-            R, A, Q = quasi_static_elastic(L, R, A, Q, v, 0.0, self.refs, self.free, self.kept, w, self.length,
+            R, A, Q = quasi_static_elastic(L, (R, A, Q), v, 0.0, self.refs, self.free, self.kept, w, self.length,
                                            self.names)
         u = project_velocities(L, R, A, Q, u, 0.0, self.refs, self.kept, w)
         state = State(0.0, R, A, Q, u, np.zeros_like(u), np.zeros(self.kept.size))
@@ -151,7 +185,7 @@ class Run:
             if note:
                 self.notes.append(note)
             if free is not None:
-                B = evaluate(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs)[3]
+                B = evaluate(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs).B
                 self.free = free
                 self.kept = rows[independent_rows(B[rows][:, free])]
             elif self.system.planar:
@@ -189,8 +223,6 @@ class Run:
         """(layout, all its rows, row names) of the system plus a temporary driver per joint with
         an ``initial`` coordinate (which = "initial": held at it) or ``initial_rate`` (moving at
         it from its current value); None when no joint asks for one."""
-        from sidprep.solver.model.joints import ConstantSpeed, Driver
-
         jindex = {id(j): i for i, j in enumerate(self.system.joints)}
         extra = [Driver(j, ConstantSpeed(j.initial_rate or 0.0 if which == "initial_rate" else 0.0,
                                          j.initial if which == "initial" else self.refs[jindex[id(j)]]),
@@ -210,11 +242,11 @@ class Run:
         if layout is not None:
             R, A, Q = assemble_positions(layout[0], R, A, Q, 0.0, self.refs, layout[1], self.weights, layout[2],
                                          self.length)
-            self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)[7][:, 0]
+            self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
         layout = self.start_layout("initial_rate")
         if layout is not None:
             L0, rows, _ = layout
-            B = evaluate(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs)[3]
+            B = evaluate(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs).B
             u = project_velocities(L0, R, A, Q, u, 0.0, self.refs, rows[independent_rows(B)], self.weights)
         return R, A, Q, u
 
@@ -237,26 +269,26 @@ class Run:
     # ------------------------------------------------------------------ run
     def execute(self):
         """Integrate and return the Result (solver/results.py)."""
-        from sidprep.solver.postprocess import postprocess
-
         cpu0 = time.process_time()
-        with _CompileNotice():
+        notice = CompileNotice()
+        with notice.watching():
             state = self.consistent_start()
-        problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
-                          body_sizes(self.system, self.terms))
-        first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None], state.ud[None],
-                        state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
-        stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
+            problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
+                              body_sizes(self.system, self.terms))
+            first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
+                            state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
+            stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
         cpu_setup = time.process_time() - cpu0
         chunks = [first]
-        with _CompileNotice():
+        with notice.watching():
             while stepper.status == "running":
                 chunks.append(stepper.advance(self.t_end))
                 if self.settings.progress:
                     self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
-        result = postprocess(self, samples)
+        with notice.watching():
+            result = postprocess(self, samples)
         dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
                    np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
         result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,
@@ -265,8 +297,22 @@ class Run:
                             cpu_integration=cpu_integration, dropped_constraint_rows=dropped,
                             n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
                             n_constraints=int(self.kept.size))
+        st = self.settings
+        balance = energy_balance(result.energy, st.energy_tol)
+        balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance)
+        result.stats["energy_balance"] = balance
         if stepper.status == "failed":
-            message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}"
+            message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}{numerical_cause(balance, st)}"
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         return result
+
+
+def simulate(system, t_end: float, settings: SolverSettings | None = None, **overrides):
+    """Integrate ``system`` (model.System) from t = 0 to t_end (s) and return the Result
+    (solver/results.py).
+
+    settings : a SolverSettings (its defaults when None); overrides : any of its fields by name,
+    e.g. ``simulate(system, 1.0, h=1e-3, method="rk4", rtol=1e-6)``.
+    """
+    return Run(system, t_end, replace(settings or SolverSettings(), **overrides)).execute()

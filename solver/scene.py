@@ -3,7 +3,8 @@
 The format is documented with a complete example in ``docs/scenes.md``.  Tables::
 
     [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names]), planar
-    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol, deformation_limit
+    [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol, deformation_limit,
+                       energy_tol
     [output]           rate (samples/s), signals, plot, csv, animate
     [bodies.<name>]    type = "flexible" (sid, make, q0, qd0, effects) | "rigid" (mass, com,
                        inertia, obj); position, rotation, velocity, omega
@@ -20,23 +21,29 @@ from __future__ import annotations
 
 import difflib
 import hashlib
-import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from sidprep.errors import InputError, SimulationFailed
-from sidprep.solver.integrators.settings import METHODS
+from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
+from sidprep.sid.io import read_sid
 from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
-                                   load_absolute_nodal_scene, simulate_absolute_nodal)
+    load_absolute_nodal_scene, simulate_absolute_nodal)
+from sidprep.solver.integrators.settings import SolverSettings
+from sidprep.solver.model.bodies import FlexibleBody, RigidBody, as_rotation
+from sidprep.solver.model.effects import EFFECTS
+from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointForce, PointTorque,
+    SpringDamper, Table, bump_stop)
+from sidprep.solver.model.joints import ConstantSpeed, Driver, JOINT_TYPES, SmoothStart, TabulatedMotion
+from sidprep.solver.model.system import System
+from sidprep.solver.results import BodyHistory, JointHistory, Result, signal
+from sidprep.solver.run import simulate as simulate_system
+from sidprep.solver.scene_tables import OutputSettings, read_output_settings, read_solver_settings
+from sidprep.tables import TomlTable, read_toml_text, subtables
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
-_REQUIRED = object()
 #: names a user may not give to bodies / markers / joints (they name other things in signals)
 RESERVED_NAMES = ("ground", "energy")
 #: |z_axis| and orthonormality of rotation matrices are checked to this tolerance
@@ -44,29 +51,14 @@ ROTATION_TOL = 1e-6
 
 
 @dataclass(frozen=True)
-class OutputSettings:
-    """What ``sidprep simulate`` writes besides the results file.
-
-    rate : samples per second of the results (None: every step); signals : names plotted and
-    exported (solver/results.py); plot, csv, animate : write a PNG, a CSV, a ParaView series.
-    """
-
-    rate: float | None = None
-    signals: tuple[str, ...] = ()
-    plot: bool = False
-    csv: bool = False
-    animate: bool = False
-
-
-@dataclass(frozen=True)
 class Scene:
     """A parsed scene.
 
     path : the scene file; text, sha256 : its content (provenance); title : [scene] title;
-    system : the built System; simulate_kwargs : keyword arguments of ``System.simulate``
-    (t_end, h, method, rho_inf, rtol, output_dt, static_start; atol, newton_tol,
-    deformation_limit if given);
-    output : OutputSettings; sources : {body name: {"kind", "source"}} (results provenance);
+    system : the built System (an AbsoluteNodalModel for a scene of absolute-nodal beams);
+    t_end : s; settings : the SolverSettings of [solver] and [output] rate (the solver's own
+    defaults for every key not given); output : OutputSettings; sources : {body name: {"kind",
+    "source"}} (results provenance).
     """
 
     path: Path
@@ -74,13 +66,10 @@ class Scene:
     sha256: str
     title: str
     system: object
-    simulate_kwargs: dict
+    t_end: float
+    settings: SolverSettings
     output: OutputSettings
     sources: dict = field(default_factory=dict)
-
-    @property
-    def t_end(self) -> float:
-        return self.simulate_kwargs["t_end"]
 
     def provenance(self) -> dict:
         return {"path": str(self.path), "sha256": self.sha256, "text": self.text}
@@ -90,138 +79,11 @@ class Scene:
 # typed access to one TOML table
 
 
-class _Table:
-    """One TOML table with typed getters; every error names the file, the table and the key."""
-
-    def __init__(self, file: Path, where: str, data):
-        self.file, self.where = file, where
-        if not isinstance(data, dict):
-            self.fail("", f"must be a table, got {type(data).__name__}", f"write it as [{where}] with key = value lines")
-        self.data = data
-        self.used: set[str] = set()
-
-    def fail(self, key: str, problem: str, fix: str):
-        at = f"[{self.where}] {key}: " if key else f"[{self.where}]: "
-        raise InputError(f"{self.file}: {at}{problem}; {fix}")
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def raw(self, key: str, default=_REQUIRED, fix: str = ""):
-        self.used.add(key)
-        if key in self.data:
-            return self.data[key]
-        if default is _REQUIRED:
-            self.fail(key, "missing", fix or f"add `{key} = ...` to [{self.where}]")
-        return default
-
-    def number(self, key: str, default=_REQUIRED, *, positive=False, nonnegative=False) -> float:
-        v = self.raw(key, default)
-        if v is None:
-            return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-            self.fail(key, f"must be a number, got {v!r}", f"write e.g. `{key} = 1.0`")
-        if positive and v <= 0:
-            self.fail(key, f"must be > 0, got {v!r}", "give a positive value (SI units)")
-        if nonnegative and v < 0:
-            self.fail(key, f"must be >= 0, got {v!r}", "give a non-negative value (SI units)")
-        return float(v)
-
-    def integer(self, key: str, default=_REQUIRED) -> int:
-        v = self.raw(key, default)
-        if v is None:
-            return None
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(key, f"must be an integer, got {v!r}", f"write e.g. `{key} = 1`")
-        return v
-
-    def string(self, key: str, default=_REQUIRED, choices=None) -> str:
-        v = self.raw(key, default)
-        if v is None:
-            return None
-        if not isinstance(v, str):
-            self.fail(key, f"must be a string, got {v!r}", f'write e.g. `{key} = "..."`')
-        if choices is not None and v not in choices:
-            self.fail(key, f"unknown value {v!r}", f"use one of: {', '.join(choices)}")
-        return v
-
-    def boolean(self, key: str, default=False) -> bool:
-        v = self.raw(key, default)
-        if not isinstance(v, bool):
-            self.fail(key, f"must be true or false, got {v!r}", f"write `{key} = true` or `{key} = false`")
-        return v
-
-    def array(self, key: str, default=_REQUIRED, shape=None) -> np.ndarray:
-        """A numeric array; ``shape`` (tuple, -1 = any length) is checked."""
-        v = self.raw(key, default)
-        if v is None:
-            return None
-        try:
-            a = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
-            a = None
-        if a is None or a.dtype == object or not np.all(np.isfinite(a)) or any(isinstance(x, bool) for x in np.ravel(v)):
-            self.fail(key, f"must be numbers, got {v!r}", f"write e.g. `{key} = [0.0, 0.0, 1.0]`")
-        if shape is not None and (a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape))):
-            want = " x ".join("n" if s == -1 else str(s) for s in shape)
-            self.fail(key, f"must have shape {want}, got {a.shape}", f"give {want} numbers")
-        return a
-
-    def vector(self, key: str, default=_REQUIRED) -> np.ndarray:
-        return self.array(key, default, shape=(3,))
-
-    def strings(self, key: str, default=_REQUIRED) -> tuple[str, ...]:
-        v = self.raw(key, default)
-        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-            self.fail(key, f"must be a list of strings, got {v!r}", f'write e.g. `{key} = ["a", "b"]`')
-        return tuple(v)
-
-    def rotation(self, key: str = "rotation") -> np.ndarray | None:
-        """A rotation matrix from a 3x3 matrix (orthonormal, det +1) or a rotation vector (rad)."""
-        from sidprep.solver.equations.rotations import exp_so3
-
-        v = self.raw(key, None)
-        if v is None:
-            return None
-        a = self.array(key)
-        if a.shape == (3,):
-            return exp_so3(a)
-        if a.shape != (3, 3):
-            self.fail(key, f"must be a rotation vector (3 numbers, rad) or a 3x3 matrix, got shape {a.shape}",
-                      f"write e.g. `{key} = [0.0, 0.0, 1.5708]`")
-        if np.max(np.abs(a @ a.T - np.eye(3))) > ROTATION_TOL or np.linalg.det(a) < 0:
-            self.fail(key, "is not a rotation matrix (not orthonormal with det +1)",
-                      "give the body->inertial rotation matrix rows, or a rotation vector")
-        return a
-
-    def path(self, key: str, default=_REQUIRED) -> Path | None:
-        v = self.string(key, default)
-        return None if v is None else (self.file.parent / v)
-
-    def finish(self) -> None:
-        """Reject keys nobody asked for (typos), suggesting the closest known key."""
-        for key in self.data:
-            if key not in self.used:
-                close = difflib.get_close_matches(key, sorted(self.used), n=1)
-                hint = f"did you mean `{close[0]}`?" if close else f"known keys here: {', '.join(sorted(self.used))}"
-                self.fail(key, "unknown key", hint)
-
-
-def _subtables(file: Path, root: dict, name: str):
-    """(name, _Table) for every [<name>.<entry>] table."""
-    group = root.get(name, {})
-    if not isinstance(group, dict):
-        raise InputError(f"{file}: `{name}` must be a table of named entries; write [{name}.<entry name>] tables")
-    return [(entry, _Table(file, f"{name}.{entry}", data)) for entry, data in group.items()]
-
-
 # ---------------------------------------------------------------------------------------------
 # the tables
 
 
-def _effects(t: _Table, key: str, default):
-    from sidprep.solver.effects import EFFECTS
-
+def _effects(t: TomlTable, key: str, default):
     v = t.raw(key, default)
     if v is None or v in ("auto", "all"):
         return v
@@ -234,70 +96,31 @@ def _effects(t: _Table, key: str, default):
     return names
 
 
-def _solver_settings(file: Path, root: dict, t_end_override: float | None) -> dict:
-    t = _Table(file, "solver", root.get("solver", {}))
-    kw = {
-        "t_end": t.number("t_end", positive=True) if t_end_override is None else t_end_override,
-        "method": t.string("method", "genalpha", METHODS),
-        "h": t.number("step", 1e-3, positive=True),
-        "rho_inf": t.number("rho_inf", 0.9),
-        "rtol": t.number("rtol", None, positive=True),
-        "static_start": t.boolean("static_start", False),
-    }
-    for key in ("atol", "newton_tol", "deformation_limit"):   # the solver's own defaults unless given
-        if t.has(key):
-            kw[key] = t.number(key, positive=True)
-    if t_end_override is not None:
-        t.raw("t_end", None)
-        if t_end_override <= 0:
-            t.fail("t_end", f"--t-end must be > 0, got {t_end_override}", "give a positive end time in s")
-    if not 0.0 <= kw["rho_inf"] <= 1.0:
-        t.fail("rho_inf", f"must be in [0, 1], got {kw['rho_inf']}", "use e.g. 0.9 (1 = no numerical damping)")
-    if kw["h"] > kw["t_end"]:
-        t.fail("step", f"{kw['h']} s is longer than t_end = {kw['t_end']} s", "use a smaller step")
-    t.finish()
-    return kw
-
-
-def _output_settings(file: Path, root: dict) -> OutputSettings:
-    t = _Table(file, "output", root.get("output", {}))
-    out = OutputSettings(rate=t.number("rate", None, positive=True), signals=t.strings("signals", []),
-                         plot=t.boolean("plot"), csv=t.boolean("csv"), animate=t.boolean("animate"))
-    t.finish()
-    return out
-
-
-def _missing_sid(t: _Table, path: Path) -> None:
+def _missing_sid(t: TomlTable, path: Path) -> None:
     make = t.string("make", None)
     fix = f"make it with `{make}` (run in {t.file.parent})" if make else \
         "make it with `sidprep reduce MESH -o <file>` or fix the path (relative to the scene file)"
     t.fail("sid", f"SID file {path} not found", fix)
 
 
-def _flexible_body(name: str, t: _Table, pose: dict):
-    from sidprep.solver import FlexibleBody
-
+def _flexible_body(name: str, t: TomlTable, pose: dict):
     path = t.path("sid")
     if not path.is_file():
         _missing_sid(t, path)
     t.string("make", None)
-    from sidprep.sid.io import read_sid
-
     try:
         sid = read_sid(path, physical="error")
     except InputError as exc:
         t.fail("sid", f"cannot read {path} ({exc})", "regenerate the SID file")
     q0 = t.array("q0", None, shape=(sid.nq,))
     qd0 = t.array("qd0", None, shape=(sid.nq,))
-    body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), **pose)
+    body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), source=str(path),
+                        **pose)
     return body, {"kind": "flexible", "source": str(path)}
 
 
-def _beam_body(name: str, t: _Table, pose: dict):
+def _beam_body(name: str, t: TomlTable, pose: dict):
     """An analytical Euler-Bernoulli Beam declared inline (sidprep.reduction.beam: its SID in memory)."""
-    from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
-    from sidprep.solver import FlexibleBody
-
     beam = {key: t.raw(key) for key in BEAM_TABLE_KEYS if t.has(key)}
     sid = beam_sid(beam_options_from_table(beam, f"{t.file}: [{t.where}]"))
     q0 = t.array("q0", None, shape=(sid.nq,))
@@ -306,9 +129,7 @@ def _beam_body(name: str, t: _Table, pose: dict):
     return body, {"kind": "beam", "source": ""}
 
 
-def _rigid_body(name: str, t: _Table, pose: dict):
-    from sidprep.solver import RigidBody
-
+def _rigid_body(name: str, t: TomlTable, pose: dict):
     mass = t.number("mass", positive=True)
     inertia = t.array("inertia")
     if inertia.shape not in ((3,), (6,), (3, 3)):
@@ -327,9 +148,9 @@ BODY_TYPES = {"flexible": _flexible_body, "beam": _beam_body, "rigid": _rigid_bo
 
 def _bodies(file: Path, root: dict, system) -> dict:
     sources = {}
-    for name, t in _subtables(file, root, "bodies"):
+    for name, t in subtables(file, root, "bodies"):
         kind = t.string("type", choices=tuple(BODY_TYPES))
-        pose = {"position": t.vector("position", None), "rotation": t.rotation(),
+        pose = {"position": t.vector("position", None), "rotation": _rotation(t),
                 "velocity": t.vector("velocity", None), "omega": t.vector("omega", None)}
         body, sources[name] = BODY_TYPES[kind](name, t, pose)
         t.finish()
@@ -339,7 +160,21 @@ def _bodies(file: Path, root: dict, system) -> dict:
     return sources
 
 
-def _z_axis_rotation(t: _Table) -> np.ndarray:
+def _rotation(t: TomlTable, key: str = "rotation") -> np.ndarray | None:
+    """A rotation matrix from a 3x3 matrix (orthonormal, det +1) or a rotation vector (rad)."""
+    if not t.has(key):
+        return None
+    a = t.array(key)
+    if a.shape not in ((3,), (3, 3)):
+        t.fail(key, f"must be a rotation vector (3 numbers, rad) or a 3x3 matrix, got shape {a.shape}",
+               f"write e.g. `{key} = [0.0, 0.0, 1.5708]`")
+    if a.shape == (3, 3) and (np.max(np.abs(a @ a.T - np.eye(3))) > ROTATION_TOL or np.linalg.det(a) < 0):
+        t.fail(key, "is not a rotation matrix (not orthonormal with det +1)",
+               "give the body->inertial rotation matrix rows, or a rotation vector")
+    return as_rotation(a)
+
+
+def _z_axis_rotation(t: TomlTable) -> np.ndarray:
     """A rotation whose third column is the unit vector ``z_axis`` (the joint axis) and whose x
     axis is the first body axis (x, else y) not near z, made normal to z: z = [0, 0, 1] keeps
     the body axes, so a joint angle is measured from the body's x axis."""
@@ -355,18 +190,16 @@ def _z_axis_rotation(t: _Table) -> np.ndarray:
 
 
 def _markers(file: Path, root: dict, system) -> dict:
-    from sidprep.solver import FlexibleBody
-
     bodies = {b.name: b for b in system.bodies}
     markers = {}
-    for name, t in _subtables(file, root, "markers"):
+    for name, t in subtables(file, root, "markers"):
         body_name = t.string("body")
         if body_name != "ground" and body_name not in bodies:
             t.fail("body", f"no body {body_name!r}", f"use \"ground\" or one of: {', '.join(bodies)}")
         body = system.ground if body_name == "ground" else bodies[body_name]
         if t.has("rotation") and t.has("z_axis"):
             t.fail("z_axis", "given together with `rotation`", "give only one of them")
-        rotation = _z_axis_rotation(t) if t.has("z_axis") else t.rotation()
+        rotation = _z_axis_rotation(t) if t.has("z_axis") else _rotation(t)
         on_node = t.has("node") or t.has("node_index")
         if t.has("path"):
             if not isinstance(body, FlexibleBody):
@@ -393,7 +226,7 @@ def _markers(file: Path, root: dict, system) -> dict:
     return markers
 
 
-def _node_marker(t: _Table, body, name: str):
+def _node_marker(t: TomlTable, body, name: str):
     if t.has("node") and t.has("node_index"):
         t.fail("node_index", "given together with `node`", "give the FE node number `node` or the 0-based `node_index`")
     if t.has("node"):
@@ -409,14 +242,14 @@ def _node_marker(t: _Table, body, name: str):
     return body.node_marker(index, name=name)
 
 
-def _lookup(t: _Table, key: str, table: dict, what: str):
+def _lookup(t: TomlTable, key: str, table: dict, what: str):
     name = t.string(key)
     if name not in table:
         t.fail(key, f"no {what} {name!r}", f"define [{what}s.{name}] or use one of: {', '.join(table) or '(none)'}")
     return table[name]
 
 
-def _marker_pair(t: _Table, markers: dict):
+def _marker_pair(t: TomlTable, markers: dict):
     pair = t.strings("markers")
     if len(pair) != 2:
         t.fail("markers", f"needs exactly 2 marker names, got {len(pair)}", 'write markers = ["on_body_1", "on_body_2"]')
@@ -427,10 +260,8 @@ def _marker_pair(t: _Table, markers: dict):
 
 
 def _joints(file: Path, root: dict, system, markers: dict) -> dict:
-    from sidprep.solver import JOINT_TYPES
-
     joints = {}
-    for name, t in _subtables(file, root, "joints"):
+    for name, t in subtables(file, root, "joints"):
         cls = JOINT_TYPES[t.string("type", choices=tuple(JOINT_TYPES))]
         m1, m2 = _marker_pair(t, markers)
         if m1.body is m2.body:
@@ -450,9 +281,7 @@ def _joints(file: Path, root: dict, system, markers: dict) -> dict:
     return joints
 
 
-def _motion(t: _Table):
-    from sidprep.solver import ConstantSpeed, SmoothStart, TabulatedMotion
-
+def _motion(t: TomlTable):
     kind = t.string("motion", choices=("constant_speed", "smooth_start", "table"))
     if kind == "constant_speed":
         return ConstantSpeed(t.number("speed"), t.number("start", 0.0))
@@ -465,10 +294,8 @@ def _motion(t: _Table):
 
 
 def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
-    from sidprep.solver import Driver
-
     drivers = {}
-    for name, t in _subtables(file, root, "drivers"):
+    for name, t in subtables(file, root, "drivers"):
         joint = _lookup(t, "joint", joints, "joint")
         if joint.coordinate_kind is None:
             t.fail("joint", f"a {joint.kind} joint has no coordinate to drive", "drive a revolute, cylindrical or prismatic joint")
@@ -477,13 +304,11 @@ def _drivers(file: Path, root: dict, system, joints: dict) -> dict:
     return drivers
 
 
-def _load_value(t: _Table, joints: dict):
+def _load_value(t: TomlTable, joints: dict):
     """Constant vector / scalar `value`, or a `table` {x, y, period} over time or `argument` joint."""
-    from sidprep.solver import Table
-
     argument = _lookup(t, "argument", joints, "joint") if t.has("argument") else None
     if t.has("table"):
-        tt = _Table(t.file, f"{t.where}.table", t.raw("table"))
+        tt = TomlTable(t.file, f"{t.where}.table", t.raw("table"))
         try:
             value = Table(tt.array("x", shape=(-1,)), tt.array("y"), tt.number("period", None, positive=True))
         except ValueError as exc:
@@ -497,15 +322,13 @@ def _load_value(t: _Table, joints: dict):
 
 
 def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None:
-    import sidprep.solver as api
-
     kinds = ("point_force", "point_torque", "spring_damper", "joint_force", "joint_friction", "moving_mass")
-    for name, t in _subtables(file, root, "forces"):
+    for name, t in subtables(file, root, "forces"):
         kind = t.string("type", choices=kinds)
         if kind in ("point_force", "point_torque"):
             marker = _lookup(t, "marker", markers, "marker")
             value, argument = _load_value(t, joints)
-            cls = api.PointForce if kind == "point_force" else api.PointTorque
+            cls = PointForce if kind == "point_force" else PointTorque
             element = cls(marker, value, direction=t.vector("direction", None),
                           frame=t.string("frame", "inertial", ("inertial", "marker")), argument=argument, name=name)
         elif kind == "spring_damper":
@@ -513,31 +336,31 @@ def _forces(file: Path, root: dict, system, markers: dict, joints: dict) -> None
             stop = t.raw("bump_stop", None)
             law = None
             if stop is not None:
-                st = _Table(file, f"forces.{name}.bump_stop", stop)
-                law = api.bump_stop(st.number("clearance", nonnegative=True), st.number("stiffness", nonnegative=True),
+                st = TomlTable(file, f"forces.{name}.bump_stop", stop)
+                law = bump_stop(st.number("clearance", nonnegative=True), st.number("stiffness", nonnegative=True),
                                     st.number("exponent", 1.0, positive=True), st.number("damping", 0.0, nonnegative=True))
                 st.finish()
             length = t.number("length", None, nonnegative=True)
-            element = api.SpringDamper(m1, m2, t.number("stiffness", 0.0, nonnegative=True),
+            element = SpringDamper(m1, m2, t.number("stiffness", 0.0, nonnegative=True),
                                        t.number("damping", 0.0, nonnegative=True),
                                        length, law=law, name=name)
         elif kind == "joint_force":
             joint = _lookup(t, "joint", joints, "joint")
             if joint.coordinate_kind is None:
                 t.fail("joint", f"a {joint.kind} joint has no coordinate", "use a revolute, cylindrical or prismatic joint")
-            element = api.JointForce(joint, stiffness=t.number("stiffness", 0.0), damping=t.number("damping", 0.0),
+            element = JointForce(joint, stiffness=t.number("stiffness", 0.0), damping=t.number("damping", 0.0),
                                      reference=t.number("reference", 0.0), constant=t.number("constant", 0.0),
                                      name=name)
         elif kind == "moving_mass":
             try:
-                element = api.MovingMass(_lookup(t, "marker", markers, "marker"), t.number("mass", positive=True),
+                element = MovingMass(_lookup(t, "marker", markers, "marker"), t.number("mass", positive=True),
                                          name=name)
             except ValueError as exc:
                 t.fail("marker", str(exc).split(": ", 1)[-1].split("; ")[0], "give a marker with `path` and a motion")
         else:
             joint = _lookup(t, "joint", joints, "joint")
             try:
-                element = api.JointFriction(joint, t.number("mu", nonnegative=True), radius=t.number("radius", 0.0),
+                element = JointFriction(joint, t.number("mu", nonnegative=True), radius=t.number("radius", 0.0),
                                             preload=t.number("preload", 0.0, nonnegative=True),
                                             regularisation=t.number("regularisation", 1e-3, positive=True), name=name)
             except ValueError as exc:
@@ -564,8 +387,6 @@ def _check_names(file: Path, root: dict) -> None:
 def empty_result(system):
     """A Result with no samples but every body, joint, marker and energy of ``system``: what the
     signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
-    from sidprep.solver import BodyHistory, JointHistory, Result
-
     if isinstance(system, AbsoluteNodalModel):
         return initial_result(system)
 
@@ -577,14 +398,13 @@ def empty_result(system):
         joints={c.name: JointHistory(c.name, getattr(c, "kind", "driver"), z, z, z, z, np.zeros(0), np.zeros(0),
                                      np.zeros(0)) for c in list(system.joints) + list(system.drivers)},
         markers={m.name: z for b in [system.ground] + list(system.bodies) for m in b.markers},
-        energy={k: np.zeros(0) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "total")},
+        energy={k: np.zeros(0) for k in ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening",
+                                         "total")},
         constraint_error=np.zeros(0), effects=None)
 
 
 def _check_signals(file: Path, scene_signals, system) -> None:
     """Every requested signal must exist (checked on an empty Result of this system)."""
-    from sidprep.solver.results import signal
-
     empty = empty_result(system)
     for name in scene_signals:
         try:
@@ -593,25 +413,16 @@ def _check_signals(file: Path, scene_signals, system) -> None:
             raise InputError(f"{file}: [output] signals: {exc}") from None
 
 
-def read_toml(path: Path) -> tuple[dict, str]:
-    """Parsed TOML and its text; InputError for a missing file or a syntax error."""
-    if not path.is_file():
-        raise InputError(f"{path}: no such scene file; check the path")
-    text = path.read_text(encoding="utf-8")
-    try:
-        return tomllib.loads(text), text
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: TOML syntax error: {exc}; fix the file (see docs/scenes.md)") from None
-
-
 def load_scene(path, *, t_end: float | None = None) -> Scene:
     """Parse the scene file ``path`` and build its System; ``t_end`` overrides [solver] t_end."""
-    from sidprep.solver import System
-
     path = Path(path)
-    root, text = read_toml(path)
+    root, text = read_toml_text(path, "scene file")
+    sha256 = hashlib.sha256(text.encode()).hexdigest()
     if is_absolute_nodal_scene(root):
-        return _absolute_nodal_scene(path, root, text, t_end)
+        an = load_absolute_nodal_scene(root, path, t_end=t_end)
+        return Scene(path=path, text=text, sha256=sha256, title=an.model.title, system=an.model, t_end=an.t_end,
+                     settings=an.settings, output=an.output,
+                     sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams})
     known = ("scene", "solver", "output", "bodies", "markers", "joints", "drivers", "forces")
     for key in root:
         if key not in known:
@@ -619,7 +430,7 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
             raise InputError(f"{path}: unknown top-level table or key `{key}`; "
                              + (f"did you mean [{close[0]}]?" if close else f"use: {', '.join(known)}"))
     _check_names(path, root)
-    head = _Table(path, "scene", root.get("scene", {}))
+    head = TomlTable(path, "scene", root.get("scene", {}))
     planar = head.raw("planar", "auto")
     if planar not in ("auto", True, False):
         head.fail("planar", f"must be \"auto\", true or false, got {planar!r}",
@@ -628,41 +439,33 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
                     planar=None if planar == "auto" else planar)
     title = head.string("title", path.stem)
     head.finish()
-    kwargs = _solver_settings(path, root, t_end)
-    output = _output_settings(path, root)
-    kwargs["output_dt"] = None if output.rate is None else 1.0 / output.rate
+    output = read_output_settings(path, root)
+    t_end, settings = read_solver_settings(TomlTable(path, "solver", root.get("solver", {})), output, t_end)
     sources = _bodies(path, root, system)
     markers = _markers(path, root, system)
     joints = _joints(path, root, system, markers)
     _drivers(path, root, system, joints)
     _forces(path, root, system, markers, joints)
     _check_signals(path, output.signals, system)
-    return Scene(path=path, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(), title=title,
-                 system=system, simulate_kwargs=kwargs, output=output, sources=sources)
+    return Scene(path=path, text=text, sha256=sha256, title=title, system=system, t_end=t_end, settings=settings,
+                 output=output, sources=sources)
 
 
-def _absolute_nodal_scene(path: Path, root: dict, text: str, t_end: float | None) -> Scene:
-    """A scene of absolute-nodal beams (its [beams.<name>] tables; solver.absolute_nodal)."""
-    an = load_absolute_nodal_scene(root, path, t_end=t_end)
-    return Scene(path=path, text=text, sha256=hashlib.sha256(text.encode()).hexdigest(), title=an.model.title,
-                 system=an.model, output=an.output,
-                 simulate_kwargs={"t_end": an.settings.t_end, "h": an.settings.step, "method": "rk4",
-                                  "settings": an.settings},
-                 sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams})
-
-
-def simulate(scene: Scene, **overrides):
-    """Run the scene: ``System.simulate(**scene.simulate_kwargs)`` -> sidprep.solver.Result,
-    with ``overrides`` of those keyword arguments (e.g. t_end, h; None keeps the scene's).
+def simulate(scene: Scene, settings: SolverSettings | None = None, *, t_end: float | None = None, **overrides):
+    """Run the scene -> sidprep.solver.Result: its System (or absolute-nodal model) to t_end
+    (the scene's unless given) with ``settings`` (the scene's when None) and ``overrides`` of
+    their fields by name (e.g. h=1e-4; None keeps the scene's value).
 
     The solver's own InputErrors (e.g. Newton failure, joints that cannot close) are re-raised
     with the scene file named first.
     """
+    given = {key: value for key, value in overrides.items() if value is not None}
     try:
+        settings = replace(settings or scene.settings, **given)
+        t_end = scene.t_end if t_end is None else t_end
         if isinstance(scene.system, AbsoluteNodalModel):
-            return simulate_absolute_nodal(scene.system, scene.simulate_kwargs["settings"])
-        given = {key: value for key, value in overrides.items() if value is not None}
-        return scene.system.simulate(**{**scene.simulate_kwargs, **given})
+            return simulate_absolute_nodal(scene.system, t_end, settings)
+        return simulate_system(scene.system, t_end, settings)
     except SimulationFailed as exc:
         raise SimulationFailed(f"{scene.path}: {exc}", exc.result) from None
     except InputError as exc:

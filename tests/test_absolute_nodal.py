@@ -11,11 +11,12 @@ from readme_numbers import check_numbers
 from scipy.integrate import solve_ivp
 
 from sidprep.errors import InputError
-from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Driver, Support, assemble,
+from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, Beam, Driver, Support, assemble,
                                    initial_vector, integrate, kernel_params, load_absolute_nodal_scene, rhs,
                                    simulate_absolute_nodal, unpack)
 from sidprep.solver.integrators.runge_kutta import rk4_fixed
-from sidprep.solver.scene import read_toml
+from sidprep.solver.integrators.settings import SolverSettings
+from sidprep.tables import read_toml_text
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "two_link_manipulator" / "scene.toml"
 G = 9.81
@@ -34,7 +35,7 @@ def _smooth(x, n):
 
 
 def _two_link(t_end=None):
-    root, _ = read_toml(EXAMPLE)
+    root, _ = read_toml_text(EXAMPLE)
     return load_absolute_nodal_scene(root, EXAMPLE, t_end=t_end)
 
 
@@ -46,8 +47,8 @@ def _stiff_link(EI=1e6, angle=0.0, rate=0.0, drivers=(), gravity=(0.0, -G), supp
 
 def test_two_link_energy_is_conserved():
     scene = _two_link(t_end=2.0)
-    assert scene.settings.step == 2.5e-4 and scene.model.beams[1].angle == pytest.approx(math.radians(15))
-    r = simulate_absolute_nodal(scene.model, scene.settings)
+    assert scene.settings.h == 2.5e-4 and scene.model.beams[1].angle == pytest.approx(math.radians(15))
+    r = simulate_absolute_nodal(scene.model, scene.t_end, scene.settings)
     total = r.energy["total"]
     assert np.max(np.abs(total - total[0])) / total[0] < TWO_LINK_ENERGY_TOL
     # the motion is large: most of the potential energy turns into kinetic energy and back
@@ -81,7 +82,7 @@ def test_rk4_is_fourth_order_on_the_two_link_system():
 def test_stiff_link_is_the_rigid_pendulum():
     # rigid bar pinned at one end, released horizontally: psi'' = -(3 g / 2 L) cos psi (I = m L^2 / 3,
     # which the linear interpolation of eq. 1 reproduces exactly for a straight bar)
-    r = simulate_absolute_nodal(_stiff_link(), AbsoluteNodalSettings(t_end=0.6, step=2e-5, rate=5000))
+    r = simulate_absolute_nodal(_stiff_link(), 0.6, SolverSettings(method="rk4", h=2e-5, output_dt=1 / 5000))
     ref = solve_ivp(lambda t, y: [y[1], -1.5 * G * math.cos(y[0])], (0, r.t[-1]), [0.0, 0.0],
                     t_eval=np.minimum(r.t, r.t[-1]), rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(r.joints["pin"].coordinate - ref.y[0])) < RIGID_PENDULUM_TOL
@@ -97,7 +98,7 @@ def test_stiff_link_is_the_rigid_pendulum():
 def test_free_spinning_link_keeps_length_energy_and_angular_momentum():
     model = _stiff_link(EI=1e3, rate=10.0, gravity=(0.0, 0.0), supports=False)
     asm = assemble(model)
-    r = simulate_absolute_nodal(model, AbsoluteNodalSettings(t_end=1.0, step=2.5e-5, rate=200))
+    r = simulate_absolute_nodal(model, 1.0, SolverSettings(method="rk4", h=2.5e-5, output_dt=1 / 200))
     tip, root = r.markers["tip"][:, :2], r.markers["pin"][:, :2]
     length = np.linalg.norm(tip - root, axis=1)
     # centrifugal stretch of a bar spinning about its centre: m w^2 L^2 / (12 EA) = 4e-4 m; bending: none
@@ -106,7 +107,7 @@ def test_free_spinning_link_keeps_length_energy_and_angular_momentum():
     assert np.max(np.abs(total - total[0])) / total[0] < 1e-9
     assert r.energy["kinetic"][0] == pytest.approx(0.5 * 5.0 / 3.0 * 10.0**2, rel=1e-12)  # about its end: m L^2 / 3
     # angular momentum sum_ij M_ij x_i x v_j about the origin (exact for the C0 interpolation) is conserved
-    t, Y, _ = integrate(asm, AbsoluteNodalSettings(t_end=1.0, step=2.5e-5, rate=200))
+    t, Y, _ = integrate(asm, 1.0, SolverSettings(method="rk4", h=2.5e-5, output_dt=1 / 200))
     X, V = unpack(asm, Y)
     H = np.einsum("ij,si,sj->s", asm.Ms, X[:, :, 0], V[:, :, 1]) - np.einsum("ij,si,sj->s", asm.Ms, X[:, :, 1], V[:, :, 0])
     assert np.max(np.abs(H - H[0])) < 1e-9 * abs(H[0])
@@ -115,7 +116,8 @@ def test_free_spinning_link_keeps_length_energy_and_angular_momentum():
 def test_driven_stiff_link_follows_the_motion_with_the_rigid_motor_torque():
     # rest-to-rest cycloid of 90 deg in 0.5 s against gravity; rigid motor torque I psi'' + m g L/2 cos psi
     drv = Driver("motor", "pin", "link", 0.0, math.pi / 2, 0.5)
-    r = simulate_absolute_nodal(_stiff_link(drivers=(drv,)), AbsoluteNodalSettings(t_end=0.6, step=2e-5, rate=5000))
+    r = simulate_absolute_nodal(_stiff_link(drivers=(drv,)), 0.6,
+                                SolverSettings(method="rk4", h=2e-5, output_dt=1 / 5000))
     tau = np.minimum(r.t / 0.5, 1.0)
     psi = math.pi / 2 * (tau - np.sin(2 * math.pi * tau) / (2 * math.pi))
     psidd = np.where(tau < 1, math.pi / 2 * 2 * math.pi * np.sin(2 * math.pi * tau) / 0.25, 0.0)
@@ -141,7 +143,7 @@ def test_bad_scene_gives_one_line_error(tmp_path, edit, message):
     text = EXAMPLE.read_text().replace(old, new, count)
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    root, _ = read_toml(path)
+    root, _ = read_toml_text(path)
     with pytest.raises(InputError) as exc:
         load_absolute_nodal_scene(root, path)
     assert str(path) in str(exc.value) and message in str(exc.value) and "\n" not in str(exc.value)
@@ -154,7 +156,7 @@ def test_step_beyond_rk4_stability_is_refused_before_the_run():
     model = AbsoluteNodalModel(tuple(Beam(b.name, b.length, b.mass, b.EI, b.EA, 8, b.points, b.angle)
                                      for b in scene.model.beams), scene.model.supports)
     with pytest.raises(InputError, match="stability limit"):
-        simulate_absolute_nodal(model, AbsoluteNodalSettings(t_end=0.01, step=2.5e-4))
+        simulate_absolute_nodal(model, 0.01, SolverSettings(method="rk4", h=2.5e-4))
 
 
 #: FFR cross-check over the first swing (t <= 0.5 s): the FFR model is the coarse one (20 mm tet10

@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 from readme_numbers import check_numbers
 
+from sidprep.solver.run import simulate
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "engine"
 #: energy conservation: gas work = kinetic + strain + gravity + dissipated, fraction of the work
@@ -108,7 +110,7 @@ def test_engine_placed_roughly_assembles(engine_dir):
     for body in scene.system.bodies[1:]:
         body.position0 = body.position0 + np.array([1e-3, -1e-3, 1e-3])
         body.rotation0 = Rotation.from_rotvec(np.radians([1.0, -1.0, 1.0])).as_matrix() @ body.rotation0
-    r = scene.system.simulate(1e-3, h=2e-4)
+    r = simulate(scene.system, 1e-3, h=2e-4)
     assert np.max(r.constraint_error) < ASSEMBLY_RESIDUAL
     assert any("consistent start moved 'rod'" in n for n in r.effects.notes)     # and says what it moved
     assert r.joints["crank_joint"].coordinate[0] == pytest.approx(-np.pi / 2, abs=1e-10)
@@ -120,6 +122,11 @@ def test_engine_placed_roughly_assembles(engine_dir):
 
 #: planar against 3D coordinates of the same scene: every joint signal, relative to its peak
 PLANAR_RTOL = 1e-6
+#: ... the joint forces: the multipliers of index-3 generalised-alpha carry the constraint
+#: residual (within newton_tol L) divided by h^2 beta'; on SE(3) the rows are nonlinear in the
+#: step and the two runs converge to different residuals (measured 3.4e-5; 1e-6 on R^3 x SO(3),
+#: where the rows at a frame origin were linear)
+PLANAR_FORCE_RTOL = 1e-4
 
 
 def test_engine_planar_runs_give_the_3d_answer(engine_dir):
@@ -135,14 +142,15 @@ def test_engine_planar_runs_give_the_3d_answer(engine_dir):
     for planar in (None, False):
         scene = load_scene(engine_dir / "scene_rigid.toml")
         scene.system.planar = planar
-        runs[planar] = scene.system.simulate(**{**scene.simulate_kwargs, "t_end": 0.2})
+        runs[planar] = simulate(scene.system, 0.2, scene.settings)
     assert runs[None].stats["planar"] and not runs[False].stats["planar"]
     for name, joint in runs[False].joints.items():
         for field in ("coordinate", "rate", "force"):
             ref, got = getattr(joint, field), getattr(runs[None].joints[name], field)
             if np.all(np.isnan(ref)):
                 continue
-            assert np.max(np.abs(got - ref)) <= PLANAR_RTOL * max(np.max(np.abs(ref)), 1e-9), (name, field)
+            tol = PLANAR_FORCE_RTOL if field == "force" else PLANAR_RTOL
+            assert np.max(np.abs(got - ref)) <= tol * max(np.max(np.abs(ref)), 1e-9), (name, field)
     flexible = load_scene(engine_dir / "scene.toml")
-    r = flexible.system.simulate(**{**flexible.simulate_kwargs, "t_end": 0.01})
+    r = simulate(flexible.system, 0.01, flexible.settings)
     assert not r.stats["planar"] and any("run in 3D" in n and "rod" in n for n in r.effects.notes)

@@ -7,6 +7,8 @@ that pyproject installs them so).  Data flows one way::
 
     base (errors, progress, tables, interpolation) -> sid -> fe -> reduction -> jobs
     base, sid -> solver -> view -> cli
+
+and inside solver/: model -> equations -> compile -> integrators -> results -> run -> scenes.
 """
 
 import ast
@@ -33,6 +35,27 @@ LAYERS = {
 SOLVER_MAY_IMPORT = ("sidprep.reduction.beam", "sidprep.fe.material")
 #: at most this many modules directly in sidprep/ (the rest live in the subpackages)
 MAX_FLAT_MODULES = 10
+#: solver/ from the first layer to the last (docs/solver.md): a module imports its own layer and
+#: the ones before it only
+SOLVER_LAYERS = (
+    ("model", ("sidprep.solver.model",)),
+    ("equations", ("sidprep.solver.equations",)),
+    ("compile", ("sidprep.solver.compile",)),
+    ("integrators", ("sidprep.solver.integrators",)),
+    ("results", ("sidprep.solver.effects", "sidprep.solver.results", "sidprep.solver.energy")),
+    ("run", ("sidprep.solver.run", "sidprep.solver.postprocess", "sidprep.solver.stiffening_work",
+             "sidprep.solver.linear")),
+    ("scenes", ("sidprep.solver.scene_tables", "sidprep.solver.scene", "sidprep.solver.absolute_nodal",
+                "sidprep.solver.animation", "sidprep.solver.stress", "sidprep.solver.fatigue")),
+)
+#: solver layers that share nothing: the compiled kernels never see the descriptions, nor they the kernels
+INDEPENDENT = {("model", "equations"), ("equations", "model")}
+#: the most parameters a function may take (named structures carry the rest)
+MAX_PARAMETERS = 12
+#: folders whose imports stand at the top of files; an import inside a function says why on its
+#: line or the line above ("deferred": a measured start-up cost or an optional dependency). The
+#: CLI's command modules import their library inside ``run`` by design (docs/architecture.md).
+IMPORTS_AT_TOP = ("sidprep", "solver")
 
 
 def module_files() -> dict[str, Path]:
@@ -146,3 +169,54 @@ def test_the_layering_test_sees_function_level_imports():
     """A guard for the test itself: an import inside a function is an edge of the graph."""
     graph = import_graph()
     assert "sidprep.jobs.reduce" in graph["sidprep"]       # the lazy API imports it inside a function
+
+
+def solver_layer(name: str):
+    for rank, (label, prefixes) in enumerate(SOLVER_LAYERS):
+        if any(name == p or name.startswith(p + ".") for p in prefixes):
+            return rank, label
+    return None
+
+
+def test_solver_layers_import_one_way():
+    graph = import_graph()
+    solver = [m for m in graph if m.startswith("sidprep.solver.")]
+    assert [m for m in solver if solver_layer(m) is None] == []           # every module has its layer
+    wrong = []
+    for m in solver:
+        rank, label = solver_layer(m)
+        for target in graph[m]:
+            other = solver_layer(target)
+            if other is not None and (other[0] > rank or (label, other[1]) in INDEPENDENT):
+                wrong.append(f"{m} ({label}) imports {target} ({other[1]})")
+    assert wrong == []
+
+
+def test_imports_sit_at_the_top_of_files():
+    hidden = []
+    for folder in IMPORTS_AT_TOP:
+        for path in (ROOT / folder).rglob("*.py"):
+            if path == ROOT / "sidprep" / "__init__.py":
+                continue                                    # the lazy Python API (its docstring says why)
+            text = path.read_text().splitlines()
+            tree = ast.parse("\n".join(text))
+            for f in ast.walk(tree):
+                if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    for n in ast.walk(f):
+                        if isinstance(n, (ast.Import, ast.ImportFrom)) and n is not f:
+                            reason = text[n.lineno - 1] + text[n.lineno - 2]
+                            if "deferred" not in reason:
+                                hidden.append(f"{path.relative_to(ROOT)}:{n.lineno}")
+    assert hidden == []
+
+
+def test_no_function_takes_more_than_twelve_parameters():
+    wide = []
+    for folder in INSTALLED_AS:
+        for path in (ROOT / folder).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    count = len(node.args.posonlyargs) + len(node.args.args) + len(node.args.kwonlyargs)
+                    if count > MAX_PARAMETERS:
+                        wide.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name} ({count})")
+    assert wide == []

@@ -30,7 +30,9 @@ def test_json_summary_is_one_object_with_the_contract_keys(scene, tmp_path, caps
     for key in ("steps", "cpu_s", "energy", "effects", "bodies", "outputs"):
         assert key in summary
     assert summary["steps"] == 30 and summary["t_end"] == pytest.approx(0.03)
-    assert set(summary["energy"]) == {"initial", "final", "max_rel_drift"}
+    assert set(summary["energy"]) == {"initial", "final", "max_rel_drift", "balance_error", "tolerance", "warning"}
+    assert summary["energy"]["balance_error"] <= summary["energy"]["tolerance"] == 1e-3
+    assert summary["energy"]["warning"] is None
     assert set(summary["effects"]) >= {"included", "left_out", "warnings"}
     result = read_results(out).result
     final = summary["bodies"]["bar"]

@@ -11,7 +11,7 @@ import pytest
 from sidprep.sid.model import sid_invariants
 from sidprep.solver.model.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
 from sidprep.solver.equations.constraints import marker_kinematics
-from sidprep.solver.equations.layout import body_matrices
+from sidprep.solver.compile.layout import body_matrices
 from sidprep.solver.equations.rotations import exp_so3, skew
 
 CARTOP = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem" / "cartopPragV32.SID_FEM"

@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 from test_solver_bodies import bar_sid
 
-from sidprep.solver.effects import EFFECTS, WARN_LEVEL, parse_effects
+from sidprep.solver.effects import WARN_LEVEL
+from sidprep.solver.model.effects import EFFECTS, parse_effects
 from sidprep.solver.model.joints import ConstantSpeed, Driver, Revolute
 from sidprep.solver import FlexibleBody, System
+from sidprep.solver.run import simulate
 
 SPIN = 10.0  # rad/s
 FREQS = (5.0, 8.0, 12.0, 15.0)  # Hz: (SPIN / omega_1)^2 = 0.10
@@ -65,8 +67,8 @@ def test_report_estimates_a_left_out_effect_from_the_run():
         return s
 
     named = ["coupling", "coriolis", "centrifugal", "inertia_change", "damping"]
-    without = scene(named).simulate(2.0, h=2e-3, output_dt=0.01)
-    with_it = scene(named + ["centrifugal_stiffening"]).simulate(2.0, h=2e-3, output_dt=0.01)
+    without = simulate(scene(named), 2.0, h=2e-3, output_dt=0.01)
+    with_it = simulate(scene(named + ["centrifugal_stiffening"]), 2.0, h=2e-3, output_dt=0.01)
     q0, q1 = without.bodies["rotor"].q, with_it.bodies["rotor"].q
     actual = np.max(np.abs(q1 - q0)) / np.max(np.abs(q0))
     e = entry(without.effects, "centrifugal_stiffening")
@@ -79,7 +81,7 @@ def test_report_estimates_a_left_out_effect_from_the_run():
 
 def test_auto_includes_centrifugal_stiffening_when_complete():
     sid = with_k0omega(bar_sid(freqs=FREQS, damping=0.02))
-    r = spinning_scene(sid, "auto").simulate(0.2, h=2e-3)
+    r = simulate(spinning_scene(sid, "auto"), 0.2, h=2e-3)
     e = entry(r.effects, "centrifugal_stiffening")
     assert e.included and not e.warning
     assert "rotate" in e.reason
@@ -88,7 +90,7 @@ def test_auto_includes_centrifugal_stiffening_when_complete():
 
 def test_auto_refuses_kom_without_k0omega_and_warns():
     """Oe.M1 = Kom only (no K0omega): auto leaves the pair out, and says so loudly."""
-    r = spinning_scene(bar_sid(freqs=FREQS), "auto").simulate(0.2, h=2e-3)
+    r = simulate(spinning_scene(bar_sid(freqs=FREQS), "auto"), 0.2, h=2e-3)
     e = entry(r.effects, "centrifugal_stiffening")
     assert not e.included and "K0omega" in e.reason and e.warning
 
@@ -97,8 +99,8 @@ def test_centrifugal_stiffening_raises_the_spinning_frequency():
     """Kom + K0omega switched as one changes the modal response; dropping it changes q."""
     sid = with_k0omega(bar_sid(freqs=FREQS, damping=0.05))
     base = ["coupling", "coriolis", "centrifugal", "inertia_change", "damping"]
-    q_without = spinning_scene(sid, base).simulate(0.5, h=2e-3).bodies["rotor"].q[-1]
-    q_with = spinning_scene(sid, base + ["centrifugal_stiffening"]).simulate(0.5, h=2e-3).bodies["rotor"].q[-1]
+    q_without = simulate(spinning_scene(sid, base), 0.5, h=2e-3).bodies["rotor"].q[-1]
+    q_with = simulate(spinning_scene(sid, base + ["centrifugal_stiffening"]), 0.5, h=2e-3).bodies["rotor"].q[-1]
     assert np.linalg.norm(q_with - q_without) > WARN_LEVEL * np.linalg.norm(q_without)
 
 
@@ -132,7 +134,7 @@ def test_load_stiffening_by_a_tip_force():
         bar = s.add(FlexibleBody(sid, name="rotor", q0=q0))
         s.add(Fixed(s.ground.marker(), bar.node_marker(0)))
         s.add(PointForce(bar.node_marker(1), (-load, 0.0, 0.0)))
-        return s.simulate(0.3, h=h, rho_inf=1.0, output_dt=0.01)
+        return simulate(s, 0.3, h=h, rho_inf=1.0, output_dt=0.01)
 
     keff = sid.Ke.M0 - load * g
     phi_tip = sid.nodes[1].phi.M0
@@ -179,7 +181,7 @@ def test_spinning_cantilever_flapwise_frequency_follows_southwell(tmp_path):
         beam = s.add(FlexibleBody(sid, name="beam", q0=q0, omega=(0, 0, spin)))
         hub = s.add(Revolute(s.ground.marker(position=sid.nodes[0].origin.M0[:, 0]), beam.node_marker(0)))
         s.add(Driver(hub, ConstantSpeed(spin)))
-        r = s.simulate(0.3, h=2.5e-4)
+        r = simulate(s, 0.3, h=2.5e-4)
         x = r.bodies["beam"].q[:, flap] - np.mean(r.bodies["beam"].q[:, flap])
         up = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
         tz = r.t[up] - x[up] * (r.t[up + 1] - r.t[up]) / (x[up + 1] - x[up])
@@ -211,7 +213,7 @@ def test_gravity_alone_loads_the_modes():
     beam = s.add(FlexibleBody(sid, name="beam", effects=["gravity"]))
     s.add(Fixed(s.ground.marker(), beam.marker()))
     beam.node_marker(1, name="tip")
-    r = s.simulate(1e-3, h=1e-3, static_start=True)
+    r = simulate(s, 1e-3, h=1e-3, static_start=True)
     coupling = next(e for e in r.effects.bodies["beam"] if e.effect == "coupling")
     assert coupling.included and "gravity's modal force" in coupling.reason
     expected = -mu * 9.81 * length**4 / (8 * ei)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from test_solver_bodies import random_nodal_sid
 
-from sidprep.solver.equations.layout import body_matrices
+from sidprep.solver.compile.layout import body_matrices
 from sidprep.solver.model.bodies import FlexibleBody
 
 #: relative agreement with the brute force (round-off)

@@ -7,6 +7,7 @@ from test_solver_bodies import CARTOP, bar_sid, random_nodal_sid
 
 from sidprep.solver.integrators.genalpha import genalpha_parameters
 from sidprep.solver import EFFECTS, FlexibleBody, Revolute, RigidBody, Spherical, System
+from sidprep.solver.run import simulate
 
 #: free spinning body, exact model, DOP853 at rtol 1e-10: energy / angular momentum drift
 CONSERVATION_TOL = 1e-6
@@ -21,7 +22,7 @@ AXIS_Y = np.column_stack([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
 def angular_momentum(result, body, effects):
     """Angular momentum about the inertial origin from the body's generalised momentum."""
-    from sidprep.solver.equations.layout import body_matrices
+    from sidprep.solver.compile.layout import body_matrices
 
     terms = body.terms(effects, gravity=False)
     h = result.bodies[body.name]
@@ -46,7 +47,7 @@ def test_free_spinning_flexible_body_conserves_energy_and_angular_momentum():
     s = System(gravity=(0, 0, 0))
     body = s.add(FlexibleBody(sid, name="b", omega=(1.0, 0.7, 2.0), velocity=(0.1, 0.2, 0.0),
                               q0=np.full(sid.nq, 0.01)))
-    r = s.simulate(10.0, method="dop853", rtol=1e-10, atol=1e-12, effects="all", output_dt=0.05)
+    r = simulate(s, 10.0, method="dop853", rtol=1e-10, atol=1e-12, effects="all", output_dt=0.05)
     e = r.energy["total"]
     assert np.max(np.abs(e - e[0])) <= CONSERVATION_TOL * e[0]
     H = angular_momentum(r, body, set(EFFECTS))
@@ -76,7 +77,7 @@ def test_stiff_flexible_pendulum_matches_rigid_pendulum():
         return b, b.node_marker(0, rotation=AXIS_Y)
 
     s, body, joint = pendulum(flexible)
-    r = s.simulate(1.0, h=1e-3)
+    r = simulate(s, 1.0, h=1e-3)
     A = r.bodies["bar"].rotation[-1]
     angle = np.arctan2(-A[2, 0], A[0, 0])
     ref = rigid_pendulum_angle(sid.mass, sid.mdCM.M0[0, 0] / sid.mass, sid.J.M0[1, 0], 1.0)
@@ -94,7 +95,7 @@ def test_rigid_pendulum_with_step_size_control():
         return b, b.marker(rotation=AXIS_Y)
 
     s, body, joint = pendulum(rigid)
-    r = s.simulate(1.0, h=1e-3, rtol=1e-7, atol=1e-9)
+    r = simulate(s, 1.0, h=1e-3, rtol=1e-7, atol=1e-9)
     ref = rigid_pendulum_angle(m, xc, icm + m * xc**2, 1.0)
     assert abs(r.joints[joint.name].coordinate[-1] - ref) < 1e-4
     assert r.stats["steps"] < 1000 and r.stats["h_max"] > 2e-3
@@ -120,7 +121,7 @@ def test_cartop_energy_decays_only_through_damping():
     s = System(gravity=(0, 0, -9.81))
     body = s.add(FlexibleBody(CARTOP, name="cartop"))
     s.add(Spherical(s.ground.marker(), body.node_marker(0)))
-    r = s.simulate(2.0, h=2e-3, rho_inf=1.0, effects=["gravity", "coupling", "coriolis", "centrifugal",
+    r = simulate(s, 2.0, h=2e-3, rho_inf=1.0, effects=["gravity", "coupling", "coriolis", "centrifugal",
                                                         "inertia_change", "damping"])
     e = r.energy
     mech = e["kinetic"] + e["strain"] + e["gravity"]
@@ -142,10 +143,10 @@ def test_explicit_methods_on_constrained_systems():
         return b, b.marker(rotation=AXIS_Y)
 
     s, body, joint = pendulum(rigid)
-    r = s.simulate(1.0, method="dop853", rtol=1e-10, atol=1e-12, output_dt=0.1)
+    r = simulate(s, 1.0, method="dop853", rtol=1e-10, atol=1e-12, output_dt=0.1)
     assert abs(r.joints[joint.name].coordinate[-1] - rigid_pendulum_angle(m, xc, icm + m * xc**2, 1.0)) < 1e-8
     s, main, _ = slider_crank(speed=2.0)
-    r = s.simulate(0.5, method="rk45", rtol=1e-8, atol=1e-10, output_dt=0.05)
+    r = simulate(s, 0.5, method="rk45", rtol=1e-8, atol=1e-10, output_dt=0.05)
     assert np.max(r.constraint_error) < 1e-8
     assert np.allclose(r.joints["main"].coordinate, 0.5 + 2.0 * r.t, atol=1e-8)
 
@@ -171,7 +172,7 @@ def test_driven_damped_flexible_pendulum_balances_its_energy():
 
     s, _, joint = pendulum(flexible)
     s.add(Driver(joint, SmoothStart(speed=40.0, ramp_time=0.1), name="motor"))
-    r = s.simulate(0.3, h=1e-3, output_dt=0.01, rho_inf=1.0)
+    r = simulate(s, 0.3, h=1e-3, output_dt=0.01, rho_inf=1.0)
     assert r.joints[joint.name].coordinate[-1] > 2 * np.pi
     assert r.energy["dissipated"][-1] > 0 and r.energy["external"][-1] > 0
     drift = np.max(np.abs(r.energy["total"] - r.energy["total"][0]))
@@ -198,7 +199,7 @@ def test_planar_scene_integrates_the_in_plane_coordinates_only():
             b = s.add(RigidBody(2.0, (0.5, 0, 0), np.diag([1e-3, 0.02, 0.02]), name="bar"))
             root = b.marker(rotation=AXIS_Y)
         s.add(Revolute(s.ground.marker(rotation=AXIS_Y), root, name="pivot"))
-        return s.simulate(0.3, h=1e-3, output_dt=0.01)
+        return simulate(s, 0.3, h=1e-3, output_dt=0.01)
 
     flat, full = run(None), run(False)
     assert flat.stats["planar"] and not full.stats["planar"]
@@ -226,7 +227,7 @@ def test_out_of_plane_load_decides_the_planar_form():
         b, root, tip = make_body(s)
         s.add(Revolute(s.ground.marker(rotation=AXIS_Y), root, name="pivot"))
         s.add(PointForce(tip, late_force, direction=(0, 1, 0)))
-        return s.simulate(0.3, h=1e-3, output_dt=0.05)
+        return simulate(s, 0.3, h=1e-3, output_dt=0.05)
 
     def rigid(s):
         b = s.add(RigidBody(2.0, (0.5, 0, 0), np.diag([1e-3, 0.02, 0.02]), name="rod"))
@@ -264,7 +265,7 @@ def test_flexible_loop_under_gravity_conserves_energy():
     s.gravity = np.array([0.0, -9.81, 0.0])
     drift = {}
     for h in (2e-3, 1e-3):
-        r = s.simulate(3.0, h=h, rho_inf=1.0, output_dt=0.01, deformation_limit=1.0,   # the 1 Hz conrod sags
+        r = simulate(s, 3.0, h=h, rho_inf=1.0, output_dt=0.01, deformation_limit=1.0,   # the 1 Hz conrod sags
                        effects=["coupling", "coriolis", "centrifugal", "inertia_change", "damping", "gravity"])
         exchanged = np.ptp(r.energy["gravity"])
         assert exchanged > 10.0 and not r.stats["planar"]
@@ -274,19 +275,21 @@ def test_flexible_loop_under_gravity_conserves_energy():
 
 
 def test_a_diverging_body_stops_early_and_keeps_its_results():
-    """A body with negative modal stiffness (unstable) diverges: the run stops when the elastic
-    deflection passes 20 % of the body's size, not after minutes, with a one-line message naming
-    the body, and the Result up to there is kept."""
+    """A body preloaded beyond buckling (net modal stiffness Ke + ksigma.M1 = -Ke: unstable; a
+    negative Ke itself is refused at load) diverges: the run stops when the elastic deflection
+    passes 20 % of the body's size, not after minutes, with a one-line message naming the body,
+    and the Result up to there is kept."""
     from dataclasses import replace
 
     from sidprep.errors import SimulationFailed
 
     sid = bar_sid()
-    sid = replace(sid, Ke=replace(sid.Ke, M0=-sid.Ke.M0))
+    ke = sid.Ke.M0
+    sid = replace(sid, ksigma=replace(sid.ksigma, M0=np.zeros((sid.nq, 1)), M1=(-2.0 * ke)[:, :, None]))
     s = System(gravity=(0, 0, 0))
-    s.add(FlexibleBody(sid, name="bar", q0=np.full(sid.nq, 1e-6)))
+    s.add(FlexibleBody(sid, name="bar", q0=np.full(sid.nq, 1e-6), effects=["preload"]))
     with pytest.raises(SimulationFailed, match="body 'bar' left the small-deformation range") as failure:
-        s.simulate(1.0, h=1e-4)
+        simulate(s, 1.0, h=1e-4)
     result = failure.value.result
     assert 0.0 < result.t[-1] < 0.1 and "small-deformation" in result.stats["failed"]
     assert "\n" not in str(failure.value)
@@ -300,5 +303,5 @@ def test_max_steps_keeps_the_results_so_far():
     rod = s.add(RigidBody(1.0, (0.5, 0, 0), [1e-3, 1e-3, 1e-3], name="rod"))
     s.add(Revolute(s.ground.marker(rotation=AXIS_Y), rod.marker(rotation=AXIS_Y), name="pivot"))
     with pytest.raises(SimulationFailed, match="max_steps") as failure:
-        s.simulate(1.0, h=1e-3, max_steps=10)
+        simulate(s, 1.0, h=1e-3, max_steps=10)
     assert failure.value.result.t[-1] == pytest.approx(0.01)

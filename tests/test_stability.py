@@ -16,6 +16,7 @@ from sidprep.fe.assemble import mass_matrix, scalar_mass_matrix, stiffness_matri
 from sidprep.fe.linalg import clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes
 from sidprep.fe.material import Material, material_from_options
 from sidprep.fe.mesh import FEMesh, read_mesh, surface_node_indices
+from sidprep.solver.run import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"
@@ -292,7 +293,7 @@ def test_stiff_sixteen_mode_body_with_large_step_stays_bounded(tmp_path):
     s = System(gravity=(0.0, 0.0, -9.81))
     bar = s.add(FlexibleBody(sid, name="bar"))
     s.add(Revolute(s.ground.marker(rotation=_Z_TO_Y), bar.node_marker(0, rotation=_Z_TO_Y), name="hinge"))
-    r = s.simulate(2.0, h=h, rho_inf=0.8, output_dt=h)
+    r = simulate(s, 2.0, h=h, rho_inf=0.8, output_dt=h)
     e = r.energy["total"]
     mgl = sid.mass * 9.81 * 1.0
     q = r.bodies["bar"].q
@@ -308,6 +309,10 @@ def test_stiff_sixteen_mode_body_with_large_step_stays_bounded(tmp_path):
 SOUTHWELL_LAG = 1.193 - 1.0
 #: 3D tet bar, 4 clamped modes, 0.95 x the first critical speed: measured 2.8e-3
 LAG_FREQUENCY_RTOL = 1e-2
+#: bound of the lag amplitude, in units of its start 1e-4: the Coriolis exchange with the other
+#: modes lifts it to 1.0451 (DOP853, rtol 1e-10; genalpha 1.0448 at h = 0.25 ms, 1.0451 at
+#: 0.125 ms; the R^3 x SO(3) stepper before issue 22 damped it to <= 1.01)
+LAG_AMPLITUDE_BOUND = 1.06
 
 
 def test_spinning_near_the_first_critical_speed_is_stable_with_stiffening(tmp_path):
@@ -330,12 +335,12 @@ def test_spinning_near_the_first_critical_speed_is_stable_with_stiffening(tmp_pa
         beam = s.add(FlexibleBody(sid, name="beam", q0=q0, omega=(0, 0, spin)))
         hub = s.add(Revolute(s.ground.marker(position=sid.nodes[0].origin.M0[:, 0]), beam.node_marker(0)))
         s.add(Driver(hub, ConstantSpeed(spin)))
-        return s.simulate(0.3, h=2.5e-4)
+        return simulate(s, 0.3, h=2.5e-4)
 
     base = ["coupling", "coriolis", "centrifugal", "inertia_change"]
     r = run(base + ["centrifugal_stiffening"])
     x = r.bodies["beam"].q[:, lag]
-    assert np.all(np.isfinite(x)) and np.abs(x).max() <= 1.01 * 1e-4
+    assert np.all(np.isfinite(x)) and np.abs(x).max() <= LAG_AMPLITUDE_BOUND * 1e-4
     xm = x - x.mean()
     up = np.flatnonzero((xm[:-1] < 0) & (xm[1:] >= 0))
     tz = r.t[up] - xm[up] * (r.t[up + 1] - r.t[up]) / (xm[up + 1] - xm[up])
@@ -355,8 +360,9 @@ def test_spinning_near_the_first_critical_speed_is_stable_with_stiffening(tmp_pa
 #: (measured 3.8e-6); the O(h^2) excursion within a swing (measured 1.5e-4)
 LONG_RUN_DRIFT = 1e-5
 LONG_RUN_EXCURSION = 3e-4
-#: position-level constraint error, m (measured 4e-22)
-LONG_RUN_CONSTRAINT = 1e-12
+#: position-level constraint error, m: within the Newton tolerance (newton_tol L), no drift
+#: (measured 1.5e-10 with the SE(3) steps: the hinge is nonlinear in them; 4e-22 before, linear)
+LONG_RUN_CONSTRAINT = 1e-9
 
 
 def test_hundred_seconds_of_a_rigid_pendulum_keep_energy_and_constraints():
@@ -365,9 +371,225 @@ def test_hundred_seconds_of_a_rigid_pendulum_keep_energy_and_constraints():
     s = System(gravity=(0, 0, -9.81))
     rod = s.add(RigidBody(2.0, com=(0.5, 0, 0), inertia=(0.001, 0.05, 0.05), name="rod"))
     s.add(Revolute(s.ground.marker(rotation=_Z_TO_Y), rod.marker(rotation=_Z_TO_Y), name="hinge"))
-    r = s.simulate(100.0, h=1e-2, output_dt=0.05)
+    r = simulate(s, 100.0, h=1e-2, output_dt=0.05)
     e = r.energy["total"] / (2.0 * 9.81 * 0.5)
     first, last = e[r.t <= 10.0], e[r.t >= 90.0]
     assert abs(last.mean() - first.mean()) < LONG_RUN_DRIFT
     assert np.abs(e - e[0]).max() < LONG_RUN_EXCURSION
     assert r.constraint_error.max() < LONG_RUN_CONSTRAINT
+
+
+# ---------------------------------------------------------------------------------------------
+# Hard cases of issue 22
+# ---------------------------------------------------------------------------------------------
+
+#: whirl of the hinged bar (issue 22 item 1): spin about the hinge, rad/s, run length, s, step, s
+WHIRL_SPIN, WHIRL_T, WHIRL_H = 50.0, 10.0, 1e-3
+#: energy law: |E - E0| / E0 over the run, no work done (measured 2.5e-6 free-free modes, 4.6e-5
+#: clamped-frame modes, 2.2e-6 rigid twin; R^3 x SO(3) before: +2.5e-2, divergence at 7.95 s, +1e-2)
+WHIRL_ENERGY_RTOL = 1e-4
+#: hinge rate of the flexible bar against its rigid twin at the end of the run (stiff bar:
+#: the elastic sag changes the inertia by ~Omega^2 / omega_1^2 at most)
+WHIRL_RATE_RTOL = 2e-3
+
+
+def whirl(body_factory, h=WHIRL_H, t_end=WHIRL_T, rho_inf=0.9, method="genalpha"):
+    """A body built by ``body_factory(system)`` -> (body, hinge marker on it), hinged to ground
+    about y at its marker, started spinning at WHIRL_SPIN about the hinge under gravity."""
+    from sidprep.solver import Revolute, System, simulate
+
+    s = System(gravity=(0.0, 0.0, -9.81))
+    body, marker = body_factory(s)
+    s.add(Revolute(s.ground.marker(rotation=_Z_TO_Y), marker, name="hinge"))
+    return simulate(s, t_end, h=h, rho_inf=rho_inf, output_dt=0.01, method=method)
+
+
+def hinged_flexible(sid):
+    from sidprep.solver import FlexibleBody
+
+    def make(s):
+        bar = s.add(FlexibleBody(sid, name="bar", omega=(0, WHIRL_SPIN, 0)))
+        return bar, bar.node_marker(0, rotation=_Z_TO_Y)
+    return make
+
+
+def hinged_rigid_twin(sid):
+    """A rigid body with the SID's mass, first moment and inertia, frame where the SID's is."""
+    from sidprep.sid.model import inertia_matrix
+    from sidprep.solver import RigidBody
+
+    com = sid.mdCM.M0[:, 0] / sid.mass
+    j_o = inertia_matrix(sid.J.M0[:, 0])
+    j_cm = j_o - sid.mass * (com @ com * np.eye(3) - np.outer(com, com))
+    hinge = sid.nodes[0].origin.M0[:, 0]
+
+    def make(s):
+        body = s.add(RigidBody(sid.mass, com=com, inertia=j_cm, name="bar", omega=(0, WHIRL_SPIN, 0),
+                               position=-hinge))
+        return body, body.marker(position=hinge, rotation=_Z_TO_Y)
+    return make
+
+
+@pytest.mark.parametrize("frame", [(), ("--frame", "fixed_end")], ids=["free-free", "clamped-frame"])
+def test_hinged_flexible_bar_whirling_fast_keeps_its_energy(tmp_path, frame):
+    """Issue 22 item 1: the bundled bar (frame origin at a corner, hinge at the end-face centre)
+    whirling at 50 rad/s under gravity, h = 1 ms, rho_inf = 0.9, 10 s: energy is conserved
+    (no work is done) and the spin follows the rigid twin of the same mass properties, which
+    obeys the same energy law.  Before the SE(3) coordinates the energy grew ~h^2 Omega^3."""
+    sid = reduced_bar(tmp_path, *frame)
+    flexible = whirl(hinged_flexible(sid))
+    rigid = whirl(hinged_rigid_twin(sid))
+    for r in (flexible, rigid):
+        e = r.energy["total"]
+        assert r.t[-1] == pytest.approx(WHIRL_T)
+        assert np.max(np.abs(e - e[0])) <= WHIRL_ENERGY_RTOL * e[0]
+    rate_flex, rate_rigid = flexible.joints["hinge"].rate[-1], rigid.joints["hinge"].rate[-1]
+    assert rate_flex == pytest.approx(rate_rigid, rel=WHIRL_RATE_RTOL)
+
+
+PENDULUM_SID = ROOT / "examples" / "flexible_pendulum" / "bar.sid.h5"
+
+
+def broken_sids():
+    """(what is broken, the entry the message must name, the broken SID) from the bundled bar."""
+    from sidprep.sid.io import read_sid
+    from sidprep.sid.model import Taylor
+
+    sid = read_sid(PENDULUM_SID)
+
+    def taylor(t, m0):
+        return replace(t, M0=m0)
+
+    j = sid.J.M0.copy()
+    j[1, 0] = -j[1, 0]                                    # Jyy < 0
+    j_flat = sid.J.M0.copy()
+    j_flat[0, 0] = 3.0 * (j_flat[1, 0] + j_flat[2, 0])    # Jxx > Jyy + Jzz about the CM
+    ke_inf = sid.Ke.M0.copy()
+    ke_inf[2, 2] = np.inf
+    ke_neg = sid.Ke.M0.copy()
+    ke_neg[3, 3] = -ke_neg[3, 3]
+    ke_skew = sid.Ke.M0.copy()
+    ke_skew[0, 1] += 1e-3 * ke_skew[0, 0]
+    me_neg = sid.Me.M0.copy()
+    me_neg[1, 1] = -1.0
+    assert isinstance(sid.J, Taylor)
+    return [
+        ("negative Jyy", "not positive definite", replace(sid, J=taylor(sid.J, j))),
+        ("triangle inequality", "triangle inequality", replace(sid, J=taylor(sid.J, j_flat))),
+        ("NaN mass", "mass", replace(sid, mass=float("nan"))),
+        ("mass D+999", "mass", replace(sid, mass=float("inf"))),
+        ("zero mass", "mass = 0", replace(sid, mass=0.0)),
+        ("Ke = inf", "Ke.M0[2, 2] = inf", replace(sid, Ke=taylor(sid.Ke, ke_inf))),
+        ("Ke indefinite", "Ke.M0 not positive semidefinite", replace(sid, Ke=taylor(sid.Ke, ke_neg))),
+        ("Ke not symmetric", "Ke.M0 not symmetric", replace(sid, Ke=taylor(sid.Ke, ke_skew))),
+        ("Me indefinite", "Me.M0 not positive definite", replace(sid, Me=taylor(sid.Me, me_neg))),
+    ]
+
+
+@pytest.mark.parametrize("case", range(9))
+def test_a_physically_impossible_sid_is_refused_before_any_step(case):
+    """Issue 22 item 6: each broken SID gives one InputError line naming the SID and the entry
+    when the FlexibleBody is made (before any step); the intact SID has no problem."""
+    from sidprep.sid.checks import physical_problems
+    from sidprep.errors import InputError
+    from sidprep.sid.io import read_sid
+    from sidprep.solver import FlexibleBody
+
+    assert physical_problems(read_sid(PENDULUM_SID)) == []
+    what, entry, sid = broken_sids()[case]
+    with pytest.raises(InputError) as exc:
+        FlexibleBody(sid, name="bar")
+    message = str(exc.value)
+    assert "\n" not in message and "SID of body 'bar'" in message and entry in message, (what, message)
+
+
+def test_simulate_cli_refuses_a_sid_fem_with_negative_jyy_with_exit_2(tmp_path):
+    """The CLI path: a scene pointing at a SID_FEM file whose Jyy is negative stops with exit
+    code 2 and one line naming the file and the entry, before any step."""
+    import subprocess
+    import sys
+
+    from sidprep.sid.io.sid_fem import write_sid_fem
+
+    write_sid_fem(broken_sids()[0][2], tmp_path / "bar.SID_FEM")
+    (tmp_path / "scene.toml").write_text(
+        '[solver]\nt_end = 0.1\n[bodies.bar]\ntype = "flexible"\nsid = "bar.SID_FEM"\n', encoding="ascii")
+    out = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "simulate", "scene.toml", "-o", "r.h5", "-q"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    lines = out.stderr.strip().splitlines()
+    assert out.returncode == 2 and len(lines) == 1 and "Traceback" not in out.stderr, out.stderr
+    assert "bar.SID_FEM" in lines[0] and "not positive definite" in lines[0] and "Jyy" in lines[0]
+    assert not (tmp_path / "r.h5").exists()
+
+
+#: the examples' energy balance closes with the geometric-stiffening work booked (issue 22 item
+#: 4: measured 9.3e-4 beam_buckling, 7.4e-5 Beam slider crank; before 0.89 and 0.074)
+STIFFENED_BALANCE_TOL = 1e-3
+
+
+@pytest.mark.parametrize("example", ["beam_buckling", "beam_slider_crank"])
+def test_energy_books_close_with_geometric_stiffening(example):
+    """Issue 22 item 4: kinetic + strain + potentials + dissipated - work of loads and drives +
+    the work of the stiffening terms (load, centrifugal, acceleration) stays constant: the
+    balance error is within 1e-3 of the energy exchanged, and no energy warning is raised; the
+    stiffening work is not zero (the terms are active)."""
+    from sidprep.solver.scene import load_scene, simulate
+
+    r = simulate(load_scene(ROOT / "examples" / example / "scene.toml"))
+    balance = r.stats["energy_balance"]
+    assert balance["balance_error"] <= STIFFENED_BALANCE_TOL and balance["warning"] is None
+    assert np.ptp(r.energy["stiffening"]) > 10 * STIFFENED_BALANCE_TOL * balance["exchanged"]
+
+
+def test_energy_watchdog_warns_with_cause_and_fix_on_a_coarse_step():
+    """Issue 22 item 2: the hinged bar at h = 50 ms, rho_inf = 0.5 loses 0.6 % of the energy it
+    exchanges to numerical damping: the balance error passes energy_tol and the one warning
+    names rho_inf, h and a fix; at h = 1 ms the same scene stays within it without a warning."""
+    from sidprep.sid.io import read_sid
+
+    sid = read_sid(PENDULUM_SID)
+
+    def swing(h):
+        from sidprep.solver import Revolute, System, simulate
+
+        s = System(gravity=(0.0, 0.0, -9.81))
+        body, marker = hinged_flexible(sid)(s)
+        body.omega0 = np.zeros(3)
+        s.add(Revolute(s.ground.marker(rotation=_Z_TO_Y), marker, name="hinge"))
+        return simulate(s, 1.0, h=h, rho_inf=0.5).stats["energy_balance"]
+
+    coarse, fine = swing(5e-2), swing(1e-3)
+    assert coarse["balance_error"] > coarse["tolerance"] and "\n" not in coarse["warning"]
+    assert all(word in coarse["warning"] for word in ("rho_inf = 0.5", "h = 0.05 s", "fix:"))
+    assert fine["balance_error"] <= fine["tolerance"] and fine["warning"] is None
+
+
+#: rho_inf = 1 whirl (issue 22 item 3: blew up at 0.30 s before): energy law over 3 s
+#: (measured 2.5e-6)
+WHIRL_NO_DAMPING_RTOL = 1e-4
+
+
+def test_hinged_bar_whirling_is_stable_without_numerical_damping():
+    """Issue 22 item 3: rho_inf = 1 (no numerical damping) on the whirling hinged bar keeps the
+    energy for 3 s (the R^3 x SO(3) stepper's energy exploded and Newton failed at 0.30 s)."""
+    from sidprep.sid.io import read_sid
+
+    r = whirl(hinged_flexible(read_sid(PENDULUM_SID)), t_end=3.0, rho_inf=1.0)
+    e = r.energy["total"]
+    assert r.t[-1] == pytest.approx(3.0) and np.max(np.abs(e - e[0])) <= WHIRL_NO_DAMPING_RTOL * e[0]
+
+
+def test_an_explicit_run_that_blows_up_says_so():
+    """RK4 beyond its stability limit on the 2 kHz bar: the energy becomes NaN; the watchdog
+    names the blow-up, the step and the fix (no silent NaN result)."""
+    from sidprep.sid.io import read_sid
+    from sidprep.solver import Revolute, System, simulate
+
+    s = System(gravity=(0.0, 0.0, -9.81))
+    body, marker = hinged_flexible(read_sid(PENDULUM_SID))(s)
+    body.omega0 = np.zeros(3)
+    s.add(Revolute(s.ground.marker(rotation=_Z_TO_Y), marker, name="hinge"))
+    with np.errstate(all="ignore"):
+        balance = simulate(s, 0.2, h=1e-3, method="rk4").stats["energy_balance"]
+    assert balance["balance_error"] == np.inf
+    assert "blew up" in balance["warning"] and "h = 0.001 s" in balance["warning"] and "genalpha" in balance["warning"]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Cross-check: the two-link manipulator in absolute nodal coordinates (solver/absolute_nodal.py)
+"""Cross-check: the two-link manipulator in absolute nodal coordinates (solver/absolute_nodal/)
 against the same links as meshed, reduced flexible bodies in the floating-frame solver.
 
 Each link is a steel strip 1 m x 67.246 mm x 9.4718 mm (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3:
@@ -139,15 +139,16 @@ def _chain_signals(pin, elbow, tip) -> dict:
 def anc_signals(elements: int, t_end: float, rate: float, EI: float = EI):
     """Times and the same signals of the absolute-nodal model with ``elements`` per link (EA of
     the strip), RK4 at 90 % of its stability limit."""
-    from sidprep.solver.absolute_nodal import (RK4_STABILITY, AbsoluteNodalModel, AbsoluteNodalSettings, Beam, Support,
-                                       assemble, highest_frequency, simulate_absolute_nodal)
+    from sidprep.solver.absolute_nodal import (RK4_STABILITY, AbsoluteNodalModel, Beam, Support, assemble,
+                                               highest_frequency, simulate_absolute_nodal)
+    from sidprep.solver.integrators.settings import SolverSettings
 
     beams = (Beam("link1", LENGTH, MASS, EI, EA_STRIP, elements, ("pin", "elbow"), 0.0),
              Beam("link2", LENGTH, MASS, EI, EA_STRIP, elements, ("elbow", "tip"), PSI2))
     model = AbsoluteNodalModel(beams, (Support("pin", "pin"),), gravity=(0.0, -9.81))
     n_out = round(t_end * rate)
     steps = n_out * math.ceil(t_end * highest_frequency(assemble(model)) / (0.9 * RK4_STABILITY) / n_out)
-    r = simulate_absolute_nodal(model, AbsoluteNodalSettings(t_end=t_end, step=t_end / steps, rate=rate))
+    r = simulate_absolute_nodal(model, t_end, SolverSettings(method="rk4", h=t_end / steps, output_dt=1 / rate))
     return r.t, _chain_signals(*(r.markers[p][:, :2] for p in ("pin", "elbow", "tip")))
 
 

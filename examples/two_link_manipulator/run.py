@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))   # the repository'
 
 from sidprep.solver.absolute_nodal import load_absolute_nodal_scene, simulate_absolute_nodal  # noqa: E402
 from sidprep.solver.results import write_csv, write_results  # noqa: E402
-from sidprep.solver.scene import read_toml  # noqa: E402
+from sidprep.tables import read_toml_text  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -66,9 +66,9 @@ def main(argv=None):
     p.add_argument("--out", type=Path, default=Path("."), help="output folder")
     args = p.parse_args(argv)
     scene_path = HERE / "scene.toml"
-    root, text = read_toml(scene_path)
+    root, text = read_toml_text(scene_path, "scene file")
     scene = load_absolute_nodal_scene(root, scene_path, t_end=args.t_end)
-    result = simulate_absolute_nodal(scene.model, scene.settings)
+    result = simulate_absolute_nodal(scene.model, scene.t_end, scene.settings)
     args.out.mkdir(parents=True, exist_ok=True)
     write_results(result, args.out / "two_link.results.h5", scene={"path": str(scene_path), "text": text},
                   bodies={b.name: {"kind": "absolute_nodal", "source": str(scene_path)} for b in scene.model.beams})

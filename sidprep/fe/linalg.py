@@ -113,7 +113,7 @@ class CholmodFactorization(Factorization):
     def __init__(self, A: sp.spmatrix, upper: bool = False):
         """``upper``: A already holds only its upper triangle as CSR with sorted indices."""
         self.blas = fast_blas()
-        from sksparse_minimal import SparseCholesky  # after fast_blas: extensions bind at load
+        from sksparse_minimal import SparseCholesky  # deferred: optional CHOLMOD wheel; after fast_blas: extensions bind at load
 
         # CHOLMOD reads the lower triangle of a CSC matrix; the CSR arrays of triu(A) are exactly
         # the CSC arrays of tril(A) (A symmetric), so no transpose copy is made.
@@ -158,7 +158,7 @@ class SuperLUFactorization(Factorization):
 def cholmod_available() -> bool:
     fast_blas()  # Python loads extension modules with RTLD_NOW: the BLAS must come first
     try:
-        import sksparse_minimal  # noqa: F401
+        import sksparse_minimal  # deferred: optional CHOLMOD wheel  # noqa: F401
     except ImportError:
         return False
     return True
@@ -460,7 +460,7 @@ def _dense_modes(K, M) -> tuple[np.ndarray, np.ndarray]:
 def _lobpcg_solver(K, M, sigma, near_null):
     """k -> lowest (lambda, phi) by LOBPCG on K - sigma M with a smoothed-aggregation AMG
     V-cycle as preconditioner (near-null space: the rigid-body fields, if given)."""
-    import pyamg
+    import pyamg  # deferred: 1 s import, AMG only
 
     A = (K - sigma * M).tocsr()
     ml = pyamg.smoothed_aggregation_solver(A, B=near_null, symmetry="symmetric", strength="symmetric",

@@ -453,9 +453,9 @@ def study_plot(report: BatchReport) -> str | None:
                       if isinstance(v, (int, float)) and not isinstance(v, bool)})
     if len(ok) < 2 or len(numeric) != 1:
         return None
-    import matplotlib
+    import matplotlib  # deferred: 1.2 s import, plots only
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: 1.2 s import, plots only
 
 
     key = numeric[0]

@@ -60,7 +60,7 @@ class _DaskPool:
 
     def __init__(self, address, workers: int | None):
         try:
-            from distributed import Client
+            from distributed import Client  # deferred: 1.5 s import, Dask only
         except ImportError:
             raise InputError("scheduler: dask.distributed is not installed; pip install distributed") from None
         try:
@@ -78,7 +78,7 @@ class _DaskPool:
         return self.client.submit(fn, *args, pure=False)
 
     def wait(self, futures):
-        from distributed import wait
+        from distributed import wait  # deferred: 1.5 s import, Dask only
         return wait(list(futures), return_when="FIRST_COMPLETED").done
 
     def stop(self, futures):

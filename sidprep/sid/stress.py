@@ -67,7 +67,7 @@ def stress_on_points(stress: StressModes, points: np.ndarray) -> np.ndarray:
     points: the same nodes for a meshed body, the section outline's for a Beam); (n, 6, nq) Pa/[q]."""
     # scipy.spatial (with scipy.special) costs 0.15 s CPU to import: only pages and animations of
     # bodies with stress modes pay it
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # deferred: 0.15 s import
 
     _, rows = cKDTree(stress.points).query(np.asarray(points, dtype=float))
     return stress.modes[rows]

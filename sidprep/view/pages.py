@@ -45,7 +45,7 @@ def hull_surface(points: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]
     """Fallback surface: the convex hull of the node points, as a slab of ``HULL_THICKNESS`` times
     the body size when the nodes lie in a plane or on a line, refined to ``HULL_EDGES`` edges per
     body size so that the interpolated deformation shows; (vertices, triangles)."""
-    import trimesh
+    import trimesh  # deferred: 1.8 s import, OBJ only
 
     centre = points.mean(axis=0)
     _, s, vt = np.linalg.svd(points - centre, full_matrices=False)
@@ -120,7 +120,7 @@ def _mode_names(sid) -> list[str]:
 
 
 def _figure(surface: Surface, nodes: np.ndarray, size: float):
-    import plotly.graph_objects as go
+    import plotly.graph_objects as go  # deferred: 0.25 s import, pages only
 
     p, t = surface.points, surface.triangles
     traces = [go.Mesh3d(x=p[:, 0], y=p[:, 1], z=p[:, 2], i=t[:, 0], j=t[:, 1], k=t[:, 2],
@@ -391,7 +391,7 @@ def write_mechanism_page(results_path, out_path, colour: str = "displacement") -
     von Mises stress (MPa, bodies whose SID has modal stresses; ``colour`` the initial choice, a
     switch on the page), a time slider with real-time play, true or exaggerated deformation.
     Append ``#t=N&exaggerated&stress`` to the address to open at sample N, exaggerated, coloured by stress."""
-    import plotly.graph_objects as go
+    import plotly.graph_objects as go  # deferred: 0.25 s import, pages only
 
     rf, surfaces = mechanism_surfaces(results_path)
     result = rf.result
@@ -455,12 +455,12 @@ def write_mechanism_movie(results_path, out_path, exaggerated: bool = True, colo
     """An .mp4 (needs ffmpeg) or .gif movie of the mechanism with matplotlib, at most
     MAX_MOVIE_FRAMES frames, surfaces coloured by |u| (m) or by the von Mises stress (``colour =
     "stress"``, MPa), with a colour bar."""
-    import matplotlib
+    import matplotlib  # deferred: 1.2 s import, plots only
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: 1.2 s import, plots only
     from matplotlib import animation
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # deferred: with matplotlib
 
     out_path = Path(out_path)
     suffix = out_path.suffix.lower()

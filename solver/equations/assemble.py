@@ -13,14 +13,15 @@ markers (sid-spec 5.2).
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from sidprep.solver.equations.body import DE, F_DAMPING, body_equations, body_potentials
 from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_kinematics,
                                                   stiffened_jacobian)
 from sidprep.solver.equations.curves import motion_state, path_shapes
-from sidprep.solver.equations.forces import force_elements, motion_curve
-from sidprep.solver.equations.layout import FE_MOVING_MASS
+from sidprep.solver.equations.forces import FE_MOVING_MASS, force_elements, motion_curve
 from sidprep.solver.equations.rotations import add, align, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
 
 #: time step of the second central difference giving a path point's convective acceleration, s
@@ -29,6 +30,14 @@ PATH_GAMMA_STEP = 1e-5
 PATH_TANGENT_STEP = 1e-6
 #: Newton steps projecting a point onto a path (from the nearest sample; quadratic convergence)
 PROJECTION_ITERATIONS = 3
+
+#: kinematics of the markers (``markers``): positions P (nmk, 3), frames AM (nmk, 3, 3), material
+#: velocities VEL and angular velocities OMG (nmk, 3), Jacobians JT, JR and load Jacobians JTF,
+#: JRF (nmk, 3, w_max), convective velocities VC and angular velocities WC (nmk, 3) of path markers
+MarkerKinematics = namedtuple("MarkerKinematics", ["P", "AM", "VEL", "OMG", "JT", "JR", "JTF", "JRF", "VC", "WC"])
+#: the system at a state (``evaluate``): M (n, n), f (n,), g, b_t (m,), B, B_F (m, n), C (m, 4, 3),
+#: coords (nj, 2), loads (nmk, 6), flows (4,)
+Evaluation = namedtuple("Evaluation", ["M", "f", "g", "B", "BF", "bt", "C", "coords", "loads", "flows"])
 
 
 @jit
@@ -82,13 +91,14 @@ def projected_arc(curve_x, curve_c, curve_meta, first, r, a, q, target):  # prag
 
 
 @jit
-def path_position(curve_x, curve_c, curve_meta, first, kind, par, cx, cc, r, a, q, u, t, tau):  # pragma: no cover
-    """Inertial position (3,) of a path marker's point after ``tau`` s along the motion of its
-    body at constant velocities u = [v_O, omega, qd] and of its arc length s(t + tau)."""
+def path_position(L, k, r, a, q, u, t, tau):  # pragma: no cover - compiled
+    """Inertial position (3,) of path marker k's point after ``tau`` s along the motion of its
+    body (at r, a, q) at constant velocities u = [v_O, omega, qd] and of its arc length s(t + tau)."""
     nq = q.shape[0]
-    s = motion_state(kind, par, cx, cc, t + tau)[0]
-    return path_point(curve_x, curve_c, curve_meta, first, r + tau * u[0:3], matmul(a, exp_so3(tau * u[3:6])),
-                      q + tau * u[6:6 + nq], s)
+    cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
+    s = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t + tau)[0]
+    return path_point(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 0], r + tau * u[0:3],
+                      matmul(a, exp_so3(tau * u[3:6])), q + tau * u[6:6 + nq], s)
 
 
 @jit
@@ -97,14 +107,12 @@ def path_acceleration(L, k, R, A, Q, u, t):  # pragma: no cover - compiled
     convective part: s_ddot, s_dot^2, 2 s_dot Phi' qd, rotation), by the second central
     difference of its position along the motion (step PATH_GAMMA_STEP s)."""
     b = L.mk_body[k]
-    cx, cc = motion_curve(L.curve_x, L.curve_c, L.curve_meta, L.mk_path[k, 1])
     q = Q[L.qoff[b]:L.qoff[b + 1]].copy()
     ub = u[L.uoff[b]:L.uoff[b + 1]].copy()
-    kind, par, first = int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], L.mk_path[k, 0]
     e = PATH_GAMMA_STEP
-    plus = path_position(L.curve_x, L.curve_c, L.curve_meta, first, kind, par, cx, cc, R[b], A[b], q, ub, t, e)
-    mid = path_position(L.curve_x, L.curve_c, L.curve_meta, first, kind, par, cx, cc, R[b], A[b], q, ub, t, 0.0)
-    minus = path_position(L.curve_x, L.curve_c, L.curve_meta, first, kind, par, cx, cc, R[b], A[b], q, ub, t, -e)
+    plus = path_position(L, k, R[b], A[b], q, ub, t, e)
+    mid = path_position(L, k, R[b], A[b], q, ub, t, 0.0)
+    minus = path_position(L, k, R[b], A[b], q, ub, t, -e)
     return (plus - 2.0 * mid + minus) / (e * e)
 
 
@@ -121,7 +129,8 @@ def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
         count += L.fe_int[i, 0] == FE_MOVING_MASS
     if count == 0:
         return power, kinetic, potential
-    P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = markers(L, R, A, Q, u, t, False)
+    kin = markers(L, R, A, Q, u, t, False)
+    P, VEL, JT, VC = kin.P, kin.VEL, kin.JT, kin.VC
     for i in range(L.fe_int.shape[0]):
         if L.fe_int[i, 0] != FE_MOVING_MASS:
             continue
@@ -258,7 +267,7 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
         if stiffened:
             put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
             put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
-    return P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC
+    return MarkerKinematics(P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC)
 
 
 @jit
@@ -271,7 +280,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     cR2), coords (nj, 2) joint coordinates and rates, loads (nmk, 6) applied marker loads
     (inertial) and flows (4,) = [power in by loads, power dissipated, spring energy, power in by
     the drives of force elements on moving markers] (the drives' power through constraint rows is
-    constraint_power, taken with the step's converged multipliers).
+    constraint_power, taken with the step's converged multipliers), as an Evaluation.
     """
     nb = R.shape[0]
     n = u.shape[0]
@@ -291,7 +300,8 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = markers(L, R, A, Q, u, t, False)
+    kin = markers(L, R, A, Q, u, t, False)
+    P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = kin
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]
     coords = np.zeros((nj, 2))
@@ -307,7 +317,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
             put2(crows[j], 0, 0, c)
     loads = np.zeros((nmk, 6))
     flows = np.zeros(4)
-    force_elements(L, t, P, AM, VEL, OMG, VC, coords, crows, convective, lam, loads, flows)
+    force_elements(L, t, kin, coords, crows, convective, lam, loads, flows)
     for i in range(L.fe_int.shape[0]):  # moving masses: m J^T J in M, m (g - a_convective) at the point
         if L.fe_int[i, 0] == FE_MOVING_MASS:
             k, mass = L.fe_int[i, 1], L.fe_par[i, 0]
@@ -371,7 +381,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
                 add_rows(B, r, L.uoff[b], C[r], JT[k], JR[k], which, w)
                 if stiffened:
                     add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
-    return M, f, g, B, BF, bt, C, coords, loads, flows
+    return Evaluation(M, f, g, B, BF, bt, C, coords, loads, flows)
 
 
 @jit

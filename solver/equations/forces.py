@@ -12,8 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.curves import curve_value
-from sidprep.solver.equations.layout import FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_SPRING, FE_TORQUE
 from sidprep.solver.equations.rotations import add, dot, jit, matvec, put
+
+#: force element kinds, column 0 of the layout's fe_int table (compile/layout.py writes them)
+FE_FORCE, FE_TORQUE, FE_SPRING, FE_JOINT_FORCE, FE_FRICTION, FE_MOVING_MASS = range(6)
 
 
 @jit
@@ -78,16 +80,17 @@ def bump_potential(par, x):  # pragma: no cover - compiled
 
 
 @jit
-def force_elements(L, t, P, AM, VEL, OMG, VC, coords, crows, convective, lam, loads, flows):  # pragma: no cover
+def force_elements(L, t, kin, coords, crows, convective, lam, loads, flows):  # pragma: no cover - compiled
     """Add every force element's marker loads into loads (nmk, 6) and flows (4,).
 
-    P, AM, VEL, OMG: marker positions, orientations, material velocities, angular velocities
-    (inertial); VC (nmk, 3) the convective velocities of markers moved along a path (a marker
-    moves at VEL + VC); coords (nj, 2) joint coordinate and rate, crows (nj, 4, 3) their velocity
+    kin: the markers' kinematics (assemble.MarkerKinematics): positions P, orientations AM,
+    material velocities VEL, angular velocities OMG (inertial) and the convective velocities VC
+    (nmk, 3) of markers moved along a path (a marker moves at VEL + VC); coords (nj, 2) joint coordinate and rate, crows (nj, 4, 3) their velocity
     rows, convective (nj,) the part of the rates due to path motions; lam (m_all,) multipliers
     (friction reads the transverse reactions).  Springs and joint loads see the markers' whole
     motion; the power their loads take from a path's motion (-load . VC) is the drive's, flows[3].
     """
+    P, AM, VEL, OMG, VC = kin.P, kin.AM, kin.VEL, kin.OMG, kin.VC
     for i in range(L.fe_int.shape[0]):
         row = L.fe_int[i]
         kind, mk1, mk2, joint, first, columns = row[0], row[1], row[2], row[3], row[4], row[5]

@@ -8,16 +8,27 @@ velocities are body components, so the Lie-group update is A_{n+1} = A_n exp(ske
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 
 import numba
 import numpy as np
 
 #: below this rotation angle (rad) the Rodrigues coefficients use their Taylor series
 SMALL_ANGLE = 1e-6
+#: ... and those of the SE(3) Jacobian (its (t - sin t)/t^3 loses digits sooner)
+SE3_SMALL_ANGLE = 1e-4
+#: the one kernel cache of every way in (tests, the CLI, the API, batch workers): NUMBA_CACHE_DIR
+#: when set, else the user's cache folder (numba's own default, __pycache__ beside the sources,
+#: differs between a checkout and an install and is not writable in a system install)
+KERNEL_CACHE = os.environ.get("NUMBA_CACHE_DIR") or str(
+    Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sidprep" / "numba")
+if not numba.config.CACHE_DIR:  # read by numba when a cached function is declared, so set before any
+    numba.config.CACHE_DIR = KERNEL_CACHE
 
 
 def jit(fn):
-    """numba.njit(cache=True): compiled once per install, cached on disk (with
+    """numba.njit(cache=True): compiled once per install, cached on disk in KERNEL_CACHE (with
     NUMBA_DISABLE_JIT=1 the same code runs as plain Python, for debugging)."""
     return numba.njit(cache=True)(fn)
 
@@ -104,21 +115,37 @@ def tmatvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 @jit
-def exp_so3(theta: np.ndarray) -> np.ndarray:
-    """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
+def rodrigues_form(theta: np.ndarray, a: float, b: float) -> np.ndarray:
+    """E + a T + b T T (3, 3) with T = skew(theta): the form of exp_so3 and se3_jacobian."""
     x, y, z = theta[0], theta[1], theta[2]
     angle2 = x * x + y * y + z * z
-    if angle2 < SMALL_ANGLE**2:
-        a, b = 1.0 - angle2 / 6.0, 0.5 - angle2 / 24.0
-    else:
-        angle = math.sqrt(angle2)
-        a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle2
-    # E + a t + b t t with t = skew(theta); t t = theta theta^T - angle2 E
+    # T T = theta theta^T - angle2 E
     out = np.empty((3, 3))
     out[0, 0], out[0, 1], out[0, 2] = 1.0 + b * (x * x - angle2), -a * z + b * x * y, a * y + b * x * z
     out[1, 0], out[1, 1], out[1, 2] = a * z + b * x * y, 1.0 + b * (y * y - angle2), -a * x + b * y * z
     out[2, 0], out[2, 1], out[2, 2] = -a * y + b * x * z, a * x + b * y * z, 1.0 + b * (z * z - angle2)
     return out
+
+
+@jit
+def exp_so3(theta: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector theta (Rodrigues); (3,) -> (3, 3)."""
+    angle2 = theta[0] * theta[0] + theta[1] * theta[1] + theta[2] * theta[2]
+    if angle2 < SMALL_ANGLE**2:
+        return rodrigues_form(theta, 1.0 - angle2 / 6.0, 0.5 - angle2 / 24.0)
+    angle = math.sqrt(angle2)
+    return rodrigues_form(theta, math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle2)
+
+
+@jit
+def se3_jacobian(theta: np.ndarray) -> np.ndarray:
+    """V(theta) (3, 3) of the SE(3) exponential: exp of the twist (rho, theta) moves the origin
+    by V rho (body components), V = E + (1 - cos t)/t^2 T + (t - sin t)/t^3 T T, t = |theta|."""
+    t2 = theta[0] * theta[0] + theta[1] * theta[1] + theta[2] * theta[2]
+    if t2 < SE3_SMALL_ANGLE**2:
+        return rodrigues_form(theta, 0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0)
+    t = math.sqrt(t2)
+    return rodrigues_form(theta, (1.0 - math.cos(t)) / t2, (t - math.sin(t)) / (t2 * t))
 
 
 @jit
@@ -178,15 +205,3 @@ def quaternion_rate(e: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
             e0 * w3 + e1 * w2 - e2 * w1,
         ]
     )
-
-
-def as_rotation(value) -> np.ndarray:
-    """A rotation matrix from None (identity), a (3, 3) matrix or a rotation vector (3,)."""
-    if value is None:
-        return np.eye(3)
-    a = np.asarray(value, dtype=float)
-    if a.shape == (3, 3):
-        return a
-    if a.shape == (3,):
-        return exp_so3(a)
-    raise ValueError(f"rotation must be a 3x3 matrix or a rotation vector, got shape {a.shape}")

@@ -10,6 +10,7 @@ returns the output samples of that stretch; ``status`` is "running", "finished" 
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,17 +18,36 @@ from numba import types
 from numba.np.linalg import _LAPACK
 
 from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2
+from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
 #: time step of the central difference giving gamma = d/dt (B u + b_t), s
 GAMMA_STEP = 1e-6
 
+#: the output samples of one call of a compiled loop: t (k,), R (k, nb, 3), A (k, nb, 3, 3),
+#: Q (k, nq), u, ud (k, n), lam (k, m), refs (k, nj), work (k, 3); ``sample_buffers`` makes them
+SampleBuffers = namedtuple("SampleBuffers", ["t", "R", "A", "Q", "u", "ud", "lam", "refs", "work"])
+#: a compiled loop's status, one record (``new_status``): counters, step sizes (s), the run
+#: status code (RUNNING, ...), max_steps, and the body that left its small-deformation range
+#: with its deflection (m)
+STATUS = np.dtype([("steps", np.int64), ("rejected", np.int64), ("newton_iterations", np.int64),
+                   ("jacobians", np.int64), ("h_min", np.float64), ("h_max", np.float64), ("code", np.int64),
+                   ("max_steps", np.int64), ("body", np.int64), ("deflection", np.float64)])
+#: status codes of the compiled loops
+RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, LARGE_DEFORMATION = 0, 1, 2, 3, 4
+
+
+def new_status(max_steps: int) -> np.ndarray:
+    """A fresh loop status (one STATUS record in an array the loop updates in place)."""
+    status = np.zeros(1, STATUS)
+    status[0]["h_min"], status[0]["max_steps"] = np.inf, max_steps
+    return status
+
 
 @dataclass
 class Problem:
-    """A run's compiled problem: the layout L (equations/layout.py), the integrated coordinates
+    """A run's compiled problem: the layout L (compile/layout.py), the integrated coordinates
     ``free`` (indices into u; all but the out-of-plane ones of a planar run), the kept
     constraint rows ``kept`` (indices; redundant rows dropped), per-coordinate length weights
     (m per unit), the system length (m), the joints' angle references ``refs`` (nj,), updated
@@ -105,18 +125,35 @@ class Stepper:
 
 
 @jit
-def store_sample(k, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work):  # pragma: no cover
-    """Write one output sample into row k of the sample buffers (by loops: see rotations.put)."""
-    ts[k] = t
-    put2(Rs[k], 0, 0, R)
+def sample_buffers(capacity, R, Q, u, lam, refs):  # pragma: no cover - compiled
+    """Empty SampleBuffers of ``capacity`` rows for states shaped like R, Q, u, lam, refs."""
+    n = u.shape[0]
+    return SampleBuffers(np.empty(capacity), np.empty((capacity,) + R.shape), np.empty((capacity, R.shape[0], 3, 3)),
+                         np.empty((capacity, Q.shape[0])), np.empty((capacity, n)), np.empty((capacity, n)),
+                         np.empty((capacity, lam.shape[0])), np.empty((capacity, refs.shape[0])),
+                         np.empty((capacity, 3)))
+
+
+@jit
+def first_samples(buf, count):  # pragma: no cover - compiled
+    """The first ``count`` rows of the SampleBuffers buf."""
+    return SampleBuffers(buf.t[:count], buf.R[:count], buf.A[:count], buf.Q[:count], buf.u[:count], buf.ud[:count],
+                         buf.lam[:count], buf.refs[:count], buf.work[:count])
+
+
+@jit
+def store_sample(buf, k, t, R, A, Q, u, ud, lam, refs, work):  # pragma: no cover - compiled
+    """Write one output sample into row k of the SampleBuffers buf (by loops: see rotations.put)."""
+    buf.t[k] = t
+    put2(buf.R[k], 0, 0, R)
     for i in range(R.shape[0]):
-        put2(As[k, i], 0, 0, A[i])
-    put(Qs[k], 0, Q)
-    put(us[k], 0, u)
-    put(uds[k], 0, ud)
-    put(lams[k], 0, lam)
-    put(refss[k], 0, refs)
-    put(works[k], 0, work)
+        put2(buf.A[k, i], 0, 0, A[i])
+    put(buf.Q[k], 0, Q)
+    put(buf.u[k], 0, u)
+    put(buf.ud[k], 0, ud)
+    put(buf.lam[k], 0, lam)
+    put(buf.refs[k], 0, refs)
+    put(buf.work[k], 0, work)
 
 
 @jit
@@ -129,13 +166,19 @@ def expand(lam, kept, m_all):  # pragma: no cover - compiled
 
 
 @jit
-def advance_pose(L, R, A, Q, dx):  # pragma: no cover - compiled
-    """Positions moved by the increment dx (n,): r + dr, A exp(dtheta), q + dq (Lie group)."""
+def advance_pose(L, R, A, Q, dx, body_frame=False):  # pragma: no cover - compiled
+    """Positions moved by the increment dx (n,): r + dr, A exp(dtheta), q + dq (Lie group
+    R^3 x SO(3)); ``body_frame``: dr in body components, moved along the SE(3) exponential,
+    r + A V(dtheta) dr (se3_jacobian; integrators/se3.py)."""
     R2, A2, Q2 = R.copy(), np.empty_like(A), Q.copy()
     for i in range(R.shape[0]):
         s = L.uoff[i]
-        add(R2[i], 0, dx[s:s + 3])
-        put2(A2[i], 0, 0, matmul(A[i], exp_so3(dx[s + 3:s + 6].copy())))
+        theta = dx[s + 3:s + 6].copy()
+        if body_frame:
+            add(R2[i], 0, matvec(A[i], matvec(se3_jacobian(theta), dx[s:s + 3].copy())))
+        else:
+            add(R2[i], 0, dx[s:s + 3])
+        put2(A2[i], 0, 0, matmul(A[i], exp_so3(theta)))
         nq = L.qoff[i + 1] - L.qoff[i]
         add(Q2, L.qoff[i], dx[s + 6:s + 6 + nq])
     return R2, A2, Q2
@@ -232,17 +275,17 @@ def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_gues
     if kept.shape[0]:
         for sign in (1.0, -1.0):
             Rs, As, Qs = advance_pose(L, R, A, Q, sign * GAMMA_STEP * u)
-            out = evaluate(L, Rs, As, Qs, u, t + sign * GAMMA_STEP, np.zeros(m_all), refs)
-            gd = matvec(out[3], u) + out[5]
+            e = evaluate(L, Rs, As, Qs, u, t + sign * GAMMA_STEP, np.zeros(m_all), refs)
+            gd = matvec(e.B, u) + e.bt
             for k in range(kept.shape[0]):
                 gam[k] += sign * gd[kept[k]] / (2 * GAMMA_STEP)
     for _ in range(iterations):
-        M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
-        Mf, ff, Bk, BFk = restrict(M, f, B, BF, free, kept)
+        e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
+        Mf, ff, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
         rhs = -gam
         if baumgarte > 0.0 and kept.shape[0]:
-            gd = (matvec(B, u) + bt)[kept]
-            rhs = rhs - 2.0 * baumgarte * gd - baumgarte * baumgarte * g[kept]
+            gd = (matvec(e.B, u) + e.bt)[kept]
+            rhs = rhs - 2.0 * baumgarte * gd - baumgarte * baumgarte * e.g[kept]
         x, lam = kkt_solve(Mf, ff, Bk, BFk, rhs)
         for i in range(free.shape[0]):
             ud[free[i]] = x[i]

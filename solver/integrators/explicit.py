@@ -12,13 +12,14 @@ the step must resolve the highest kept frequency.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+from scipy.integrate import DOP853, RK45
 
 from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
-from sidprep.solver.integrators.base import CHUNK, Samples, Stepper, expand, index1_accelerations, store_sample
-from sidprep.solver.integrators.runge_kutta import rk4_step
+from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, expand, first_samples, index1_accelerations,
+                                             sample_buffers, store_sample)
+from sidprep.solver.integrators.runge_kutta import hermite, rk4_combine, rk4_stage
 
 #: friction couples the forces to the multipliers: fixed-point iterations per evaluation
 MULTIPLIER_ITERATIONS = 2
@@ -60,8 +61,8 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
     put(lam_guess, 0, lam)
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     lam_all = expand(lam, kept, m_all)
-    out = evaluate(L, R, A, Q, u, t, lam_all, refs)
-    flows = out[-1]
+    e = evaluate(L, R, A, Q, u, t, lam_all, refs)
+    flows = e.flows
     ydot = np.zeros(y.shape[0])
     o = 0
     for i in range(R.shape[0]):
@@ -75,7 +76,7 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
     put(ydot, o, ud)
     ydot[o + n] = flows[0]
     ydot[o + n + 1] = flows[1]
-    ydot[o + n + 2] = flows[3] + constraint_power(L, out[3], out[5], u, lam_all) + moving_masses(L, R, A, Q, u, ud, t)[0]
+    ydot[o + n + 2] = flows[3] + constraint_power(L, e.B, e.bt, u, lam_all) + moving_masses(L, R, A, Q, u, ud, t)[0]
     return ydot
 
 
@@ -87,50 +88,58 @@ def sample(L, t, y, params, refs):  # pragma: no cover - compiled
     ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
                                    MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    coords = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)[7]
+    coords = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs).coords
     for j in range(refs.shape[0]):
         refs[j] = coords[j, 0]
     return R, A, Q, u, ud, lam, y[y.shape[0] - 3:].copy()
 
 
-# not cached: it passes the compiled rhs to rk4_step as a first-class function, which numba
-# cannot cache (about 20 s of compilation per process on first use of method = "rk4")
-@numba.njit(cache=False)
-def rk4_loop(t, y, t_end, h, out_dt, next_out, params, capacity, max_steps, steps):  # pragma: no cover
-    """Fixed-step RK4 from t to t_end (the last step shortened to land on it) or until
-    ``capacity`` samples; refs (params[3]) follow the accepted steps."""
+@jit
+def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps):  # pragma: no cover - compiled
+    """Fixed-step RK4 (runge_kutta.rk4_stage / rk4_combine around index1_rhs) from t to t_end
+    (the last step shortened to land on it) or until ``capacity`` samples; steps (2,) counts
+    the steps (up to max_steps, steps[1]); refs (params[3]) follow the accepted steps.  Samples
+    at next_index out_dt, (next_index + 1) out_dt, ... from the cubic Hermite interpolant of y
+    with the slopes ydot at both ends (error O(h^4), RK4's order), or after every step
+    (out_dt <= 0), and at t_end."""
     L, refs = params[0], params[3]
-    nb = L.qoff.shape[0] - 1
-    n = L.uoff[-1]
-    m = params[2].shape[0]
-    ts = np.empty(capacity)
-    Rs = np.empty((capacity, nb, 3))
-    As = np.empty((capacity, nb, 3, 3))
-    Qs = np.empty((capacity, L.qoff[-1]))
-    us = np.empty((capacity, n))
-    uds = np.empty((capacity, n))
-    lams = np.empty((capacity, m))
-    refss = np.empty((capacity, refs.shape[0]))
-    works = np.empty((capacity, 3))
+    R0, A0, Q0, u0 = unpack(L, y)
+    buf = sample_buffers(capacity, R0, Q0, u0, params[5], refs)
     ns = 0
     end_tol = 1e-12 * max(1.0, t_end)
-    while t < t_end - end_tol and steps[0] < max_steps:
+    k1 = index1_rhs(t, y, params)
+    while t < t_end - end_tol and steps[0] < steps[1]:
         step = min(h, t_end - t)
-        y = rk4_step(index1_rhs, t, y, step, params)
+        if out_dt > 0.0 and ns > 0 and ns + int(step / out_dt) + 2 > capacity:
+            break  # the samples this step may give would not fit: the stepper resumes
+        half = 0.5 * step
+        k2 = index1_rhs(t + half, rk4_stage(y, half, k1), params)
+        k3 = index1_rhs(t + half, rk4_stage(y, half, k2), params)
+        k4 = index1_rhs(t + step, rk4_stage(y, step, k3), params)
+        y_old, slope_old, t_old = y, k1, t
+        y = rk4_combine(y, step, k1, k2, k3, k4)
         t += step
         steps[0] += 1
+        k1 = index1_rhs(t, y, params)  # the next step's first stage: the interpolant's end slope
         final = t >= t_end - end_tol
-        if final or out_dt <= 0.0 or t >= next_out - 1e-12 * max(1.0, abs(t)):
+        at = 1e-12 * max(1.0, abs(t))
+        stored = False
+        while out_dt > 0.0 and next_index * out_dt <= t + at:
+            t_k = next_index * out_dt
+            b00, b10, b01, b11 = hermite(min(1.0, max(0.0, (t_k - t_old) / step)))
+            y_k = b00 * y_old + b10 * step * slope_old + b01 * y + b11 * step * k1
+            R, A, Q, u, ud, lam, work = sample(L, t_k, y_k, params, refs)
+            store_sample(buf, ns, t_k, R, A, Q, u, ud, lam, refs, work)
+            ns, next_index, stored = ns + 1, next_index + 1, t_k >= t - at
+        if out_dt <= 0.0 or (final and not stored):
             R, A, Q, u, ud, lam, work = sample(L, t, y, params, refs)
-            store_sample(ns, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work)
+            store_sample(buf, ns, t, R, A, Q, u, ud, lam, refs, work)
             ns += 1
-            while out_dt > 0.0 and next_out <= t + 1e-12 * max(1.0, abs(t)):
-                next_out += out_dt
         else:  # keep the angle references current between samples
             sample(L, t, y, params, refs)
         if ns == capacity:
             break
-    return t, y, next_out, ts[:ns], Rs[:ns], As[:ns], Qs[:ns], us[:ns], uds[:ns], lams[:ns], refss[:ns], works[:ns]
+    return t, y, next_index, first_samples(buf, ns)
 
 
 class _Explicit(Stepper):
@@ -142,6 +151,7 @@ class _Explicit(Stepper):
         self.y = pack(L, state.R, state.A, state.Q, state.u, np.zeros(3))
         self.params = (L, problem.free, problem.kept, problem.refs, float(settings.baumgarte), state.lam.copy())
         self.next_out = settings.output_dt or 0.0
+        self.next_index = 1
 
     def _set_state(self, t, sample_):
         R, A, Q, u, ud, lam, _ = sample_
@@ -155,9 +165,10 @@ class RungeKutta4(_Explicit):
 
     def advance(self, t_stop: float) -> Samples:
         st = self.settings
-        steps = np.array([self.stats["steps"]], dtype=np.int64)
-        t, self.y, self.next_out, *arrays = rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
-                                                     self.next_out, self.params, CHUNK, st.max_steps, steps)
+        steps = np.array([self.stats["steps"], st.max_steps], dtype=np.int64)
+        t, self.y, self.next_index, buf = rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
+                                                   self.next_index, self.params, CHUNK, steps)
+        arrays = tuple(buf)
         self.stats["steps"] = int(steps[0])
         self.stats["rhs_evaluations"] = 4 * int(steps[0])
         self.stats["h_min"] = self.stats["h_max"] = st.h
@@ -177,8 +188,6 @@ class ScipyRungeKutta(_Explicit):
 
     def __init__(self, problem, state, settings):
         super().__init__(problem, state, settings)
-        from scipy.integrate import DOP853, RK45
-
         cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
         self.name = settings.method
         params = self.params

@@ -1,5 +1,7 @@
 """Lie-group generalised-alpha for the index-3 DAE (Arnold & Bruls 2007; Bruls, Cardona &
-Arnold 2012), on R^3 x SO(3) x R^nq per body:
+Arnold 2012), on SE(3) x R^nq per body (se3.py: body-frame translational velocities, so that a
+uniform rotation about any fixed axis is integrated exactly; on R^3 x SO(3) a body whirling
+about a hinge away from its frame origin gained energy ~ h^2 Omega^3, issue 22):
 
     x_{n+1} = x_n (+) h dx,  dx = u_n + h (1/2 - beta) a_n + h beta a_{n+1}
     u_{n+1} = u_n + h (1 - gamma) a_n + h gamma a_{n+1}
@@ -14,7 +16,15 @@ h^2 beta' K_t (finite differences) is re-used over steps until convergence slows
 when the position correction is below newton_tol L and the constraint residual before it
 below newton_tol L (the correction shrinks it further); the state is then not evaluated once
 more: the power flows and joint angles of the step come from the last evaluation, within the
-Newton tolerance.  Constraints hold at position level exactly (no drift).
+Newton tolerance.  Constraints hold at position level to the Newton tolerance (no drift).
+
+Output (output_dt given): every sample sits at exactly k output_dt, interpolated inside the step
+that contains it (``dense_state``): the pose is x_n (+) delta(theta) with the cubic Hermite
+increment delta(0) = 0, delta'(0) = h u_n, delta(1) = h dx, delta'(1) = h u_{n+1} (exact for q;
+for the rotations and the body-frame translations the end slope is u_{n+1}, right to O(h^2)), the
+velocities the cubic Hermite of u with the slopes h ud, the accelerations, multipliers and work
+integrals linear: within the method's second order, and the step is never cut to land on an
+output time.
 
 Error control (rtol given): the local error of the step against the third-order Taylor
 expansion written with the true accelerations ud (not the alpha-lagged a),
@@ -29,12 +39,18 @@ damping it also sees the lag of a behind ud, which the classic estimate misses.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matvec, put, put2
-from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, advance_pose, expand, lu_factor, lu_solve,
-                                             restrict, store_sample)
+from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
+                                             Samples, Stepper, advance_pose, expand, first_samples, lu_factor,
+                                             lu_solve, new_status, restrict, sample_buffers, store_sample)
+from sidprep.solver.integrators.runge_kutta import hermite
+from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
+                                            evaluate_se3, inertial_accelerations, inertial_velocities)
 
 #: maximum Newton iterations with one iteration matrix
 MAX_NEWTON = 6
@@ -44,9 +60,16 @@ SLOW_CONTRACTION = 0.3
 RECOVER_STEPS = 4
 #: step-size factor limits and safety factor of the error control
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
-#: run status codes of the compiled loop
-RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, LARGE_DEFORMATION = 0, 1, 2, 3, 4
 
+#: the state of the method: positions R, A, Q, velocities u, accelerations ud, the alpha-lagged
+#: accelerations a and the kept multipliers lam
+GaState = namedtuple("GaState", ["R", "A", "Q", "u", "ud", "a", "lam"])
+#: a run's constants: prm = (alpha_m, alpha_f, gamma, beta, beta') , the integrated coordinates
+#: free and kept rows, length weights w (m per unit), the system length (m), the bodies'
+#: deflection limits (nb,) m, the Newton tolerance, rtol (<= 0: fixed step), atol (m), the
+#: nominal step (s) and the output interval (s; <= 0: every step)
+GaConstants = namedtuple("GaConstants", ["prm", "free", "kept", "w", "length", "limits", "tol", "rtol", "atol",
+                                         "h_nominal", "out_dt"])
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -60,33 +83,47 @@ def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
 
 
 @jit
-def ga_state(L, udn, R, A, Q, u, ud, a, h, prm):  # pragma: no cover - compiled
-    """(a_{n+1}, R, A, Q, u_{n+1}) of the update for ud_{n+1} (module doc)."""
+def ga_state(L, udn, x, h, prm):  # pragma: no cover - compiled
+    """(a_{n+1}, R, A, Q, u_{n+1}) of the update of the GaState x for ud_{n+1} (module doc)."""
     am, af, gamma, beta = prm[0], prm[1], prm[2], prm[3]
-    an = (af * ud + (1 - af) * udn - am * a) / (1 - am)
-    R2, A2, Q2 = advance_pose(L, R, A, Q, h * u + h * h * ((0.5 - beta) * a + beta * an))
-    return an, R2, A2, Q2, u + h * ((1 - gamma) * a + gamma * an)
+    an = (af * x.ud + (1 - af) * udn - am * x.a) / (1 - am)
+    R2, A2, Q2 = advance_pose(L, x.R, x.A, x.Q, h * x.u + h * h * ((0.5 - beta) * x.a + beta * an), True)
+    return an, R2, A2, Q2, x.u + h * ((1 - gamma) * x.a + gamma * an)
 
 
 @jit
-def ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t, refs, prm, free, kept):  # pragma: no cover - compiled
-    """r = [M ud - f + B_F^T lambda; g / (h^2 beta')] on the free coordinates and kept rows,
-    and M, f, B, B_F (all coordinates and rows), the joint coordinates and the power flows at the
-    updated state."""
-    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    _, R2, A2, Q2, un = ga_state(L, udn, R, A, Q, u, ud, a, h, prm)
-    M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R2, A2, Q2, un, t, expand(lamn, kept, m_all), refs)
+def newton_residual(e, udn, lamn, h, c):  # pragma: no cover - compiled
+    """r = [M ud - f + B_F^T lambda; g / (h^2 beta')] on the free coordinates and kept rows of
+    the GaConstants c, from the Evaluation e at the state updated for (udn, lamn).  (The loop
+    calls evaluate itself: every compiled function that calls it re-optimises its whole call
+    tree, seconds of compilation each; docs/performance.md.)"""
+    free, kept = c.free, c.kept
     nf, m = free.shape[0], kept.shape[0]
     r = np.empty(nf + m)
-    full = matvec(M, udn)
+    full = matvec(e.M, udn)
     for i in range(nf):
-        acc = full[free[i]] - f[free[i]]
+        acc = full[free[i]] - e.f[free[i]]
         for k in range(m):
-            acc += BF[kept[k], free[i]] * lamn[k]
+            acc += e.BF[kept[k], free[i]] * lamn[k]
         r[i] = acc
     for k in range(m):
-        r[nf + k] = g[kept[k]] / (h * h * prm[4])
-    return r, M, f, B, BF, bt, coords, flows
+        r[nf + k] = e.g[kept[k]] / (h * h * c.prm[4])
+    return r
+
+
+@jit
+def dense_state(L, x0, x1, h, theta):  # pragma: no cover - compiled
+    """(R, A, Q, u, ud, lam) at t_n + theta h inside the step from GaState x0 to x1 (module doc,
+    Output): the increment delta(theta) on the Lie group, u by cubic Hermite, ud and lam linear;
+    u, ud handed out inertial (se3.py)."""
+    b00, b10, b01, b11 = hermite(theta)
+    step = body_increment(L, x0.R, x0.A, x1.R, x1.A, x0.Q, x1.Q)  # h dx: what took x0 to x1 (ga_state)
+    delta = b10 * h * x0.u + b01 * step + b11 * h * x1.u
+    R, A, Q = advance_pose(L, x0.R, x0.A, x0.Q, delta, True)
+    u = b00 * x0.u + b10 * h * x0.ud + b01 * x1.u + b11 * h * x1.ud
+    ud = (1.0 - theta) * x0.ud + theta * x1.ud
+    return (R, A, Q, inertial_velocities(L, A, u), inertial_accelerations(L, A, u, ud),
+            (1.0 - theta) * x0.lam + theta * x1.lam)
 
 
 @jit
@@ -101,44 +138,56 @@ def iteration_matrix(Mf, D, Bk, BFk):  # pragma: no cover - compiled
 
 
 @jit
-def local_error(udn, ud, an, a, h, prm, w, free, atol, rtol, length):  # pragma: no cover - compiled
-    """RMS of the weighted local error estimate (module doc) over the free coordinates, in
-    units of atol + rtol L (<= 1: accept)."""
-    gamma, beta = prm[2], prm[3]
+def local_error(udn, an, x, h, c):  # pragma: no cover - compiled
+    """RMS of the weighted local error estimate (module doc) of the step from GaState x to
+    (udn, an) over the free coordinates, in units of atol + rtol L (<= 1: accept)."""
+    gamma, beta = c.prm[2], c.prm[3]
     acc = 0.0
-    for k in range(free.shape[0]):
-        i = free[k]
-        ex = h * h * ((0.5 - beta) * a[i] + beta * an[i] - ud[i] / 3.0 - udn[i] / 6.0)
-        eu = h * h * ((1 - gamma) * a[i] + gamma * an[i] - 0.5 * (ud[i] + udn[i]))
-        e = max(abs(ex), abs(eu)) * w[i] / (atol + rtol * length)
+    for k in range(c.free.shape[0]):
+        i = c.free[k]
+        ex = h * h * ((0.5 - beta) * x.a[i] + beta * an[i] - x.ud[i] / 3.0 - udn[i] / 6.0)
+        eu = h * h * ((1 - gamma) * x.a[i] + gamma * an[i] - 0.5 * (x.ud[i] + udn[i]))
+        e = max(abs(ex), abs(eu)) * c.w[i] / (c.atol + c.rtol * c.length)
         acc += e * e
-    return np.sqrt(acc / max(free.shape[0], 1))
+    return np.sqrt(acc / max(c.free.shape[0], 1))
 
 
 @jit
-def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, w, length, limits, tol, rtol, atol,
-            out_dt, next_out, refs, work, flows0, stats, capacity):  # pragma: no cover - compiled
-    """Generalised-alpha steps from t until t_end or until ``capacity`` output samples.
+def deflection_check(L, Q, c, status):  # pragma: no cover - compiled
+    """False (and the body and its deflection, m, in status) when a body's elastic deflection
+    |w Q| exceeds its limit (the floating frame's small-deformation range)."""
+    within = True
+    for b in range(L.qoff.shape[0] - 1):
+        d2 = 0.0
+        for k in range(L.qoff[b + 1] - L.qoff[b]):
+            d2 += (Q[L.qoff[b] + k] * c.w[L.uoff[b] + 6 + k]) ** 2
+        if not np.sqrt(d2) <= c.limits[b]:
+            status.code, status.body, status.deflection = LARGE_DEFORMATION, b, np.sqrt(d2)
+            within = False
+    return within
 
-    rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  work (3,)
+
+@jit
+def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacity):  # pragma: no cover - compiled
+    """Generalised-alpha steps of the GaState x from t until t_end or until ``capacity`` output
+    samples, with the run's GaConstants c; samples at next_index c.out_dt, (next_index + 1)
+    c.out_dt, ... (dense_state), or after every step (c.out_dt <= 0), and at t_end.
+
+    c.rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  work (3,)
     the work integrals [applied loads, dissipated, drivers] and flows0 (4,) the power flows at
-    the current state are updated in place, as refs (angle references) and stats [steps,
-    rejected, newton iterations, jacobians, h_min, h_max, status, max_steps, body, deflection]
-    (the last two: the body that left its small-deformation range, ``limits`` (nb,) m, and its
-    deflection, m).  Returns the new state, step size, next output time and the samples.
+    the current state are updated in place, as refs (angle references) and stats (base.STATUS,
+    one record).  Returns the new GaState, t, step size, next output index and the samples.
+    x.u, x.ud in and out and the samples are inertial (v_O); the steps are taken in the SE(3)
+    coordinates of se3.py, in which x.a is kept.
     """
-    nf, m, n = free.shape[0], kept.shape[0], u.shape[0]
+    u_k = body_velocities(L, x.A, x.u)
+    x = GaState(x.R, x.A, x.Q, u_k, body_accelerations(L, x.A, u_k, x.ud), x.a, x.lam)
+    status = stats[0]
+    free, kept = c.free, c.kept
+    nf, m = free.shape[0], kept.shape[0]
     nj = refs.shape[0]
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    ts = np.empty(capacity)
-    Rs = np.empty((capacity,) + R.shape)
-    As = np.empty((capacity,) + A.shape)
-    Qs = np.empty((capacity, Q.shape[0]))
-    us = np.empty((capacity, n))
-    uds = np.empty((capacity, n))
-    lams = np.empty((capacity, m))
-    refss = np.empty((capacity, nj))
-    works = np.empty((capacity, 3))
+    buf = sample_buffers(capacity, x.R, x.Q, x.u, x.lam, refs)
     ns = 0
     end_tol = 1e-12 * max(1.0, t_end)
     D = np.zeros((nf, nf))
@@ -146,22 +195,22 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
     lu = np.zeros((nf + m, nf + m))
     piv = np.zeros(nf + m, dtype=np.int32)
     have_d = False
-    ud_prev = ud.copy()
-    lam_prev = lam.copy()
+    ud_prev = x.ud.copy()
+    lam_prev = x.lam.copy()
     h_prev = -1.0
     factor = 1.0
-    stats[6] = RUNNING
+    status.code = RUNNING
     while t < t_end - end_tol:
-        if stats[0] >= stats[7]:
-            stats[6] = MAX_STEPS
+        if status.steps >= status.max_steps:
+            status.code = MAX_STEPS
             break
         h = min(h, t_end - t)
-        if rtol > 0.0 and out_dt > 0.0 and next_out - t > end_tol:
-            h = min(h, next_out - t)
+        if c.out_dt > 0.0 and ns > 0 and ns + int(h / c.out_dt) + 2 > capacity:
+            break  # the samples this step may give would not fit: the stepper resumes
         if h == h_prev:  # linear extrapolation predictor
-            udn, lamn = 2.0 * ud - ud_prev, 2.0 * lam - lam_prev
+            udn, lamn = 2.0 * x.ud - ud_prev, 2.0 * x.lam - lam_prev
         else:
-            udn, lamn = ud.copy(), lam.copy()
+            udn, lamn = x.ud.copy(), x.lam.copy()
         if have_d and D_h != h:  # the stiffness part scales with h^2; a poor fit is caught by the monitor
             D = D * (h / D_h) ** 2
             D_h = h
@@ -169,28 +218,32 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
         last = np.inf
         it = 0
         converged = False
-        r, M, f, B, BF, bt, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)
+        _, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
+        e = evaluate_se3(L, R2, A2, Q2, un, t + h, expand(lamn, kept, m_all), refs)
+        r = newton_residual(e, udn, lamn, h, c)
         while True:
             if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
-                eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * prm[4])
+                eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * c.prm[4])
                 D = np.empty((nf, nf))
                 for col in range(nf):
-                    e = max(1e-7 * abs(udn[free[col]]), eps_pos)
-                    x = udn.copy()
-                    x[free[col]] += e
-                    r1 = ga_residual(L, x, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free, kept)[0]
+                    delta = max(1e-7 * abs(udn[free[col]]), eps_pos)
+                    trial = udn.copy()
+                    trial[free[col]] += delta
+                    _, R3, A3, Q3, u3 = ga_state(L, trial, x, h, c.prm)
+                    r1 = newton_residual(evaluate_se3(L, R3, A3, Q3, u3, t + h, expand(lamn, kept, m_all), refs),
+                                         trial, lamn, h, c)
                     for row in range(nf):
-                        D[row, col] = (r1[row] - r[row]) / e - M[free[row], free[col]]
+                        D[row, col] = (r1[row] - r[row]) / delta - e.M[free[row], free[col]]
                 D_h, have_d, fresh_d, want_d, factor_now = h, True, True, False, True
-                stats[3] += 1
+                status.jacobians += 1
             if factor_now:  # M, B of this iterate; D re-used over steps
-                Mf, _, Bk, BFk = restrict(M, f, B, BF, free, kept)
+                Mf, _, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
                 lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
                 factor_now = False
             drift = 0.0  # constraint residual before this update, m or rad
             for k in range(m):
                 drift = max(drift, abs(r[nf + k]))
-            drift *= h * h * prm[4]
+            drift *= h * h * c.prm[4]
             dz = lu_solve(lu, piv, r)
             for i in range(nf):
                 udn[free[i]] -= dz[i]
@@ -202,15 +255,16 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                 if not np.isfinite(dz[i]):
                     err = np.inf
                 elif i < nf:
-                    err = max(err, abs(dz[i]) * w[free[i]])
-            err *= h * h * prm[4] / length
+                    err = max(err, abs(dz[i]) * c.w[free[i]])
+            err *= h * h * c.prm[4] / c.length
             if not np.isfinite(err):
                 break
-            if err <= tol and drift <= tol * length:  # the update shrinks the drift further
+            if err <= c.tol and drift <= c.tol * c.length:  # the update shrinks the drift further
                 converged = True
                 break
-            r, M, f, B, BF, bt, coords, flows = ga_residual(L, udn, lamn, R, A, Q, u, ud, a, h, t + h, refs, prm, free,
-                                                        kept)
+            _, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
+            e = evaluate_se3(L, R2, A2, Q2, un, t + h, expand(lamn, kept, m_all), refs)
+            r = newton_residual(e, udn, lamn, h, c)
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
                     refactored, factor_now, it, last = True, True, 0, np.inf
@@ -220,63 +274,68 @@ def ga_loop(L, R, A, Q, u, ud, a, lam, t, t_end, h, h_nominal, prm, free, kept, 
                     continue
                 break
             last = err
-        stats[2] += it
+        status.newton_iterations += it
         if not converged:
-            stats[1] += 1
+            status.rejected += 1
             h *= 0.5
             have_d = False
             h_prev = -1.0
             if h < 1e-14 * max(1.0, t_end):
-                stats[6] = NEWTON_FAILED
+                status.code = NEWTON_FAILED
                 break
             continue
-        an, R2, A2, Q2, un = ga_state(L, udn, R, A, Q, u, ud, a, h, prm)
-        if rtol > 0.0:
-            est = local_error(udn, ud, an, a, h, prm, w, free, atol, rtol, length)
+        an, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
+        if c.rtol > 0.0:
+            est = local_error(udn, an, x, h, c)
             factor = SAFETY * est ** (-1.0 / 3.0) if est > 0 else H_GROW
             if est > 1.0:
-                stats[1] += 1
+                status.rejected += 1
                 h *= max(H_SHRINK, factor)
                 continue
-        for b in range(L.qoff.shape[0] - 1):  # elastic deflections within the small-deformation range
-            d2 = 0.0
-            for k in range(L.qoff[b + 1] - L.qoff[b]):
-                d2 += (Q2[L.qoff[b] + k] * w[L.uoff[b] + 6 + k]) ** 2
-            if not np.sqrt(d2) <= limits[b]:
-                stats[6], stats[8], stats[9] = LARGE_DEFORMATION, b, np.sqrt(d2)
-        if stats[6] == LARGE_DEFORMATION:
+        if not deflection_check(L, Q2, c, status):
             break
-        ud_prev, lam_prev, h_prev = ud, lam, h
+        ud_prev, lam_prev, h_prev = x.ud, x.lam, h
+        t_old, x_old, work_old = t, x, work.copy()
         t += h
-        R, A, Q, u, ud, a, lam = R2, A2, Q2, un, udn, an, lamn
-        stats[0] += 1
-        stats[4] = min(stats[4], h)
-        stats[5] = max(stats[5], h)
+        x = GaState(R2, A2, Q2, un, udn, an, lamn)
+        status.steps += 1
+        status.h_min = min(status.h_min, h)
+        status.h_max = max(status.h_max, h)
         # the drives' power through their rows with the converged multipliers (the last evaluation
         # predates them), and that of the moving masses with the converged ud
-        flows[3] += constraint_power(L, B, bt, u, expand(lamn, kept, m_all)) + moving_masses(L, R, A, Q, u, ud, t)[0]
+        flows = e.flows
+        u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
+        flows[3] += (constraint_power(L, e.B, e.bt, x.u, expand(lamn, kept, m_all))
+                     + moving_masses(L, x.R, x.A, x.Q, u_o, ud_o, t)[0])
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
         put(flows0, 0, flows)
         for j in range(nj):
-            refs[j] = coords[j, 0]
+            refs[j] = e.coords[j, 0]
         final = t >= t_end - end_tol
-        if final or out_dt <= 0.0 or t >= next_out - 1e-12 * max(1.0, abs(t)):
-            store_sample(ns, ts, Rs, As, Qs, us, uds, lams, refss, works, t, R, A, Q, u, ud, lam, refs, work)
+        at = 1e-12 * max(1.0, abs(t))
+        stored = False
+        while c.out_dt > 0.0 and next_index * c.out_dt <= t + at:
+            t_k = next_index * c.out_dt
+            theta = min(1.0, max(0.0, (t_k - t_old) / h))
+            R_k, A_k, Q_k, u_k, ud_k, lam_k = dense_state(L, x_old, x, h, theta)
+            store_sample(buf, ns, t_k, R_k, A_k, Q_k, u_k, ud_k, lam_k, refs, (1.0 - theta) * work_old + theta * work)
+            ns, next_index, stored = ns + 1, next_index + 1, t_k >= t - at
+        if c.out_dt <= 0.0 or (final and not stored):
+            store_sample(buf, ns, t, x.R, x.A, x.Q, u_o, ud_o, x.lam, refs, work)
             ns += 1
-            while out_dt > 0.0 and next_out <= t + 1e-12 * max(1.0, abs(t)):
-                next_out += out_dt
-        if rtol > 0.0:
+        if c.rtol > 0.0:
             h *= min(H_GROW, max(H_SHRINK, factor))
-        elif h < h_nominal and int(stats[0]) % RECOVER_STEPS == 0:
-            h = min(2.0 * h, h_nominal)
+        elif h < c.h_nominal and status.steps % RECOVER_STEPS == 0:
+            h = min(2.0 * h, c.h_nominal)
         if ns == capacity and not final:
             break
-    if t >= t_end - end_tol and stats[6] == RUNNING:
-        stats[6] = FINISHED
-    return (R, A, Q, u, ud, a, lam, t, h, next_out, ts[:ns], Rs[:ns], As[:ns], Qs[:ns], us[:ns], uds[:ns], lams[:ns],
-            refss[:ns], works[:ns])
+    if t >= t_end - end_tol and status.code == RUNNING:
+        status.code = FINISHED
+    x = GaState(x.R, x.A, x.Q, inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud), x.a,
+                x.lam)
+    return x, t, h, next_index, first_samples(buf, ns)
 
 
 class GeneralizedAlpha(Stepper):
@@ -287,41 +346,45 @@ class GeneralizedAlpha(Stepper):
     def __init__(self, problem, state, settings):
         super().__init__(problem, state, settings)
         am, af, gamma, beta = genalpha_parameters(settings.rho_inf)
-        self.prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
-        self.a = state.ud.copy()
+        prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
+        self.constants = GaConstants(prm, body_frame_free(problem.free, problem.L.uoff), problem.kept, problem.weights, float(problem.length),
+                                     settings.deformation_limit * problem.sizes, float(settings.newton_tol),
+                                     float(settings.tolerance or 0.0), float(settings.atol), float(settings.h),
+                                     float(settings.output_dt or 0.0))
+        u_k = body_velocities(problem.L, state.A, state.u)
+        self.a = body_accelerations(problem.L, state.A, u_k, state.ud)  # in the coordinates of se3.py
         self.h = settings.h
-        self.next_out = settings.output_dt or 0.0
+        self.next_index = 1
         self.work = np.zeros(3)
         lam_full = np.zeros(problem.m_all)
         lam_full[problem.kept] = state.lam
-        out = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)
-        self.flows = out[-1]
-        self.flows[3] += (constraint_power(problem.L, out[3], out[5], state.u, lam_full)
+        e = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)
+        self.flows = e.flows
+        self.flows[3] += (constraint_power(problem.L, e.B, e.bt, state.u, lam_full)
                           + moving_masses(problem.L, state.R, state.A, state.Q, state.u, state.ud, state.t)[0])
-        self.raw = np.zeros(10)
-        self.raw[4], self.raw[7] = np.inf, settings.max_steps
+        self.status_record = new_status(settings.max_steps)
 
     def advance(self, t_stop: float) -> Samples:
         p, s, st = self.problem, self.state, self.settings
-        out = ga_loop(p.L, s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam, s.t, t_stop, self.h, st.h, self.prm, p.free, p.kept,
-                      p.weights, p.length, st.deformation_limit * p.sizes, st.newton_tol, st.tolerance or 0.0, st.atol,
-                      st.output_dt or 0.0,
-                      self.next_out, p.refs, self.work, self.flows, self.raw, CHUNK)
-        (s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam, s.t, self.h, self.next_out) = out[:10]
-        status = int(self.raw[6])
-        if status == MAX_STEPS:
+        x = GaState(s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam)
+        x, s.t, self.h, self.next_index, buf = ga_loop(p.L, self.constants, x, s.t, t_stop, self.h, self.next_index,
+                                                       p.refs, self.work, self.flows, self.status_record, CHUNK)
+        s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam = x
+        record = self.status_record[0]
+        code = int(record["code"])
+        if code == MAX_STEPS:
             self.status, self.message = "failed", (f"max_steps = {st.max_steps} reached at t = {s.t:.6g} s; raise "
                                                    "max_steps or the step size h")
-        elif status == LARGE_DEFORMATION:
-            body, deflection = int(self.raw[8]), float(self.raw[9])
+        elif code == LARGE_DEFORMATION:
+            body, deflection = int(record["body"]), float(record["deflection"])
             self.status, self.large_deformation = "failed", (body, deflection, s.t + self.h)
             self.message = (f"body {body} left its small-deformation range at t = {s.t + self.h:.6g} s "
                             f"(deflection {deflection:.3g} m)")
-        elif status == NEWTON_FAILED:
+        elif code == NEWTON_FAILED:
             self.status, self.message = "failed", (f"Newton did not converge at t = {s.t:.6g} s even with tiny steps; "
                                                    "check the scene (joint axes, loads, units) or raise newton_tol")
-        elif status == FINISHED and s.t >= p.t_end - 1e-12 * max(1.0, p.t_end):
+        elif code == FINISHED and s.t >= p.t_end - 1e-12 * max(1.0, p.t_end):
             self.status = "finished"
-        for k, key in enumerate(("steps", "rejected", "newton_iterations", "jacobians", "h_min", "h_max")):
-            self.stats[key] = float(self.raw[k]) if key.startswith("h_") else int(self.raw[k])
-        return Samples(*out[10:])
+        for key in ("steps", "rejected", "newton_iterations", "jacobians", "h_min", "h_max"):
+            self.stats[key] = float(record[key]) if key.startswith("h_") else int(record[key])
+        return Samples(*buf)

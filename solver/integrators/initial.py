@@ -79,8 +79,8 @@ def rigid_columns(L) -> np.ndarray:
 
 def constraints_at(L, R, A, Q, t, refs):
     """(g, B) of all rows at a pose (zero velocities)."""
-    out = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), refs)
-    return out[2], out[3]
+    e = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), refs)
+    return e.g, e.B
 
 
 def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, length):
@@ -169,20 +169,19 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     m_all = int(L.joint_off[-1] + L.drv_joint.size)
 
     def error(v):
-        out = evaluate(L, R, A, Q, v, t, np.zeros(m_all), refs)
-        return (out[3] @ v + out[5])[kept], out
+        e = evaluate(L, R, A, Q, v, t, np.zeros(m_all), refs)
+        return (e.B @ v + e.bt)[kept], e
 
-    err, out = error(u)
-    B = out[3][kept]
+    err, e = error(u)
+    B = e.B[kept]
     rigid = rigid_columns(L)
     scale = 1.0 / weights[rigid]
     du = np.zeros_like(u)
     du[rigid] = scale * np.linalg.lstsq(B[:, rigid] * scale, -err, rcond=None)[0]
     if np.max(np.abs(error(u + du)[0]), initial=0.0) <= POSITION_TOL * (1.0 + np.max(np.abs(u))):
         return u + du
-    M = out[0]
     everything = np.arange(u.size)
-    Mf, _, Bk, BFk = restrict(M, out[1], out[3], out[4], everything, kept)
+    Mf, _, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, everything, kept)
     return u + kkt_solve(Mf, np.zeros(u.size), Bk, Bk, -err)[0]
 
 
@@ -192,14 +191,16 @@ def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
     return index1_accelerations(L, R, A, Q, u, t, refs, free, kept, 0.0, guess, 3 if kept.size else 1)
 
 
-def quasi_static_elastic(L, R, A, Q, u, t, refs, free, kept, weights, length, names, iterations=10):
-    """Modal coordinates with q_ddot = 0 under the initial loads and rigid-body accelerations.
+def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):
+    """The pose (R, A, Q) with the modal coordinates Q at q_ddot = 0 under the initial loads and
+    rigid-body accelerations.
 
     Gauss-Newton on F(q) = q_ddot(q) (index-1 accelerations; for every q the rigid coordinates
     are re-assembled onto the constraints).  Where joints at nodes pin combinations of q, the
     perturbations are projected too: the columns D of actually reachable changes give the
     reduced system (D^T dF) c = -D^T F, solved in the least-squares sense.
     """
+    R, A, Q = pose
     modal = ~rigid_columns(L)
     if not modal.any():
         return R, A, Q

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.assemble import evaluate, markers
 from sidprep.solver.integrators.base import advance_pose
 
 #: relative size below which an out-of-plane coupling counts as zero
@@ -37,9 +37,7 @@ AXES = "xyz"
 def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
-    from sidprep.solver.equations.assemble import markers
-
-    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, True)[1]
+    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, True).AM
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):
@@ -91,8 +89,8 @@ def planar_coordinates(system, L, state, refs, kept, weights, length, t_end):
         Rt, At, Qt = advance_pose(L, R, A, Q, np.where(free, PLANAR_MOTION * length * rng.standard_normal(n)
                                                        / weights, 0.0))
         vel = np.where(free, u + rng.standard_normal(n) / weights, 0.0)
-        M, f, _, B, _, _, _, _, _, _ = evaluate(L, Rt, At, Qt, vel, t, np.zeros(m_all), refs)
-        B = B[kept]
+        e = evaluate(L, Rt, At, Qt, vel, t, np.zeros(m_all), refs)
+        M, f, B = e.M, e.f, e.B[kept]
         inplane = np.linalg.norm(B[:, free], axis=1) > PLANAR_TOL * np.linalg.norm(B, axis=1)
         if rows is not None and np.any(rows != inplane):
             return None, None, ""
@@ -115,7 +113,8 @@ def planar_coordinates(system, L, state, refs, kept, weights, length, t_end):
 def out_of_plane_reactions(L, R, A, Q, u, ud, t, lam_full, refs, free, planar_rows, kept_3d):
     """Multipliers of all 3D rows from those of a planar run: the reactions of the dropped
     out-of-plane rows balance the out-of-plane equations of motion (least squares)."""
-    M, f, _, _, BF, _, _, _, _, _ = evaluate(L, R, A, Q, u, t, lam_full, refs)
+    e = evaluate(L, R, A, Q, u, t, lam_full, refs)
+    M, f, BF = e.M, e.f, e.BF
     out = np.ones(u.size, bool)
     out[free] = False
     load = M @ ud - f + BF[planar_rows].T @ lam_full[planar_rows]

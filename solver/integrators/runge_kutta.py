@@ -4,16 +4,40 @@
     k3 = f(t + h/2, y + h/2 k2),  k4 = f(t + h, y + h k3),
     y_{n+1} = y_n + h/6 (k1 + 2 k2 + 2 k3 + k4)
 
-``rhs(t, y, params) -> ydot`` is any ``numba.njit`` function (numba passes jitted functions as
-first-class arguments and specialises the integrator for each one); ``params`` is whatever the
-rhs needs, typically a tuple of arrays and floats.  Local error O(h^5), global error O(h^4);
-exact for solutions that are polynomials of degree <= 4 in t.
+The stages and their combination are ``rk4_stage`` and ``rk4_combine`` (compiled, cached): the
+solver's own loops (integrators/explicit.py, absolute_nodal/kernels.py) call their right-hand
+side by name between them, so that every loop is cached on disk (numba cannot cache a compiled
+function that receives another as an argument).  ``rk4_step`` / ``rk4_fixed`` take any
+``numba.njit`` function ``rhs(t, y, params) -> ydot`` as an argument (compiled per process, not
+cached): for ad-hoc right-hand sides.  Local error O(h^5), global error O(h^4); exact for
+solutions that are polynomials of degree <= 4 in t.
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
+
+from sidprep.solver.equations.rotations import jit
+
+
+@jit
+def rk4_stage(y, h, k):  # pragma: no cover - compiled
+    """The argument y + h k of a stage (h: the stage's fraction of the step times the step)."""
+    return y + h * k
+
+
+@jit
+def rk4_combine(y, h, k1, k2, k3, k4):  # pragma: no cover - compiled
+    """y_{n+1} = y_n + h/6 (k1 + 2 k2 + 2 k3 + k4) from the four stage slopes."""
+    return y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+@jit
+def hermite(theta):  # pragma: no cover - compiled
+    """The cubic Hermite basis (h00, h10, h01, h11) at theta in [0, 1]."""
+    t2, t3 = theta * theta, theta * theta * theta
+    return 2.0 * t3 - 3.0 * t2 + 1.0, t3 - 2.0 * t2 + theta, 3.0 * t2 - 2.0 * t3, t3 - t2
 
 
 # not cached: a jitted ``rhs`` argument is a new type in every process, so a disk cache would
@@ -36,10 +60,10 @@ def rk4_step(rhs, t, y, h, params):
     """
     half = 0.5 * h
     k1 = rhs(t, y, params)
-    k2 = rhs(t + half, y + half * k1, params)
-    k3 = rhs(t + half, y + half * k2, params)
-    k4 = rhs(t + h, y + h * k3, params)
-    return y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    k2 = rhs(t + half, rk4_stage(y, half, k1), params)
+    k3 = rhs(t + half, rk4_stage(y, half, k2), params)
+    k4 = rhs(t + h, rk4_stage(y, h, k3), params)
+    return rk4_combine(y, h, k1, k2, k3, k4)
 
 
 @numba.njit(cache=False)

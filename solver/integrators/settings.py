@@ -20,6 +20,8 @@ MAX_STEPS = 10_000_000
 MAX_SAMPLES = 1_000_000
 #: shortest step, s: no mechanical time scale is shorter, and h^2 underflows near 1e-160
 MIN_STEP_S = 1e-12
+#: energy balance error above which a run warns, relative to the energy exchanged (solver/energy.py)
+ENERGY_TOL = 1e-3
 
 
 def check_run_size(t_end: float, h: float, output_dt: float | None, fixed_step: bool,
@@ -59,6 +61,8 @@ class SolverSettings:
         fraction of its size (the floating frame's small-deformation range; docs/solver.md)
     max_steps : the run stops with an error after this many steps
     baumgarte : constraint stabilisation rate of the explicit methods, 1/s
+    energy_tol : energy balance error (relative to the energy exchanged, solver/energy.py) above
+        which the run warns
     effects : None (the System's choice), "auto", "all" or a list of effect names
     progress : None, or a callable(t, t_end, steps) the run calls between chunks of steps (the
         compiled loop runs a chunk without returning; sidprep.progress.SimulationProgress)
@@ -75,6 +79,7 @@ class SolverSettings:
     deformation_limit: float = 0.2
     max_steps: int = MAX_STEPS
     baumgarte: float = 20.0
+    energy_tol: float = ENERGY_TOL
     effects: object = None
     progress: object = None
 
@@ -90,8 +95,9 @@ class SolverSettings:
             if value is not None and not value > 0:
                 raise InputError(f"{name} must be > 0 (or not given), got {value}")
         if not (self.atol > 0 and self.newton_tol > 0 and self.deformation_limit > 0 and self.baumgarte >= 0
-                and self.max_steps > 0):
-            raise InputError("atol, newton_tol, deformation_limit and max_steps must be > 0 and baumgarte >= 0")
+                and self.max_steps > 0 and self.energy_tol > 0):
+            raise InputError("atol, newton_tol, deformation_limit, energy_tol and max_steps must be > 0 and "
+                             "baumgarte >= 0")
 
     @property
     def tolerance(self) -> float | None:

@@ -13,15 +13,31 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from sidprep.errors import InputError
+from sidprep.sid.checks import physical_problems
+from sidprep.sid.io import read_sid
 from sidprep.sid.model import ge_tensor, gr_tensor, inertia_matrix
-from sidprep.solver.effects import MASS_MATRIX_EFFECTS
-from sidprep.solver.equations.rotations import as_rotation
+from sidprep.solver.model.effects import MASS_MATRIX_EFFECTS
 
 #: relative size below which a split-off part of a SID member counts as round-off (zero)
 ROUNDOFF = 1e-12
 #: relative tolerance of the check "Oe.M1 holds only Kom" (trace identity, sid-spec 4.8 item 7)
 KOM_ONLY_RTOL = 1e-6
+
+
+def as_rotation(value) -> np.ndarray:
+    """A rotation matrix (3, 3) from None (identity), a (3, 3) matrix or a rotation vector (3,), rad
+    (Rodrigues' formula, scipy's Rotation.from_rotvec)."""
+    if value is None:
+        return np.eye(3)
+    a = np.asarray(value, dtype=float)
+    if a.shape == (3, 3):
+        return a
+    if a.shape == (3,):
+        return Rotation.from_rotvec(a).as_matrix()
+    raise ValueError(f"rotation must be a 3x3 matrix or a rotation vector, got shape {a.shape}")
 
 
 def _i1_tensor(j_m1: np.ndarray) -> np.ndarray:
@@ -170,15 +186,22 @@ class FlexibleBody(_MassBody):
     effects : None (use the system's choice), "auto", "all" or a list of effect names
     mode_pairs : optional (3, 3, nq, nq) mode-pair integrals P_ab for I2 / Gr1; derived from
         ``sid.stiffening['Kom'|'Kr']`` or from a pure-Kom Oe.M1 when not given
+    source : what to call the SID in messages (default: its path, or "SID of body '<name>'")
+
+    Raises InputError (one line naming the SID and the entry) when the SID is physically
+    impossible (sidprep.sid.checks.physical_problems), before any step.
     """
 
     def __init__(self, sid, *, name="flex", position=None, rotation=None, velocity=None, omega=None,
-                 q0=None, qd0=None, effects=None, mode_pairs=None):
+                 q0=None, qd0=None, effects=None, mode_pairs=None, source=None):
         super().__init__(name, position, rotation, velocity, omega)
         if isinstance(sid, (str, Path)):
-            from sidprep.sid.io import read_sid
-
-            sid = read_sid(sid, physical="error")
+            source = source or str(sid)
+            sid = read_sid(sid, physical="off")      # checked below, in memory too
+        problems = physical_problems(sid)
+        if problems:
+            raise InputError(f"{source or f'SID of body {name!r}'}: {problems[0]}: a physically impossible body; "
+                             "regenerate the SID (sidprep reduce) or correct that entry (sidprep check lists all)")
         self.sid = sid
         self.nq = sid.nq
         self.q0 = np.zeros(self.nq) if q0 is None else np.asarray(q0, float).copy()
@@ -371,7 +394,6 @@ class Marker:
     psi: np.ndarray | None = None
     k0f: np.ndarray | None = None
     k0m: np.ndarray | None = None
-
 
 
 @dataclass(eq=False)

@@ -12,8 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import PPoly
 
-from sidprep.solver.model.bodies import Marker
+from sidprep.solver.model.bodies import Marker, PathMarker
 from sidprep.solver.model.joints import Joint
 
 
@@ -43,10 +44,9 @@ class Table:
         return np.stack([np.diff(y, axis=0) / np.diff(self.x)[:, None], y[:-1]])
 
     def __call__(self, x: float):
-        from sidprep.solver.equations.curves import curve_value
-
-        out = np.array([curve_value(self.x, self.coefficients()[:, :, k], self.period or 0.0, x, 0)
-                        for k in range(self.columns)])
+        if self.period:
+            x = self.x[0] + (x - self.x[0]) % self.period
+        out = PPoly(self.coefficients(), self.x)(x)      # the end pieces extrapolate, as compiled
         return float(out[0]) if self.y.ndim == 1 else out
 
 
@@ -194,8 +194,6 @@ class MovingMass:
     """
 
     def __init__(self, marker, mass: float, *, name: str | None = None):
-        from sidprep.solver.model.bodies import PathMarker
-
         if not isinstance(marker, PathMarker):
             raise ValueError(f"moving mass {name}: its marker '{marker.name}' is not a path marker; "
                              "make one with FlexibleBody.path_marker")

@@ -27,8 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
-from sidprep.solver.model.bodies import Marker
+from sidprep.solver.model.bodies import Marker, PathMarker
 
 # constraint rows as (kind, axis of marker 1, axis of marker 2); kind "p" = position, "a" = angle
 _ROWS = {
@@ -124,8 +125,6 @@ class OnPath(Joint):
     kind = "on_path"
 
     def __init__(self, marker1, marker2, name: str | None = None):
-        from sidprep.solver.model.bodies import PathMarker
-
         if not isinstance(marker1, PathMarker) or marker1.motion is not None:
             raise ValueError(f"on_path joint {name}: marker 1 must be a path marker without a motion "
                              "(FlexibleBody.path_marker(path) with motion=None)")
@@ -159,8 +158,6 @@ class TabulatedMotion:
     kept as its piecewise-polynomial coefficients, evaluated compiled (equations/curves.py)."""
 
     def __init__(self, times, values):
-        from scipy.interpolate import CubicSpline
-
         spline = CubicSpline(np.asarray(times, float), np.asarray(values, float))
         self.x, self.c = spline.x, spline.c  # breakpoints (k+1,), coefficients (4, k)
 

@@ -2,14 +2,14 @@
 
 Usage::
 
-    from sidprep.solver import System, FlexibleBody, Revolute
+    from sidprep.solver import System, FlexibleBody, Revolute, simulate
     sys = System(gravity=(0, 0, -9.81))
     bar = sys.add(FlexibleBody("bar.sid.h5", name="bar"))
     pivot = sys.add(Revolute(sys.ground.marker(rotation=...), bar.node_marker(node_id=1)))
-    res = sys.simulate(1.0, h=1e-3, effects="auto")
+    res = simulate(sys, 1.0, h=1e-3, effects="auto")
     res.bodies["bar"].q, res.joints[pivot.name].force, res.energy["total"], res.effects.text()
 
-A System holds no per-run state: ``simulate`` builds a ``solver.run.Run`` that owns the
+A System holds no per-run state: ``solver.run.simulate`` builds a ``Run`` that owns the
 compiled layout, the kept constraint rows, the angle references and the recorder, so that
 simulating the same System twice gives identical results.  Equations: docs/solver.md and
 ``solver/equations``.
@@ -25,7 +25,7 @@ from sidprep.solver.model.joints import Driver, Joint
 
 
 class System:
-    """A multibody system.  Build it with ``add``; integrate with ``simulate``.
+    """A multibody system.  Build it with ``add``; integrate it with ``solver.run.simulate``.
 
     Parameters
     ----------
@@ -84,17 +84,3 @@ class System:
             if getattr(m, "path", None) is not None and m.motion is None and id(m) not in followed:
                 raise ValueError(f"path marker '{m.name}' has no motion and no OnPath joint to follow; give it a "
                                  "motion or join a body to it with OnPath")
-
-    def simulate(self, t_end: float, settings=None, **overrides):
-        """Integrate from t = 0 to t_end and return the Result (solver/results.py).
-
-        settings : a solver.integrators.settings.SolverSettings (defaults when None);
-        overrides : any of its fields by name, e.g. ``h=1e-3, method="rk4", rtol=1e-6``.
-        """
-        from dataclasses import replace
-
-        from sidprep.solver.integrators.settings import SolverSettings
-        from sidprep.solver.run import Run
-
-        settings = replace(settings or SolverSettings(), **overrides)
-        return Run(self, t_end, settings).execute()

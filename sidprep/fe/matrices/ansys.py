@@ -24,7 +24,7 @@ FORMAT_VERSION = "ansys-full (ansys-mapdl-reader 0.5x)"
 def full_matrices(path) -> tuple[FEMatrices, np.ndarray]:
     """(K, M and DOF map of a ``.full`` file, (n,) bool: DOFs constrained by D commands)."""
     try:  # optional dependency (pyvista + vtk): imported only when a .full file is read
-        from ansys.mapdl import reader as mapdl_reader
+        from ansys.mapdl import reader as mapdl_reader  # deferred: optional dependency
     except ImportError:
         raise InputError(f"{path}: reading Ansys .full files needs ansys-mapdl-reader; "
                          'pip install "sidprep[ansys]"') from None

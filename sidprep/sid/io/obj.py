@@ -45,7 +45,7 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (n, 3) and triangles (nf, 3) int64 of a Wavefront OBJ file (polygons fanned)."""
     # trimesh costs 1.8 s to import (measured, python -X importtime): only the commands that read
     # an OBJ pay it, not every reader of SID files
-    import trimesh
+    import trimesh  # deferred: 1.8 s import, OBJ only
 
     path = Path(path)
     if not path.is_file():

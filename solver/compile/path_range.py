@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.curves import motion_state
-from sidprep.solver.equations.layout import _Curves, motion_row
+from sidprep.solver.compile.layout import _Curves, motion_row
 from sidprep.solver.model.bodies import PathMarker
 
 #: samples of s(t) over 0 .. t_end when looking for the time a motion leaves its path

@@ -11,19 +11,20 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from sidprep.solver.equations.body import (CR0, CR1, CT0, CT1, DE, F_CORIOLIS, F_CR1, F_CT1, F_DAMPING, F_GRAVITY,
                                            F_INERTIA, F_OE0, F_OE1, F_PRELOAD, F_SECOND, GE, GR0, I0, I1, KE, KS0,
-                                           KS1, MD0, MD1, ME, N_FLAGS, N_TERMS, OE0, OE1, P2)
+                                           KS1, MD0, MD1, ME, N_FLAGS, N_TERMS, OE0, OE1, P2, body_equations)
 from sidprep.solver.equations.constraints import ANGLE, NO_COORDINATE, SLIDE
 from sidprep.solver.equations.curves import CONSTANT_SPEED, SMOOTH_START, TABULATED
+from sidprep.solver.equations.forces import (FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_MOVING_MASS, FE_SPRING,
+                                             FE_TORQUE)
 from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointTorque, SpringDamper, Table,
                                          _MarkerLoad)
 from sidprep.solver.model.bodies import PathMarker
 from sidprep.solver.model.joints import ConstantSpeed, SmoothStart
 
-#: force element kinds (equations/forces.py)
-FE_FORCE, FE_TORQUE, FE_SPRING, FE_JOINT_FORCE, FE_FRICTION, FE_MOVING_MASS = range(6)
 #: columns of the force-element tables
 FE_INT_COLUMNS, FE_PAR_COLUMNS = 6, 10
 
@@ -139,8 +140,6 @@ def motion_row(motion, curves: _Curves) -> tuple[int, np.ndarray, int]:
 def add_path(path, curves: _Curves) -> int:
     """A BodyPath as consecutive cubic-spline curves over s: points (3), phi (3 nq, row a,
     column k at 3 + a nq + k), psi (3 nq, after phi); returns the first curve's index."""
-    from scipy.interpolate import CubicSpline
-
     n = path.s.size
     values = np.concatenate([path.points.reshape(n, 3), path.phi.reshape(n, -1), path.psi.reshape(n, -1)], axis=1)
     spline = CubicSpline(path.s, values, axis=0)
@@ -273,8 +272,6 @@ def constraint_count(system) -> int:
 
 def body_matrices(terms, q, qd, w, g_k):
     """(M_K (6+nq, 6+nq), h_K (6+nq,)) of one body's BodyTerms at a state (body.body_equations)."""
-    from sidprep.solver.equations.body import body_equations
-
     F, off, flags = pack_terms(terms)
     c = np.ascontiguousarray
     return body_equations(F, off, flags, float(terms.mass), c(q, float), c(qd, float), c(w, float), c(g_k, float))

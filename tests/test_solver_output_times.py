@@ -1,0 +1,58 @@
+"""Output samples at the asked times: every sample at exactly k / rate, taken from the stepper's own
+interpolant inside the step that contains it (issue 21 item 5), against an independent reference."""
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from test_solver_integrate import AXIS_Y, pendulum
+
+from sidprep.solver import RigidBody
+from sidprep.solver.run import simulate
+
+#: a sample's time equals k / rate to this, s
+OUTPUT_TIME_TOL = 1e-12
+#: halving the step divides the error of a second-order method by 4; accepted within
+SECOND_ORDER_RATIO = (3.0, 5.0)
+#: RK4 (interpolant of order 4 too) against the 1-DOF pendulum ODE at the output times, rad
+RK4_ANGLE_TOL = 1e-9
+#: pendulum: mass (kg), centre of mass on the body x axis (m), inertia about it (kg m^2)
+MASS, XC, ICM = 2.0, 0.5, 0.02
+T_END, RATE = 0.5, 100.0
+
+
+def rod(s):
+    b = s.add(RigidBody(MASS, (XC, 0, 0), np.diag([1e-3, ICM, ICM]), name="rod"))
+    return b, b.marker(rotation=AXIS_Y)
+
+
+def ode_angle(times):
+    """The pendulum's angle at ``times`` from its 1-DOF equation (released horizontally)."""
+    inertia = ICM + MASS * XC**2
+    sol = solve_ivp(lambda t, y: [y[1], MASS * 9.81 * XC * np.cos(y[0]) / inertia], (0.0, T_END), [0.0, 0.0],
+                    t_eval=times, rtol=1e-13, atol=1e-13, method="DOP853")
+    return sol.y[0]
+
+
+def angle(settings):
+    s, _, joint = pendulum(rod)
+    r = simulate(s, T_END, output_dt=1 / RATE, **settings)
+    return r.t, r.joints[joint.name].coordinate
+
+
+def test_genalpha_samples_at_k_over_rate_match_a_fine_run_to_second_order():
+    k = np.arange(round(T_END * RATE) + 1)
+    t, coarse = angle(dict(h=3e-4))
+    assert t.size == k.size and np.max(np.abs(t - k / RATE)) <= OUTPUT_TIME_TOL
+    _, half = angle(dict(h=1.5e-4))
+    t_ref, fine = angle(dict(h=1e-5))
+    assert np.max(np.abs(t_ref - k / RATE)) <= OUTPUT_TIME_TOL
+    ratio = np.max(np.abs(coarse - fine)) / np.max(np.abs(half - fine))
+    assert SECOND_ORDER_RATIO[0] < ratio < SECOND_ORDER_RATIO[1], ratio
+    # and the fine run is the pendulum's own equation at those times
+    assert np.max(np.abs(fine - ode_angle(k / RATE))) < np.max(np.abs(coarse - fine)) / 100
+
+
+def test_rk4_samples_at_k_over_rate_match_the_pendulum_equation():
+    k = np.arange(round(T_END * RATE) + 1)
+    t, rk4 = angle(dict(h=3e-4, method="rk4", baumgarte=0.0))
+    assert t.size == k.size and np.max(np.abs(t - k / RATE)) <= OUTPUT_TIME_TOL
+    assert np.max(np.abs(rk4 - ode_angle(k / RATE))) < RK4_ANGLE_TOL
