@@ -129,8 +129,8 @@ def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction
     assert parts.checks["frequency_check"].startswith("certified")
 
 
-def test_an_attached_frame_and_rbe3_interfaces_in_parts_match_the_monolithic_reduction():
-    o = ReduceOptions(interfaces=("fixed_end:rbe3", "free_end:rbe3"), frame="fixed_end", modes=4)
+def test_an_attached_frame_rbe3_interfaces_and_fmax_in_parts_match_the_monolithic_reduction():
+    o = ReduceOptions(interfaces=("fixed_end:rbe3", "free_end:rbe3"), frame="fixed_end", fmax=1500.0)
     mono = reduce(BAR, o)
     parts = reduce(BAR, replace(o, parts=4), workers=2)
     kinds = np.array(mono.sid.mode_kinds)
