@@ -134,7 +134,8 @@ def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None,
         if not short:
             break
         asked.update(dict.fromkeys(short, needed))
-        run_part_tasks(pools, settings, parts, {p: (None, needed) for p in short}, memory, reductions)
+        run_part_tasks(pools, settings, parts, reduce_part, {p: (parts[p], None, needed, memory) for p in short},
+                       reductions)
     return ordered, assembly, level2
 
 
