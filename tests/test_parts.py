@@ -129,8 +129,18 @@ def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction
     assert parts.checks["frequency_check"].startswith("certified")
 
 
-def test_an_attached_frame_and_rbe3_interfaces_in_parts_match_the_monolithic_reduction():
-    o = ReduceOptions(interfaces=("fixed_end:rbe3", "free_end:rbe3"), frame="fixed_end", modes=4)
+def test_parts_short_of_modes_run_a_second_round_and_match_the_monolithic_reduction(monkeypatch):
+    import sidprep.jobs.parts as jobs_parts
+
+    monkeypatch.setattr(jobs_parts, "PART_FIRST_ROUND", 0.01)      # first round: PART_MIN_MODES per part
+    mono, parts = monolithic_and_parts(ROD, 4, workers=2)
+    note = next(n for n in parts.notes if "reduced in 4 parts" in n)
+    assert int(note.split(" part modes")[0].split()[-1]) > 4 * jobs_parts.PART_MIN_MODES   # some ran again
+    assert_same_body(mono, parts, ROD)
+
+
+def test_an_attached_frame_rbe3_interfaces_and_fmax_in_parts_match_the_monolithic_reduction():
+    o = ReduceOptions(interfaces=("fixed_end:rbe3", "free_end:rbe3"), frame="fixed_end", fmax=1500.0)
     mono = reduce(BAR, o)
     parts = reduce(BAR, replace(o, parts=4), workers=2)
     kinds = np.array(mono.sid.mode_kinds)

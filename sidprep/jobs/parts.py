@@ -85,16 +85,15 @@ def check_parts_fit(parts, n_dof: int, memory: float) -> None:
                      f"a worker has {memory / gb:.2f} GB; {advice}")
 
 
-def run_part_tasks(pools: list, settings: PartsSettings, parts, requests: dict, memory: float,
-                   results: dict) -> None:
-    """Reduce the parts ``requests`` (index -> (n_modes, fmax)) as tasks on ``pools[0]`` into
-    ``results`` (index -> PartReduction); after a lost worker, the part runs again on a fresh pool
-    (replacing ``pools[0]``; module docstring)."""
+def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: dict, results: dict) -> None:
+    """Run ``fn(*requests[i])`` for every part index i of ``requests`` as tasks on ``pools[0]`` into
+    ``results[i]``; after a lost worker, the part runs again on a fresh pool (replacing ``pools[0]``;
+    module docstring)."""
 
     lost = dict.fromkeys(requests, 0)
     todo = list(requests)
     while todo:
-        running = {pools[0].run(reduce_part, parts[i], *requests[i], memory): i for i in todo}
+        running = {pools[0].run(fn, *requests[i]): i for i in todo}
         todo = []
         while running:
             for fut in pools[0].wait(list(running)):
@@ -120,13 +119,13 @@ def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None,
     fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel)."""
 
     if fmax is not None:
-        first = {p: (None, PART_CUTOFF * fmax) for p in range(len(parts))}
+        first = {p: (part, None, PART_CUTOFF * fmax, memory) for p, part in enumerate(parts)}
     else:
         count = max(PART_MIN_MODES, int(np.ceil(PART_FIRST_ROUND * PART_CUTOFF ** 2 * n_modes / len(parts))))
-        first = {p: (count, None) for p in range(len(parts))}
+        first = {p: (part, count, None, memory) for p, part in enumerate(parts)}
     reductions: dict = {}
-    run_part_tasks(pools, settings, parts, first, memory, reductions)
-    asked = {p: f for p, (_, f) in first.items() if f is not None}
+    run_part_tasks(pools, settings, parts, reduce_part, first, reductions)
+    asked = {p: f for p, (_, _, f, _) in first.items() if f is not None}
     while True:
         ordered = [reductions[p] for p in range(len(parts))]
         assembly = assemble_parts(parts, ordered, coarse)
@@ -136,8 +135,25 @@ def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None,
         if not short:
             break
         asked.update(dict.fromkeys(short, needed))
-        run_part_tasks(pools, settings, parts, {p: (None, needed) for p in short}, memory, reductions)
+        run_part_tasks(pools, settings, parts, reduce_part, {p: (parts[p], None, needed, memory) for p in short},
+                       reductions)
     return ordered, assembly, level2
+
+
+def part_tasks(settings: PartsSettings, parts):
+    """fn, [args per part] -> [fn(*args) per part], as tasks on a fresh pool (lost workers: run again):
+    the per-part work of the checks (sidprep.reduction.parts.SubstructuredSolver.eigenvalue_count)."""
+
+    def run(fn, args: list) -> list:
+        pools = [task_pool(settings.scheduler, settings.workers)]
+        results: dict = {}
+        try:
+            run_part_tasks(pools, settings, parts, fn, dict(enumerate(args)), results)
+        finally:
+            pools[0].close()
+        return [results[p] for p in range(len(args))]
+
+    return run
 
 
 def sent_mb(items) -> float:
@@ -172,6 +188,7 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
                          f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
                          f"{sent_mb(parts):.0f} MiB sent to the workers, {sent_mb(ordered):.0f} MiB back")
-        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2)
+        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2,
+                                   tasks=part_tasks(settings, parts))
 
     return reducer

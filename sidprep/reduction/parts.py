@@ -39,7 +39,7 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import factorize
+from sidprep.fe.linalg import factorize, single_threaded_blas
 from sidprep.fe.mesh import _face_table
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
@@ -181,8 +181,9 @@ def reduce_part(part: PartModel, n_modes: int | None = None, fmax: float | None 
 
     n_modes = None if n_modes is None else min(n_modes, len(part.dofs) - len(part.boundary) - 1)
     try:
-        cb = craig_bampton(part.K, part.M, part.boundary, n_modes=n_modes, fmax=fmax,
-                           memory_limit=memory_limit, extent=part.extent)
+        with single_threaded_blas():                      # one BLAS thread per task (a worker per core)
+            cb = craig_bampton(part.K, part.M, part.boundary, n_modes=n_modes, fmax=fmax,
+                               memory_limit=memory_limit, extent=part.extent)
     except InputError as exc:
         raise InputError(f"{part.name}: {exc}") from None
     interior = np.ones(len(part.dofs), bool)
@@ -241,9 +242,9 @@ class SubstructuredSolver:
     parts (``eigenvalue_count``).
     """
 
-    def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int):
+    def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, tasks=None):
 
-        self.parts, self.reductions, self.assembly = parts, reductions, assembly
+        self.parts, self.reductions, self.assembly, self.tasks = parts, reductions, assembly, tasks
         self.boundary = np.asarray(boundary, dtype=np.int64)
         interior = np.ones(n_model, bool)
         interior[self.boundary] = False
@@ -296,25 +297,35 @@ class SubstructuredSolver:
         """Eigenvalues of the whole model below ``sigma`` (held DOFs removed): Sylvester's law of inertia
         with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the parts'
         fixed-interface eigenvalues below sigma plus the negative eigenvalues of the sum of their exact
-        dynamic Schur complements on G (sidprep.reduction.fe_checks.dynamic_schur).  None when sigma
-        is above a part's computed modes."""
-
+        dynamic Schur complements on G (``part_dynamic_schur``: on ``tasks`` when given, a function
+        fn, [args per part] -> [results], else here).  None when sigma is above a part's computed modes."""
         a = self.assembly
+        args = [(part, r, sigma) for part, r in zip(self.parts, self.reductions)]
+        schurs = self.tasks(part_dynamic_schur, args) if self.tasks is not None \
+            else [part_dynamic_schur(*x, factor) for x, factor in zip(args, self.factors)]
+        if any(schur is None for schur in schurs):
+            return None
         S = np.zeros((len(a.coarse), len(a.coarse)))
-        below = 0
-        for p, part in enumerate(self.parts):
-            r = self.reductions[p]
-            modes = np.zeros((len(part.dofs), r.modes.shape[1]))
-            modes[part.interior] = r.modes
-            mu = (2 * np.pi * r.frequencies_hz) ** 2
-            schur = dynamic_schur(part.K, part.M, self.factors[p], modes, mu, part.boundary, part.boundary, sigma)
-            if schur is None:
-                return None
-            below += schur[0]
-            S[np.ix_(a.local[p], a.local[p])] += schur[1]
+        for pos, schur in zip(a.local, schurs):
+            S[np.ix_(pos, pos)] += schur[1]
+        below = sum(schur[0] for schur in schurs)
         keep = ~np.isin(a.coarse, [] if red.held is None else red.held)
         S = S[np.ix_(keep, keep)]
         return int(below + np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) < 0))
+
+
+def part_dynamic_schur(part: PartModel, reduction: PartReduction, sigma: float, factor=None):
+    """(#{part fixed-interface eigenvalues < sigma}, the part's exact dynamic Schur complement on its
+    coarse DOFs (nb_p, nb_p)) or None (sidprep.reduction.fe_checks.dynamic_schur); a task: without
+    ``factor`` the part's interior is factorised here."""
+
+    own = part.interior
+    modes = np.zeros((len(part.dofs), reduction.modes.shape[1]))
+    modes[own] = reduction.modes
+    with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
+        factor = factor if factor is not None else factorize(part.K[own][:, own])
+        return dynamic_schur(part.K, part.M, factor, modes, (2 * np.pi * reduction.frequencies_hz) ** 2,
+                             part.boundary, part.boundary, sigma)
 
 
 def second_level(assembly: Assembly, boundary, n_modes=None, fmax=None):
@@ -324,13 +335,13 @@ def second_level(assembly: Assembly, boundary, n_modes=None, fmax=None):
     return craig_bampton(assembly.K, assembly.M, b, n_modes=n_modes, fmax=fmax)
 
 
-def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2):
+def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2, tasks=None):
     """Step 4: the ReducedModel of the whole model in model DOFs, as ``craig_bampton`` returns it
     (basis with the boundary columns first, K, M projected from the model matrices), with the
-    substructured K_ii solver as its factor."""
+    substructured K_ii solver as its factor (``tasks``: where it runs per-part work, see there)."""
 
     n = K_model.shape[0]
-    solver = SubstructuredSolver(parts, reductions, assembly, boundary, n)
+    solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, tasks)
     basis = solver.recover(level2.basis, n)
     nb = len(boundary)
     interior = np.ones(n, bool)
