@@ -32,7 +32,8 @@ from sidprep.sid.io import read_sid
 from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
     load_absolute_nodal_scene, simulate_absolute_nodal)
 from sidprep.solver.integrators.settings import SolverSettings
-from sidprep.solver.model.bodies import FlexibleBody, RigidBody, as_rotation
+from sidprep.solver.equations.rotations import as_rotation
+from sidprep.solver.model.bodies import FlexibleBody, RigidBody
 from sidprep.solver.model.effects import EFFECTS
 from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointForce, PointTorque,
     SpringDamper, Table, bump_stop)

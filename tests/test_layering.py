@@ -8,7 +8,7 @@ that pyproject installs them so).  Data flows one way::
     base (errors, progress, tables, interpolation) -> sid -> fe -> reduction -> jobs
     base, sid -> solver -> view -> cli
 
-and inside solver/: model -> equations -> compile -> integrators -> results -> run -> scenes.
+and inside solver/: geometry (rotations) -> model, equations -> compile -> integrators -> results -> run -> scenes.
 """
 
 import ast
@@ -38,6 +38,7 @@ MAX_FLAT_MODULES = 10
 #: solver/ from the first layer to the last (docs/solver.md): a module imports its own layer and
 #: the ones before it only
 SOLVER_LAYERS = (
+    ("geometry", ("sidprep.solver.equations.rotations",)),       # first match: before equations
     ("model", ("sidprep.solver.model",)),
     ("equations", ("sidprep.solver.equations",)),
     ("compile", ("sidprep.solver.compile",)),
