@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.effects import build_report, estimate_sizes, run_estimates
-from sidprep.solver.equations.assemble import energies, evaluate, markers, moving_masses
+from sidprep.solver.equations.assemble import energies, evaluate, every_marker, markers, moving_masses
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 from sidprep.solver.stiffening_work import base_layout, stiffening_power
@@ -42,6 +42,7 @@ def postprocess(run, s) -> Result:
     mindex = {id(m): k for k, m in enumerate(all_markers)}
     L0 = base_layout(run)
     power = np.zeros(nt)  # of the geometric-stiffening terms, W (stiffening_work.py)
+    every = every_marker(L)
     for k in range(nt):
         R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
         lam = np.zeros(m_all)
@@ -49,7 +50,7 @@ def postprocess(run, s) -> Result:
         if planar:
             lam = out_of_plane_reactions(L, R, A, Q, u, ud, t, lam, refs, run.free, run.kept, run.kept_3d)
         M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, u, t, lam, refs)
-        P, AM = markers(L, R, A, Q, u, t, True)[:2]
+        P, AM = markers(L, R, A, Q, u, t, every)[:2]
         cerr[k] = np.max(np.abs(g[run.kept_3d]), initial=0.0)
         for mk, m in enumerate(all_markers):
             positions[m.name][k] = P[mk]

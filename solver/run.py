@@ -22,7 +22,7 @@ from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.model.effects import EFFECTS, parse_effects
 from sidprep.solver.energy import balance_warning, energy_balance
-from sidprep.solver.equations.assemble import evaluate, markers
+from sidprep.solver.equations.assemble import evaluate, every_marker, markers
 from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.equations.forces import FE_SPRING
 from sidprep.solver.integrators.base import Problem, Samples, State
@@ -150,7 +150,7 @@ class Run:
         run's layout; the System is not changed)."""
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, True).P
+            P = markers(self.L, R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0, every_marker(self.L)).P
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 

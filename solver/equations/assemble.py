@@ -129,7 +129,7 @@ def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
         count += L.fe_int[i, 0] == FE_MOVING_MASS
     if count == 0:
         return power, kinetic, potential
-    kin = markers(L, R, A, Q, u, t, False)
+    kin = markers(L, R, A, Q, u, t, L.mk_active)
     P, VEL, JT, VC = kin.P, kin.VEL, kin.JT, kin.VC
     for i in range(L.fe_int.shape[0]):
         if L.fe_int[i, 0] != FE_MOVING_MASS:
@@ -194,9 +194,10 @@ def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rota
 
 
 @jit
-def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
-    """Kinematics at time t (s; path markers move) of the markers that joints and forces use
-    (``every``: of all markers):
+def markers(L, R, A, Q, u, t, active):  # pragma: no cover - compiled
+    """Kinematics at time t (s; path markers move) of the markers with ``active`` (nmk,) != 0
+    (L.mk_active: those that joints and forces use; every_marker(L): all; an array, not a flag,
+    so that the compiled callers and Python share one compiled signature):
     P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial velocities of the material point (the
     body's motion), the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max),
     zero-padded (JTF, JRF are JT, JR when no marker is load-stiffened), and VC, WC (nmk, 3) the
@@ -226,7 +227,7 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
     shapes = L.shapes
     for sweep in range(2 * nmk):  # markers that follow a partner on their path (OnPath) after the others
         k = sweep % nmk
-        if not (every or L.mk_active[k]) or (L.mk_path[k, 2] >= 0) != (sweep >= nmk):
+        if not active[k] or (L.mk_path[k, 2] >= 0) != (sweep >= nmk):
             continue
         b = L.mk_body[k]
         if b < 0:
@@ -270,6 +271,11 @@ def markers(L, R, A, Q, u, t, every):  # pragma: no cover - compiled
     return MarkerKinematics(P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC)
 
 
+def every_marker(L) -> np.ndarray:
+    """The ``active`` argument of ``markers`` that selects every marker."""
+    return np.ones(L.mk_body.shape[0], dtype=np.int64)
+
+
 @jit
 def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     """The system at a state (module doc).
@@ -300,7 +306,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    kin = markers(L, R, A, Q, u, t, False)
+    kin = markers(L, R, A, Q, u, t, L.mk_active)
     P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = kin
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate, markers
+from sidprep.solver.equations.assemble import evaluate, every_marker, markers
 from sidprep.solver.integrators.base import advance_pose
 
 #: relative size below which an out-of-plane coupling counts as zero
@@ -37,7 +37,7 @@ AXES = "xyz"
 def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
-    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, True).AM
+    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, every_marker(L)).AM
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):
