@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
 from sidprep.solver.compile.layout import pack_terms
 from sidprep.solver.equations.body import body_equations
@@ -165,6 +164,8 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
 # ---------------------------------------------------------------------------- size estimates
 def _lowest_modal_stiffness(model) -> float:
     """omega_1^2 = smallest eigenvalue of (Ke, Me), 1/s^2."""
+    import scipy.linalg  # deferred: 0.22 CPU-s of import, needed only for the effects estimates
+
     if model.nq == 0:
         return float("nan")
     lam = scipy.linalg.eigh(model.Ke, model.Me, eigvals_only=True)

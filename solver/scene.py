@@ -30,7 +30,8 @@ from sidprep.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.io import read_sid
 from sidprep.solver.integrators.settings import SolverSettings
-from sidprep.solver.model.bodies import FlexibleBody, RigidBody, as_rotation
+from sidprep.solver.equations.rotations import as_rotation
+from sidprep.solver.model.bodies import FlexibleBody, RigidBody
 from sidprep.solver.model.effects import EFFECTS
 from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointForce, PointTorque, SpringDamper,
                                          Table, bump_stop)

@@ -15,6 +15,7 @@ PACKAGES = {"sidprep": "sidprep", "solver": "sidprep.solver", "cli": "sidprep.cl
 #: solver/ from the first layer to the last (docs/solver.md): a module imports its own layer and
 #: the ones before it only
 SOLVER_LAYERS = (
+    ("geometry", ("sidprep.solver.equations.rotations",)),
     ("model", ("sidprep.solver.model",)),
     ("equations", ("sidprep.solver.equations",)),
     ("compile", ("sidprep.solver.compile",)),
@@ -68,7 +69,7 @@ def graph() -> dict:
 
 
 def layer(name: str):
-    for rank, (label, prefixes) in enumerate(SOLVER_LAYERS):
+    for rank, (label, prefixes) in enumerate(SOLVER_LAYERS):  # the first match: geometry before equations
         if any(name == p or name.startswith(p + ".") for p in prefixes):
             return rank, label
     return None

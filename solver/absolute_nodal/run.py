@@ -8,7 +8,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from sidprep.errors import InputError
 from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, initial_vector, kernel_params
@@ -72,6 +71,8 @@ def highest_frequency(asm: Assembly) -> float:
     """omega_max (rad/s) of the system linearised about its initial shape: the largest
     generalized eigenvalue of (K, M) on the free coordinates, K by central differences of the
     elastic forces (beam_elastic)."""
+    import scipy.linalg  # deferred: 0.22 CPU-s of import, needed only for the step check
+
     free = [2 * i + c for i in asm.free for c in (0, 1)]
     scale = STIFFNESS_FD * max(float(np.max(asm.beam_e)), 1e-300)
 

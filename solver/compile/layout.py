@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from sidprep.solver.equations.body import (CR0, CR1, CT0, CT1, DE, F_CORIOLIS, F_CR1, F_CT1, F_DAMPING, F_GRAVITY,
                                            F_INERTIA, F_OE0, F_OE1, F_PRELOAD, F_SECOND, GE, GR0, I0, I1, KE, KS0,
@@ -140,6 +139,8 @@ def motion_row(motion, curves: _Curves) -> tuple[int, np.ndarray, int]:
 def add_path(path, curves: _Curves) -> int:
     """A BodyPath as consecutive cubic-spline curves over s: points (3), phi (3 nq, row a,
     column k at 3 + a nq + k), psi (3 nq, after phi); returns the first curve's index."""
+    from scipy.interpolate import CubicSpline  # deferred: 0.42 CPU-s of import (paths, tables)
+
     n = path.s.size
     values = np.concatenate([path.points.reshape(n, 3), path.phi.reshape(n, -1), path.psi.reshape(n, -1)], axis=1)
     spline = CubicSpline(path.s, values, axis=0)

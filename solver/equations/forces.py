@@ -85,10 +85,11 @@ def force_elements(L, t, kin, coords, crows, convective, lam, loads, flows):  # 
 
     kin: the markers' kinematics (assemble.MarkerKinematics): positions P, orientations AM,
     material velocities VEL, angular velocities OMG (inertial) and the convective velocities VC
-    (nmk, 3) of markers moved along a path (a marker moves at VEL + VC); coords (nj, 2) joint coordinate and rate, crows (nj, 4, 3) their velocity
-    rows, convective (nj,) the part of the rates due to path motions; lam (m_all,) multipliers
-    (friction reads the transverse reactions).  Springs and joint loads see the markers' whole
-    motion; the power their loads take from a path's motion (-load . VC) is the drive's, flows[3].
+    (nmk, 3) of markers moved along a path (a marker moves at VEL + VC); coords (nj, 2) joint
+    coordinate and rate, crows (nj, 4, 3) their velocity rows, convective (nj,) the part of the
+    rates due to path motions; lam (m_all,) multipliers (friction reads the transverse
+    reactions).  Springs and joint loads see the markers' whole motion; the power their loads
+    take from a path's motion (-load . VC) is the drive's, flows[3].
     """
     P, AM, VEL, OMG, VC = kin.P, kin.AM, kin.VEL, kin.OMG, kin.VC
     for i in range(L.fe_int.shape[0]):

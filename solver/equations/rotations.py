@@ -1,5 +1,6 @@
 """Rotation kinematics (skew matrices, the SO(3) exponential map, quaternions) and the small
-loop helpers of the compiled kernels, and ``jit``, the one decorator of all of them.
+loop helpers of the compiled kernels, and ``jit``, the one decorator of all of them: the geometry
+under both the descriptions (model/, e.g. ``as_rotation``) and the kernels (equations/).
 
 Rotation matrices A map body components to inertial components (sid-spec 5.1); angular
 velocities are body components, so the Lie-group update is A_{n+1} = A_n exp(skew(dtheta)).
@@ -205,3 +206,15 @@ def quaternion_rate(e: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
             e0 * w3 + e1 * w2 - e2 * w1,
         ]
     )
+
+
+def as_rotation(value) -> np.ndarray:
+    """A rotation matrix (3, 3) from None (identity), a (3, 3) matrix or a rotation vector (3,), rad."""
+    if value is None:
+        return np.eye(3)
+    a = np.asarray(value, dtype=float)
+    if a.shape == (3, 3):
+        return a
+    if a.shape == (3,):
+        return exp_so3(a)
+    raise ValueError(f"rotation must be a 3x3 matrix or a rotation vector, got shape {a.shape}")

@@ -13,7 +13,6 @@ the step must resolve the highest kept frequency.
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import DOP853, RK45
 
 from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
@@ -188,6 +187,8 @@ class ScipyRungeKutta(_Explicit):
 
     def __init__(self, problem, state, settings):
         super().__init__(problem, state, settings)
+        from scipy.integrate import DOP853, RK45  # deferred: 0.42 CPU-s of import
+
         cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
         self.name = settings.method
         params = self.params

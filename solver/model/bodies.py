@@ -13,31 +13,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from sidprep.checks import physical_problems
 from sidprep.errors import InputError
 from sidprep.io import read_sid
 from sidprep.sid import ge_tensor, gr_tensor, inertia_matrix
+from sidprep.solver.equations.rotations import as_rotation
 from sidprep.solver.model.effects import MASS_MATRIX_EFFECTS
 
 #: relative size below which a split-off part of a SID member counts as round-off (zero)
 ROUNDOFF = 1e-12
 #: relative tolerance of the check "Oe.M1 holds only Kom" (trace identity, sid-spec 4.8 item 7)
 KOM_ONLY_RTOL = 1e-6
-
-
-def as_rotation(value) -> np.ndarray:
-    """A rotation matrix (3, 3) from None (identity), a (3, 3) matrix or a rotation vector (3,), rad
-    (Rodrigues' formula, scipy's Rotation.from_rotvec)."""
-    if value is None:
-        return np.eye(3)
-    a = np.asarray(value, dtype=float)
-    if a.shape == (3, 3):
-        return a
-    if a.shape == (3,):
-        return Rotation.from_rotvec(a).as_matrix()
-    raise ValueError(f"rotation must be a 3x3 matrix or a rotation vector, got shape {a.shape}")
 
 
 def _i1_tensor(j_m1: np.ndarray) -> np.ndarray:

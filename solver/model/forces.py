@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import PPoly
 
 from sidprep.solver.model.bodies import Marker, PathMarker
 from sidprep.solver.model.joints import Joint
@@ -44,6 +43,8 @@ class Table:
         return np.stack([np.diff(y, axis=0) / np.diff(self.x)[:, None], y[:-1]])
 
     def __call__(self, x: float):
+        from scipy.interpolate import PPoly  # deferred: 0.42 CPU-s of import (paths, tables)
+
         if self.period:
             x = self.x[0] + (x - self.x[0]) % self.period
         out = PPoly(self.coefficients(), self.x)(x)      # the end pieces extrapolate, as compiled

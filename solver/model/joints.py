@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from sidprep.solver.model.bodies import Marker, PathMarker
 
@@ -158,6 +157,8 @@ class TabulatedMotion:
     kept as its piecewise-polynomial coefficients, evaluated compiled (equations/curves.py)."""
 
     def __init__(self, times, values):
+        from scipy.interpolate import CubicSpline  # deferred: 0.42 CPU-s of import (paths, tables)
+
         spline = CubicSpline(np.asarray(times, float), np.asarray(values, float))
         self.x, self.c = spline.x, spline.c  # breakpoints (k+1,), coefficients (4, k)
 
