@@ -23,10 +23,9 @@ the energy kind "stiffening" is -W_s, so that the total stays constant.
 
 from __future__ import annotations
 
-import numpy as np
 
-from sidprep.solver.equations.assemble import energies, evaluate
 from sidprep.solver.compile.layout import build_layout
+from sidprep.solver.equations.assemble import energies, evaluate
 from sidprep.solver.integrators.base import advance_pose
 
 #: effects whose work is booked here (preload is a potential, booked in the strain energy)
