@@ -121,7 +121,7 @@ class Run:
     def __init__(self, system, t_end: float, settings):
         if not (t_end > 0 and math.isfinite(t_end)):
             raise InputError(f"simulate: t_end = {t_end} s must be > 0 and finite; fix the [solver] value")
-        check_run_size(t_end, settings.h, settings.output_dt, settings.tolerance is None, settings.max_steps)
+        check_run_size(t_end, settings.h, settings.output_dt, settings.tolerance is None)
         path_errors, path_notes = path_marker_problems(system, t_end)
         if path_errors:
             raise InputError(f"simulate: {path_errors[0]}")

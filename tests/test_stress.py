@@ -572,7 +572,8 @@ def test_paraview_series_carries_von_mises(harmonic_run, tmp_path):
     import meshio
 
     from sidprep import read_sid
-    from sidprep.solver.animation import frame_mesh, sid_surface
+    from sidprep.sid.surface import sid_surface
+    from sidprep.solver.animation import frame_mesh
     from sidprep.solver.results import read_results
 
     folder, _ = harmonic_run

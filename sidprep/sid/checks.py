@@ -233,9 +233,14 @@ def modal_checks(sid: SID) -> dict:
         diagonal = _entry(max(_relative(off(Me[sub]), Me[sub]), _relative(off(Ke[sub]), Ke[sub])),
                           MODAL_DIAGONAL_RTOL, "eigen-type coordinates are M- and K-orthogonal", "warning")
         out["Me, Ke diagonal for eigen modes"] = diagonal
+        # every coordinate whose label gives a frequency: eigenmodes and the (orthonormalised)
+        # frequency-response modes, whose labels carry theirs too
+        labelled = [k for k in range(nq) if sid.mode_kinds[k:k + 1] in (("eigen",), ("frm",))]
+        lab = np.ix_(labelled, labelled)
+        lab_diagonal = max(_relative(off(Me[lab]), Me[lab]), _relative(off(Ke[lab]), Ke[lab])) <= MODAL_DIAGONAL_RTOL
         out["labels: f = sqrt(Ke/Me)/2pi"] = _entry(
-            label_frequency_deviation(np.asarray(sid.frequencies_hz, dtype=float)[eigen], Me[sub], Ke[sub],
-                                      diagonal["passed"]), LABEL_FREQUENCY_RTOL,
+            label_frequency_deviation(np.asarray(sid.frequencies_hz, dtype=float)[labelled], Me[lab], Ke[lab],
+                                      lab_diagonal), LABEL_FREQUENCY_RTOL,
             "label frequencies vs the modal stiffness (4.8 #8): per coordinate sqrt(Ke_ii/Me_ii)/2pi, "
             "or, where Me and Ke are not diagonal, the sorted generalized eigenfrequencies")
     return out

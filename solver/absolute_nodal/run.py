@@ -101,7 +101,7 @@ def integrate(asm: Assembly, t_end: float, settings: SolverSettings) -> tuple[np
     if settings.method != "rk4":
         raise InputError(f"absolute-nodal beams integrate with method = \"rk4\", not {settings.method!r}; "
                          "set method = \"rk4\" or leave it out")
-    check_run_size(t_end, settings.h, settings.output_dt, True, settings.max_steps)
+    check_run_size(t_end, settings.h, settings.output_dt, True)
     n_steps = int(round(t_end / settings.h))
     if n_steps < 1 or abs(n_steps * settings.h - t_end) > 1e-9 * t_end:
         raise InputError(f"t_end = {t_end} s is not a whole number of steps of {settings.h} s; "

@@ -187,8 +187,8 @@ def write_stress(g: h5py.Group, stress: StressModes) -> None:
 
 def read_stress(g: h5py.Group) -> StressModes:
     """SID.stress from a /stress group; a newer group version or another component order is refused."""
-    version = int(g.attrs.get("version", -1))
-    if not 1 <= version <= STRESS_VERSION:
+    version = schema_version(g.attrs.get("version", -1))
+    if version not in range(1, STRESS_VERSION + 1):
         raise ValueError(f"/stress version {version} (this sidprep reads 1..{STRESS_VERSION}; upgrade sidprep)")
     order = tuple(str(g.attrs["component_order"]).split(","))
     if order != STRESS_ORDER:
@@ -253,6 +253,15 @@ def _read(f: h5py.File) -> SID:
         surface=surface, paths=paths, stress=read_stress(f["stress"]) if "stress" in f else None)
 
 
+def schema_version(value) -> int | None:
+    """The integer schema version in a ``version`` attribute, or None (not a whole number)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    return int(number) if number.is_integer() else None
+
+
 def read_sid_hdf5(path) -> SID:
     """Read a ``.sid.h5`` file written by ``write_sid_hdf5``; bad files raise InputError."""
     path = Path(path)
@@ -260,9 +269,9 @@ def read_sid_hdf5(path) -> SID:
         if f.attrs.get("format") != FORMAT:
             raise InputError(f"{path}: HDF5 file is not a sidprep SID (attribute format != "
                              f"{FORMAT!r}); give a .sid.h5 file written by sidprep")
-        version = int(f.attrs.get("version", -1))
-        if version > VERSION or version < 1:
-            raise InputError(f"{path}: SID schema version {version} is not supported (this sidprep "
+        version = f.attrs.get("version", -1)
+        if schema_version(version) not in range(1, VERSION + 1):
+            raise InputError(f"{path}: SID schema version {version!r} is not supported (this sidprep "
                              f"reads 1..{VERSION}); upgrade sidprep or re-export the file")
         try:
             return _read(f)
