@@ -604,7 +604,7 @@ def test_whirling_rigid_twin_genalpha_follows_dop853():
     """The rigid twin of the hinged bar (frame off the hinge) whirling at 50 rad/s under gravity:
     generalised-alpha on SE(3) follows DOP853 at a tight tolerance (a second formulation, the
     index-1 form with quaternions) in the hinge angle, and both keep the energy."""
-    from sidprep.io import read_sid
+    from sidprep.sid.io import read_sid
 
     twin = hinged_rigid_twin(read_sid(PENDULUM_SID))
     ga = whirl(twin, t_end=2.0)
