@@ -271,7 +271,7 @@ def read_sid_hdf5(path) -> SID:
                              f"{FORMAT!r}); give a .sid.h5 file written by sidprep")
         version = f.attrs.get("version", -1)
         if schema_version(version) not in range(1, VERSION + 1):
-            raise InputError(f"{path}: SID schema version {version!r} is not supported (this sidprep "
+            raise InputError(f"{path}: SID schema version {version} is not supported (this sidprep "
                              f"reads 1..{VERSION}); upgrade sidprep or re-export the file")
         try:
             return _read(f)
