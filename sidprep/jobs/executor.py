@@ -52,7 +52,14 @@ class _LocalPool:
         stop_workers(list(getattr(self.pool, "_processes", {}).values()))
 
     def close(self):
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        if getattr(self.pool, "_broken", False):
+            # a worker died: waiting for the pool's internals can hang on its dead pipes (seen in
+            # CPython 3.11's terminate_broken), so the remaining workers are killed and not waited for
+            for process in list(getattr(self.pool, "_processes", {}).values()):
+                process.kill()
+            self.pool.shutdown(wait=False, cancel_futures=True)
+        else:
+            self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 class _DaskPool:

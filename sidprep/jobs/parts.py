@@ -91,10 +91,24 @@ def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: di
     module docstring)."""
 
     lost = dict.fromkeys(requests, 0)
+
+    def lose(i: int, exc: Exception) -> None:
+        lost[i] += 1
+        if lost[i] > PART_RETRIES:
+            raise PartLost(f"{parts[i].name}: its worker was lost {lost[i]} times ({type(exc).__name__}); no SID "
+                           "written - check the workers' memory and logs, or use more parts") from None
+        todo.append(i)
+
     todo = list(requests)
     while todo:
-        running = {pools[0].run(fn, *requests[i]): i for i in todo}
-        todo = []
+        pending, todo, running = todo, [], {}
+        for i in pending:
+            try:
+                running[pools[0].run(fn, *requests[i])] = i
+            except InputError:
+                raise
+            except Exception as exc:                    # the pool broke while the tasks were handed out
+                lose(i, exc)
         while running:
             for fut in pools[0].wait(list(running)):
                 i = running.pop(fut)
@@ -103,12 +117,7 @@ def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: di
                 except InputError:
                     raise
                 except Exception as exc:                # the worker died (killed, out of memory)
-                    lost[i] += 1
-                    if lost[i] > PART_RETRIES:
-                        raise PartLost(f"{parts[i].name}: its worker was lost {lost[i]} times "
-                                       f"({type(exc).__name__}); no SID written - check the workers' "
-                                       "memory and logs, or use more parts") from None
-                    todo.append(i)
+                    lose(i, exc)
         if todo:                                        # a local pool is broken once a worker died
             pools[0].close()
             pools[0] = task_pool(settings.scheduler, settings.workers)
