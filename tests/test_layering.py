@@ -38,7 +38,7 @@ MAX_FLAT_MODULES = 10
 #: solver/ from the first layer to the last (docs/solver.md): a module imports its own layer and
 #: the ones before it only
 SOLVER_LAYERS = (
-    ("geometry", ("sidprep.solver.equations.rotations",)),       # first match: before equations
+    ("geometry", ("sidprep.solver.equations.rotations", "sidprep.solver.equations.kernel_cache")),       # first match: before equations
     ("model", ("sidprep.solver.model",)),
     ("equations", ("sidprep.solver.equations",)),
     ("compile", ("sidprep.solver.compile",)),
@@ -47,7 +47,8 @@ SOLVER_LAYERS = (
     ("run", ("sidprep.solver.run", "sidprep.solver.postprocess", "sidprep.solver.stiffening_work",
              "sidprep.solver.linear")),
     ("scenes", ("sidprep.solver.scene_tables", "sidprep.solver.scene", "sidprep.solver.absolute_nodal",
-                "sidprep.solver.animation", "sidprep.solver.stress", "sidprep.solver.fatigue")),
+                "sidprep.solver.animation", "sidprep.solver.stress", "sidprep.solver.fatigue",
+                "sidprep.solver.prebuild")),
 )
 #: solver layers that share nothing: the compiled kernels never see the descriptions, nor they the kernels
 INDEPENDENT = {("model", "equations"), ("equations", "model")}

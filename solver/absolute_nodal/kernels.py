@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from sidprep.solver.equations.rotations import jit
 from sidprep.solver.integrators.runge_kutta import rk4_combine, rk4_stage
 
 
-@numba.njit(cache=True)
+@jit
 def slope_weight(k, i, n, e):  # pragma: no cover - compiled
     """d theta_k / d w_y,i of the quadratic through node k and its neighbours (eq. 4-5), nodes 0..n-1."""
     if k == 0:
@@ -29,7 +29,7 @@ def slope_weight(k, i, n, e):  # pragma: no cover - compiled
     return c[j] / (2.0 * e)
 
 
-@numba.njit(cache=True)
+@jit
 def _slope_stencil_start(k, n):  # pragma: no cover - compiled
     """First node of the three-node stencil of node k's slope."""
     if k == 0:
@@ -39,7 +39,7 @@ def _slope_stencil_start(k, n):  # pragma: no cover - compiled
     return k - 1
 
 
-@numba.njit(cache=True)
+@jit
 def beam_kinematics(X, V, A, nodes, n, e):  # pragma: no cover - compiled
     """Chord angle and slopes of one beam with their first and second time derivatives.
 
@@ -86,7 +86,7 @@ def beam_kinematics(X, V, A, nodes, n, e):  # pragma: no cover - compiled
     return phi, phid, phidd, theta, thetad, thetadd
 
 
-@numba.njit(cache=True)
+@jit
 def beam_elastic(X, nodes, n, e, Ke, Q):  # pragma: no cover - compiled
     """Add the elastic force -dV/dx of one beam to Q (N, 2) and return V = 1/2 u^T K u (J), eq. 6-10.
 
@@ -152,7 +152,7 @@ def beam_elastic(X, nodes, n, e, Ke, Q):  # pragma: no cover - compiled
     return V
 
 
-@numba.njit(cache=True)
+@jit
 def driver_angle(t, psi0, speed, delta, duration):  # pragma: no cover - compiled
     """psi(t), psi'(t), psi''(t) of a driver (rest-to-rest cycloid over ``duration`` plus a constant speed)."""
     psi, psid, psidd = psi0 + speed * t, speed, 0.0
@@ -165,12 +165,12 @@ def driver_angle(t, psi0, speed, delta, duration):  # pragma: no cover - compile
     return psi, psid, psidd
 
 
-@numba.njit(cache=True)
+@jit
 def _wrap(a):  # pragma: no cover - compiled
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
-@numba.njit(cache=True)
+@jit
 def _driver_value(X, V, A, nodes, n, e, at_end):  # pragma: no cover - compiled
     """Tangent angle phi + theta at the driven end and its derivatives (beam_kinematics)."""
     phi, phid, phidd, th, thd, thdd = beam_kinematics(X, V, A, nodes, n, e)
@@ -178,7 +178,7 @@ def _driver_value(X, V, A, nodes, n, e, at_end):  # pragma: no cover - compiled
     return phi + th[k], phid + thd[k], phidd + thdd[k]
 
 
-@numba.njit(cache=True)
+@jit
 def accelerations(t, y, params):  # pragma: no cover - compiled
     """Node accelerations A (N, 2), driver multipliers lam (nd,) (N m) and strain energy (J) at state y."""
     X0, free, Minv, f0, beam_nodes, beam_n, beam_e, beam_K, drv, alpha = params
@@ -238,7 +238,7 @@ def accelerations(t, y, params):  # pragma: no cover - compiled
     return A, lam, strain
 
 
-@numba.njit(cache=True)
+@jit
 def rhs(t, y, params):  # pragma: no cover - compiled
     """y' of y = [free positions (2 nf), free velocities (2 nf)]: eq. 10 solved for x''."""
     free = params[1]
@@ -251,7 +251,7 @@ def rhs(t, y, params):  # pragma: no cover - compiled
     return yd
 
 
-@numba.njit(cache=True)
+@jit
 def rk4_loop(t, y, t_stop, h, out_dt, next_out, params, capacity, steps):  # pragma: no cover - compiled
     """Classic RK4 steps of ``rhs`` from t (after ``steps`` steps of h from t = 0) to t_stop
     (the last step shortened to land on it) or until ``capacity`` samples, one sample on or

@@ -9,27 +9,21 @@ velocities are body components, so the Lie-group update is A_{n+1} = A_n exp(ske
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numba
 import numpy as np
+
+from sidprep.solver.equations.kernel_cache import install_kernel_cache
 
 #: below this rotation angle (rad) the Rodrigues coefficients use their Taylor series
 SMALL_ANGLE = 1e-6
 #: ... and those of the SE(3) Jacobian (its (t - sin t)/t^3 loses digits sooner)
 SE3_SMALL_ANGLE = 1e-4
-#: the one kernel cache of every way in (tests, the CLI, the API, batch workers): NUMBA_CACHE_DIR
-#: when set, else the user's cache folder (numba's own default, __pycache__ beside the sources,
-#: differs between a checkout and an install and is not writable in a system install)
-KERNEL_CACHE = os.environ.get("NUMBA_CACHE_DIR") or str(
-    Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sidprep" / "numba")
-if not numba.config.CACHE_DIR:  # read by numba when a cached function is declared, so set before any
-    numba.config.CACHE_DIR = KERNEL_CACHE
+install_kernel_cache()
 
 
 def jit(fn):
-    """numba.njit(cache=True): compiled once per install, cached on disk in KERNEL_CACHE (with
+    """numba.njit(cache=True): compiled by the install, cached on disk (kernel_cache.py; with
     NUMBA_DISABLE_JIT=1 the same code runs as plain Python, for debugging)."""
     return numba.njit(cache=True)(fn)
 

@@ -1,0 +1,40 @@
+"""The install compiles the solver's kernels into the package, as a compiled core ships with its
+library (docs/performance.md, "First run"): the first ``sidprep simulate`` then loads them.
+
+Everything else about the package is in pyproject.toml.  ``SIDPREP_PREBUILD=0`` skips the
+compilation (the kernels then compile on first use); editable installs always skip it.
+"""
+
+import glob
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from setuptools import setup
+from setuptools.command.build_py import build_py
+
+
+class BuildWithKernels(build_py):
+    """build_py, then a few steps of every bundled example scene with every method, compiled
+    into build_lib/sidprep/solver/_kernels (sidprep.solver.prebuild)."""
+
+    def run(self):
+        super().run()
+        if getattr(self, "editable_mode", False) or os.environ.get("SIDPREP_PREBUILD", "1") == "0":
+            return
+        lib = Path(self.build_lib).resolve()
+        kernels = lib / "sidprep" / "solver" / "_kernels"
+        shutil.rmtree(kernels, ignore_errors=True)  # an earlier build's kernels, of other sources
+        scenes = sorted(glob.glob("examples/*/scene*.toml"))
+        env = {**os.environ, "PYTHONPATH": str(lib), "NUMBA_CACHE_DIR": str(kernels)}
+        print(f"compiling the solver kernels on {len(scenes)} example scenes (SIDPREP_PREBUILD=0 skips) ...",
+              flush=True)
+        done = subprocess.run([sys.executable, "-m", "sidprep.solver.prebuild", *scenes], env=env)
+        if done.returncode:
+            print("warning: the solver kernels were not compiled at install; they compile on first use",
+                  file=sys.stderr)
+
+
+setup(cmdclass={"build_py": BuildWithKernels})

@@ -1,0 +1,108 @@
+"""Where the compiled kernels live on disk: one cache of every way in (tests, the CLI, the API,
+batch and Dask workers), keyed by the solver's source text, and seeded from the kernels that the
+install compiled (docs/performance.md, "First run").
+
+numba's own cache is keyed by each source file's absolute folder and checked against that file
+alone: a checkout, a worktree and an install of the same code compile three times, and a kernel
+whose callee changed in another file is loaded stale.  Here every solver kernel is cached under
+one *namespace*, the hash of all the solver's kernel files: the same code shares one set of
+compiled kernels wherever it lies, and any edit of a kernel file compiles every kernel afresh.
+
+The install (``pip install .``, setup.py) compiles the kernels once into the package
+(``sidprep/solver/_kernels/<namespace>``); the first import of an installed solver copies them
+into the user's cache, so the first run loads instead of compiling.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+from importlib import metadata
+from pathlib import Path
+
+from numba.core import caching, config
+
+#: the solver's source folder (solver/ in a checkout, sidprep/solver when installed)
+SOLVER_ROOT = Path(__file__).resolve().parents[1]
+#: the user's kernel cache: NUMBA_CACHE_DIR when set, else the user's cache folder
+KERNEL_CACHE = Path(os.environ.get("NUMBA_CACHE_DIR") or Path(
+    os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sidprep" / "numba")
+#: the folder, inside the installed package, of the kernels compiled by the install
+SHIPPED = "sidprep/solver/_kernels"
+#: written into a namespace folder once it has been seeded (or found nothing to seed)
+SEEDED_MARK = ".seeded"
+
+
+def source_namespace(root: Path = SOLVER_ROOT) -> str:
+    """'kernels-<sha256 of every solver file that declares kernels (``@jit``), path and text>'
+    (16 hex digits).  A compiled kernel holds the code of the kernels it calls and the constants
+    it reads, so kernel constants live in kernel files."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_bytes()
+        if b"@jit" not in text or "_kernels" in path.parts:
+            continue
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(text)
+    return "kernels-" + digest.hexdigest()[:16]
+
+
+NAMESPACE = source_namespace()
+
+
+class KernelLocator(caching.UserProvidedCacheLocator if hasattr(caching, "UserProvidedCacheLocator")
+                    else caching._UserProvidedCacheLocator):
+    """numba cache locator of the solver's kernels: KERNEL_CACHE / NAMESPACE / <module folder>."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        folder = Path(py_file).resolve().parent.relative_to(SOLVER_ROOT)
+        self._cache_path = str(KERNEL_CACHE / NAMESPACE / ("solver." + ".".join(folder.parts)).rstrip("."))
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not Path(py_file).resolve().is_relative_to(SOLVER_ROOT):
+            return None
+        return super().from_function(py_func, py_file)
+
+
+def shipped_kernels() -> Path | None:
+    """The installed distribution's compiled kernels of this NAMESPACE, if it has them."""
+    try:
+        folder = Path(metadata.distribution("sidprep").locate_file(SHIPPED)) / NAMESPACE
+    except metadata.PackageNotFoundError:
+        return None
+    return folder if folder.is_dir() else None
+
+
+def seed_cache() -> None:
+    """Copy the install's compiled kernels into KERNEL_CACHE / NAMESPACE once (files the cache
+    already has are kept); a no-op after the first time (one stat)."""
+    target = KERNEL_CACHE / NAMESPACE
+    if (target / SEEDED_MARK).exists():
+        return
+    source = shipped_kernels()
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        if source is not None:
+            for path in source.rglob("*"):
+                dest = target / path.relative_to(source)
+                if path.is_file() and not dest.exists():
+                    dest.parent.mkdir(parents=True, exist_ok=True)
+                    part = dest.with_name(dest.name + f".{os.getpid()}.part")
+                    shutil.copyfile(path, part)
+                    os.replace(part, dest)
+        (target / SEEDED_MARK).touch()
+    except OSError:  # a read-only cache: numba compiles in memory, as without a cache
+        pass
+
+
+def install_kernel_cache() -> None:
+    """Point numba's cache of the solver kernels at KERNEL_CACHE / NAMESPACE and seed it."""
+    impl = caching.CacheImpl if hasattr(caching, "CacheImpl") else caching._CacheImpl
+    if KernelLocator not in impl._locator_classes:
+        impl._locator_classes.insert(0, KernelLocator)
+    if not config.CACHE_DIR:  # read by the locator's base class: set before any kernel is declared
+        config.CACHE_DIR = str(KERNEL_CACHE)
+    seed_cache()
