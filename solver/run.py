@@ -70,7 +70,7 @@ def row_names(system) -> list[str]:
 #: a failed run whose energy balance was off by more than this fraction of the energy exchanged
 #: before the failure names the integration as the likely cause (either sign: the balance books
 #: all work and dissipation, so any change is integration error)
-GROWTH_BEFORE_FAILURE = 0.1
+BALANCE_BEFORE_FAILURE = 0.1
 
 
 def numerical_fix(settings) -> str:
@@ -84,8 +84,8 @@ def numerical_fix(settings) -> str:
 
 def numerical_cause(balance: dict, settings) -> str:
     """'; before it ...' naming the integration as the cause of a failure when the energy
-    balance was off by more than GROWTH_BEFORE_FAILURE of the energy exchanged (else '')."""
-    if not balance["balance_error"] > GROWTH_BEFORE_FAILURE:
+    balance was off by more than BALANCE_BEFORE_FAILURE of the energy exchanged (else '')."""
+    if not balance["balance_error"] > BALANCE_BEFORE_FAILURE:
         return ""
     how = "grew" if balance["change"] > 0 else "fell"
     step = f"h = {settings.h:g} s" + (f", rho_inf = {settings.rho_inf:g}" if settings.method == "genalpha" else "")
