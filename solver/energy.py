@@ -59,10 +59,14 @@ def balance_warning(balance: dict, method: str, h: float, rho_inf: float | None,
             cause = (f"energy grew by {balance['change']:.3g} J: the step h = {h:g} s is too large for the fastest "
                      "motion (the error falls as h^2)")
             fix = "halve h, or check the run against method = \"dop853\""
-        else:
+        elif rho_inf < 1.0:
             cause = (f"energy fell by {-balance['change']:.3g} J: numerical damping of rho_inf = {rho_inf:g} at "
                      f"h = {h:g} s")
             fix = "halve h or raise rho_inf towards 0.95"
+        else:  # rho_inf = 1 damps nothing: the step does not resolve the motion
+            cause = (f"energy fell by {-balance['change']:.3g} J: the step h = {h:g} s is too large for the fastest "
+                     "motion (rho_inf = 1 has no numerical damping)")
+            fix = "halve h, or lower rho_inf to 0.9 to damp the unresolved modes"
     else:
         cause = f"{method} with " + (f"rtol = {rtol:g}" if rtol else f"the fixed step h = {h:g} s (beyond its "
                                                                       "stability limit if the energy blew up)")

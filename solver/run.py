@@ -67,21 +67,31 @@ def row_names(system) -> list[str]:
     return [c.name for c in system.joints for _ in c.rows] + [d.name for d in system.drivers]
 
 
-#: a failed run whose energy grew by more than this fraction of the energy exchanged before the
-#: failure names the integration as the likely cause
-GROWTH_BEFORE_FAILURE = 0.1
+#: a failed run whose energy balance was off by more than this fraction of the energy exchanged
+#: before the failure names the integration as the likely cause (either sign: the balance books
+#: all work and dissipation, so any change is integration error)
+BALANCE_BEFORE_FAILURE = 0.1
+
+
+def numerical_fix(settings) -> str:
+    """The fix of an inaccurate or unstable integration with ``settings``."""
+    if settings.method == "genalpha":
+        return "halve h" + (" or lower rho_inf to 0.9" if settings.rho_inf > 0.9 else "")
+    if settings.tolerance:
+        return "tighten rtol or use method = \"genalpha\""
+    return "halve h or use method = \"genalpha\""
 
 
 def numerical_cause(balance: dict, settings) -> str:
-    """'; before it ...' naming the integration as the cause of a failure when the energy grew
-    by more than GROWTH_BEFORE_FAILURE of the energy exchanged (else '')."""
-    if not (balance["change"] > 0 and balance["balance_error"] > GROWTH_BEFORE_FAILURE):
+    """'; before it ...' naming the integration as the cause of a failure when the energy
+    balance was off by more than BALANCE_BEFORE_FAILURE of the energy exchanged (else '')."""
+    if not balance["balance_error"] > BALANCE_BEFORE_FAILURE:
         return ""
-    fix = ("halve h or lower rho_inf (0.9 or less)" if settings.method == "genalpha"
-           else "tighten rtol or use method = \"genalpha\"")
-    return (f"; before it the energy grew by {balance['change']:.3g} J ({balance['balance_error']:.2g} of the "
-            f"{balance['exchanged']:.3g} J exchanged) with no work put in: a numerical instability, not the scene; "
-            f"{fix}")
+    how = "grew" if balance["change"] > 0 else "fell"
+    step = f"h = {settings.h:g} s" + (f", rho_inf = {settings.rho_inf:g}" if settings.method == "genalpha" else "")
+    return (f"; before it the energy {how} by {abs(balance['change']):.3g} J that no work or dissipation accounts for "
+            f"({balance['balance_error']:.2g} of the {balance['exchanged']:.3g} J exchanged): a numerical "
+            f"instability of the integration ({settings.method}, {step}), not the scene; fix: {numerical_fix(settings)}")
 
 
 class CompileNotice(event.Listener):

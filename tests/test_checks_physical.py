@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from sidprep.sid.checks import failed_checks, inertia_about_cm, physical_checks, sid_checks
+from sidprep.sid.checks import INERTIA_CHECK, failed_checks, inertia_about_cm, physical_checks, sid_checks
 from sidprep.errors import InputError
 from sidprep.sid.io.sid_fem import format_sid_fem, parse_sid_fem, read_sid_fem, write_sid_fem
 from sidprep.sid.model import sid_invariants
@@ -63,7 +63,7 @@ def test_negative_jyy_fails_check_with_exit_1(tmp_path):
     bad.write_text("\n".join(text) + "\n")
     run = _cli_check(bad)
     assert run.returncode == 1, run.stdout + run.stderr
-    assert "inertia about CM positive definite" in run.stdout
+    assert INERTIA_CHECK in run.stdout
 
 
 def test_deleted_jyy_line_fails_read(tmp_path):
@@ -100,7 +100,7 @@ THIRD_PARTY = ["cartopPragV32", "Beam_3m", "balken1m"]
 
 #: (member, entry kind) whose largest line deleted from a file that omits zeros fails the check named
 DETECTED_IN_ZERO_OMITTING_FILES = [
-    ("J", "m0", "inertia about CM positive definite"),         # Jxx, Jyy or Jzz
+    ("J", "m0", INERTIA_CHECK),         # Jxx, Jyy or Jzz
     ("origin", "m1", "origin.M1 = phi.M0"),
     ("phi", "m0", "origin.M1 = phi.M0"),
     ("psi", "m0", "AP.M1 = skew(psi) AP0"),
@@ -231,3 +231,42 @@ def test_label_frequencies_against_generalized_eigenvalues():
     assert not checks["Me, Ke diagonal for eigen modes"]["passed"] and checks[name]["value"] < 1e-14
     uncoupled = Taylor(np.diag(np.diag(Ke)), None, SYMMETRIC)   # the off-diagonal lines deleted
     assert name in failed_checks(modal_checks(replace(sid, Ke=uncoupled)))
+
+
+def line_body(points):
+    """Lumped masses 1, 2, 1 kg at ``points`` (3, 3) m, two random modes, Ke = diag(1e6, 4e6)."""
+    rng = np.random.default_rng(2)
+    Phi = rng.normal(size=(9, 2))
+    nodes = [(1, points[0], Phi[:3], rng.normal(size=(3, 2)))]
+    return sid_invariants(points, np.diag([1.0, 2.0, 1.0]), Phi, nodes, Ke=np.diag([1e6, 4e6]))
+
+
+def test_a_line_body_passes_check_and_the_solver_alike():
+    """Issue 22 item 6: one rule for `sidprep check` and the solver (checks.inertia_defects):
+    principal moments about the CM >= 0 with the triangle inequality, so one zero moment only
+    for a line body.  Masses on the x axis (moments 0, 1, 1 kg m^2 about the CM): check passes,
+    FlexibleBody accepts it and a hinge about y swings it; masses at one point and a negative
+    Jyy fail both."""
+    from dataclasses import replace
+
+    from sidprep.sid.checks import INERTIA_CHECK, inertia_defects, physical_problems
+    from sidprep.solver import FlexibleBody, Revolute, System, simulate
+
+    line = line_body(np.array([[0.0, 0, 0], [0.5, 0, 0], [1.0, 0, 0]]))
+    p, negative, triangle = inertia_defects(line)
+    np.testing.assert_allclose(p, [0.0, 0.5, 0.5], atol=1e-12)          # sum m x^2 about the CM
+    assert negative == 0.0 and triangle == 0.0
+    assert not failed_checks(sid_checks(line)) and physical_problems(line) == []
+    s = System(gravity=(0.0, 0.0, -9.81))
+    bar = s.add(FlexibleBody(line, name="line"))
+    y_axis = np.array([[0.0, 1, 0], [0, 0, 1], [1, 0, 0]])              # marker z along y
+    s.add(Revolute(s.ground.marker(rotation=y_axis), bar.node_marker(0, rotation=y_axis)))
+    r = simulate(s, 0.2, h=1e-3)
+    assert r.t[-1] == pytest.approx(0.2) and np.all(np.isfinite(r.bodies["line"].q))
+
+    point = line_body(np.zeros((3, 3)))
+    j = line.J.M0.copy()
+    j[1, 0] = -j[1, 0]
+    for bad in (point, replace(line, J=replace(line.J, M0=j))):
+        assert INERTIA_CHECK in failed_checks(sid_checks(bad))
+        assert "not positive definite" in physical_problems(bad)[0]

@@ -337,6 +337,31 @@ def finite_entries(sid: SID) -> dict:
     return {"entries finite": _entry(len(bad), 0, f"members with NaN or inf entries{shown}; value = their number")}
 
 
+#: the check of the principal moments of inertia (physical_checks)
+INERTIA_CHECK = "inertia about CM positive definite or a line body"
+
+
+def inertia_defects(sid: SID) -> tuple[np.ndarray, float, float]:
+    """The rule for the inertia about the centre of mass, shared by ``sidprep check``
+    (physical_checks) and the solver (physical_problems): principal moments I1 <= I2 <= I3 >= 0
+    with the triangle inequality I3 <= I1 + I2, each within TRIANGLE_RTOL I3.  One zero moment
+    is a line body (point masses on a line, a beam SID without rotary inertia, the thin-rod
+    limit): the triangle inequality then forces I2 = I3; two zeros (a point mass) are refused,
+    for a body then has no inertia against turning about two axes.
+
+    Returns
+    -------
+    p : (3,) principal moments, kg m^2, ascending
+    negative : -I1 / I3 (0 when I1 >= 0; inf when I2 <= 0), compared with TRIANGLE_RTOL
+    triangle : (I3 - I1 - I2) / I3 (0 when it holds), compared with TRIANGLE_RTOL
+    """
+    j_cm = inertia_about_cm(sid)
+    p = np.sort(np.linalg.eigvalsh(0.5 * (j_cm + j_cm.T)))
+    scale = max(abs(p[-1]), 1e-300)
+    negative = max(-p[0] / scale, 0.0) if p[1] > 0 else float("inf")
+    return p, negative, max((p[2] - p[0] - p[1]) / scale, 0.0)
+
+
 def physical_checks(sid: SID) -> dict:
     """Is the SID physically possible?  Mass, inertia about the CM, Ke, node orientations (any SID,
     any generator).
@@ -351,15 +376,13 @@ def physical_checks(sid: SID) -> dict:
                               f"rigid-body mass m = {mass:.6g} kg (value 0 when positive)")}
     if not mass > 0:
         return out
-    p = np.sort(np.linalg.eigvalsh(inertia_about_cm(sid)))
-    scale = max(abs(p[-1]), 1e-300)
-    out["inertia about CM positive definite"] = _entry(
-        max(-p[0] / scale, 0.0) if p[0] > 0 else float("inf"), 0.0,
-        f"principal moments about the CM {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2 "
-        "(value -min/max, inf when one is <= 0)")
+    p, negative, triangle = inertia_defects(sid)
+    out[INERTIA_CHECK] = _entry(
+        negative, TRIANGLE_RTOL,
+        f"principal moments about the CM {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2 (value -min/max; inf when "
+        "two are 0: one zero moment only for a line body)")
     out["inertia triangle inequalities"] = _entry(
-        max((p[2] - p[0] - p[1]) / scale, 0.0), TRIANGLE_RTOL,
-        "largest principal moment <= sum of the other two (value (I3 - I1 - I2)/I3)")
+        triangle, TRIANGLE_RTOL, "largest principal moment <= sum of the other two (value (I3 - I1 - I2)/I3)")
     if sid.nq:
         Ke = 0.5 * (sid.Ke.M0 + sid.Ke.M0.T)
         ev = np.linalg.eigvalsh(Ke)
@@ -417,14 +440,13 @@ def physical_problems(sid: SID) -> list[str]:
     problems = []
     if not sid.mass > 0:
         return [f"mass = {sid.mass:.6g} kg (must be > 0)"]
-    j_cm = inertia_about_cm(sid)
-    p = np.sort(np.linalg.eigvalsh(0.5 * (j_cm + j_cm.T)))
-    scale = max(abs(p[-1]), 1e-300)
-    diagonal = ", ".join(f"{n} {v:.6g}" for n, v in zip(J_NAMES[:3], np.diag(j_cm)))
-    if p[0] < -TRIANGLE_RTOL * scale or not p[1] > 0:  # one zero moment: point masses on a line (thin-rod limit)
+    p, negative, triangle = inertia_defects(sid)
+    diagonal = ", ".join(f"{n} {v:.6g}" for n, v in zip(J_NAMES[:3], np.diag(inertia_about_cm(sid))))
+    if negative > TRIANGLE_RTOL:
         problems.append(f"inertia about the centre of mass not positive definite (J.M0 with mdCM: {diagonal}; "
-                        f"principal moments {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2)")
-    elif (p[2] - p[0] - p[1]) / scale > TRIANGLE_RTOL:
+                        f"principal moments {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2; one zero moment only for a "
+                        "line body)")
+    elif triangle > TRIANGLE_RTOL:
         problems.append(f"inertia about the centre of mass physically impossible (J.M0 with mdCM: principal "
                         f"moments {p[0]:.6g} + {p[1]:.6g} < {p[2]:.6g} kg m^2, triangle inequality)")
     if sid.nq:

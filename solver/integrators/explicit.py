@@ -100,7 +100,8 @@ def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps):  # pr
     the steps (up to max_steps, steps[1]); refs (params[3]) follow the accepted steps.  Samples
     at next_index out_dt, (next_index + 1) out_dt, ... from the cubic Hermite interpolant of y
     with the slopes ydot at both ends (error O(h^4), RK4's order), or after every step
-    (out_dt <= 0), and at t_end."""
+    (out_dt <= 0), and at t_end.  A step whose result is not finite (beyond the stability
+    limit) is not taken: the loop returns that non-finite y with t and the samples before it."""
     L, refs = params[0], params[3]
     R0, A0, Q0, u0 = unpack(L, y)
     buf = sample_buffers(capacity, R0, Q0, u0, params[5], refs)
@@ -117,6 +118,8 @@ def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps):  # pr
         k4 = index1_rhs(t + step, rk4_stage(y, step, k3), params)
         y_old, slope_old, t_old = y, k1, t
         y = rk4_combine(y, step, k1, k2, k3, k4)
+        if not np.all(np.isfinite(y)):
+            break  # blew up: the caller stops the run at t (the last finite state)
         t += step
         steps[0] += 1
         k1 = index1_rhs(t, y, params)  # the next step's first stage: the interpolant's end slope
@@ -139,6 +142,13 @@ def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps):  # pr
         if ns == capacity:
             break
     return t, y, next_index, first_samples(buf, ns)
+
+
+def non_finite_message(t: float, h: float) -> str:
+    """The failure of an explicit step from t (s) of size h (s) whose state is not finite."""
+    return (f"non-finite state (NaN or inf) in the step from t = {t:.6g} s (h = {h:.3g} s): the step is beyond the "
+            "stability limit of the explicit method (h omega_max > 2.8 for rk4: a stiff mode or contact); use "
+            "method = \"genalpha\" or a smaller step")
 
 
 class _Explicit(Stepper):
@@ -175,7 +185,9 @@ class RungeKutta4(_Explicit):
             self.state = type(self.state)(t, arrays[1][-1], arrays[2][-1], arrays[3][-1], arrays[4][-1],
                                           arrays[5][-1], arrays[6][-1])
         self.state.t = t
-        if t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
+        if not np.all(np.isfinite(self.y)):
+            self.status, self.message = "failed", non_finite_message(t, st.h)
+        elif t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
             self.status = "finished"
         elif steps[0] >= st.max_steps:
             self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {t:.6g} s"
@@ -210,6 +222,9 @@ class ScipyRungeKutta(_Explicit):
                 break
             t_old = solver.t
             message = solver.step()
+            if not np.all(np.isfinite(solver.y)):
+                self.status, self.message = "failed", non_finite_message(t_old, solver.t - t_old)
+                break
             if solver.status == "failed":
                 self.status, self.message = "failed", f"{self.name}: {message}; use method = 'genalpha' for stiff scenes"
                 break
