@@ -60,8 +60,8 @@ class EffectsReport:
     @property
     def warnings(self) -> list[str]:
         out = [
-            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but its size "
-            f"{e.measure} = {e.estimate:.3g} exceeds {WARN_LEVEL:.0%}"
+            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but it would change the "
+            f"modal coordinates by an estimated {e.measure} = {e.estimate:.3g}, above {WARN_LEVEL:.0%}"
             for b, entries in self.bodies.items()
             for e in entries
             if e.warning
@@ -75,7 +75,7 @@ class EffectsReport:
             lines.append(f"body '{b}':")
             for e in entries:
                 state = "included" if e.included else ("left out" if e.available else "not in SID")
-                est = f"  [{e.measure} = {e.estimate:.3g}]" if np.isfinite(e.estimate) else ""
+                est = f"  [estimated {e.measure} = {e.estimate:.3g}]" if not np.isnan(e.estimate) else ""
                 lines.append(f"  {e.effect:24s} {state:9s} {e.reason}{est}")
         lines += [f"note: {n}" for n in self.notes if not n.startswith("WARNING")]
         lines += self.warnings
@@ -174,7 +174,7 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
 # ---------------------------------------------------------------------------- size estimates
 #: what every estimate is: the largest change of the body's modal coordinates the left-out effect
 #: would make, relative to their largest value, both in the mass norm |x| = sqrt(x^T Me x)
-MEASURE = "max |dq| / max |q| (estimated on the run)"
+MEASURE = "max |dq| / max |q|"
 #: output samples (evenly spread) at which the left-out terms are evaluated
 ESTIMATE_SAMPLES = 200
 
@@ -277,34 +277,48 @@ def cumulative(t, rate) -> np.ndarray:
     return np.concatenate([np.zeros((1, rate.shape[1])), np.cumsum(steps, axis=0)])
 
 
-def modal_change(t, eta_dot, force, stiffness, damping, omega) -> np.ndarray:
+def modal_change(t, amplitude, force, stiffness, damping, omega) -> np.ndarray:
     """Estimated |d eta(t)| (nt,) the left-out terms would make to the mass-normalised modal
-    coordinates eta (q = Phi eta) of a run; t (nt,) s, eta_dot (nt, nq), force (nt, nq) = Phi^T df.
+    coordinates eta (q = Phi eta) of a run; t (nt,) s, force (nt, nq) = Phi^T df, amplitude
+    (nt, nq) of the free vibration (``free_vibration``).
 
-    Two parts per mode k (the modal oscillators eta_k'' + omega_k^2 eta_k = Phi_k^T f):
-    the quasi-static response |Phi_k^T df| / omega_k^2 to the added force, and the error of
-    the free vibration: a mode vibrating with amplitude a_k = |eta_dot_k| / omega_k whose
-    frequency is shifted by d(omega_k^2) / (2 omega_k) and decays faster by sigma_k drifts by
-    the phasor difference a_k |1 - exp(-int sigma_k dt + i int d(omega_k^2) / (2 omega_k) dt)|
-    (at most 2 a_k; for a small shift the accumulated phase (dk_k / k_k) / 2 omega_k T).
+    Two parts per mode k of the modal oscillators eta_k'' + omega_k^2 eta_k = Phi_k^T f, whose
+    stiffness the left-out terms change to omega_k^2 + d(omega_k^2) (``frequency_shifts``):
+    the quasi-static response |Phi_k^T df| / (omega_k^2 + d(omega_k^2)) to the added force
+    (infinite when the mode loses its stiffness: buckling), and the error of the free vibration:
+    a mode vibrating with amplitude a_k at the shifted frequency
+    sqrt(omega_k^2 + d(omega_k^2)) that decays faster by sigma_k drifts by the phasor difference
+    a_k |1 - exp(i int d(omega_k) dt - int sigma_k dt)| (at most 2 a_k; for a small shift the
+    accumulated phase (dk_k / k_k) / 2 omega_k T).
     """
     shift, decay = frequency_shifts(stiffness, damping, omega)
-    w = np.maximum(omega, 1e-300)
-    phase = cumulative(t, shift / (2.0 * w)) + 1j * cumulative(t, decay)  # exp(i phase): shift and decay
-    vibration = np.abs(eta_dot) / w * np.abs(1.0 - np.exp(1j * phase))
-    return np.linalg.norm(np.abs(force) / w**2 + vibration, axis=1)
+    stiff = omega**2 + shift
+    phase = cumulative(t, np.sqrt(np.maximum(stiff, 0.0)) - omega) + 1j * cumulative(t, decay)
+    vibration = amplitude * np.abs(1.0 - np.exp(1j * phase))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        quasi_static = np.where(stiff > 0.0, np.abs(force) / stiff, np.where(np.abs(force) > 0.0, np.inf, 0.0))
+    return np.linalg.norm(quasi_static + vibration, axis=1)
+
+
+def free_vibration(eta_ddot, omega) -> np.ndarray:
+    """Amplitude of each mode's free vibration, |eta_ddot_k| / omega_k^2, (nt, nq): a mode
+    vibrating freely at omega_k has eta_ddot = -omega_k^2 eta, while the response forced at a
+    lower frequency nu (the rigid motion's, the loads') is suppressed by (nu / omega_k)^2 (the
+    quasi-static part sees that, not the phase); eta_ddot (nt, nq) modal accelerations."""
+    return np.abs(eta_ddot) / np.maximum(omega, 1e-300) ** 2
 
 
 def load_stiffening(node_loads, modes) -> np.ndarray:
-    """Modal geometric stiffness of the node loads Phi^T dK Phi, dK = sum_a (F_a K0F_a^T + T_a
-    K0M_a^T) (sid-spec 6.2; F, T (nt, 3) in K at the node markers, joint reactions included),
-    (nt, nq, nq)."""
+    """Modal geometric stiffness of the node loads Phi^T dK Phi, (nt, nq, nq): the node force
+    phi(q)^T F (sid-spec 5.2) with phi(q) = phi0 + K0F q gives dK = -sum_a (F_a K0F_a^T +
+    T_a K0M_a^T) (sid-spec 6.2: a tension stiffens); F, T (nt, 3) in K at the node markers,
+    joint reactions included."""
     nt, nq = (len(node_loads[0][1]) if node_loads else 0), modes.shape[0]
     dk = np.zeros((nt, nq, nq))
     for marker, force, torque in node_loads:
         for k0, load in ((marker.k0f, force), (marker.k0m, torque)):
             if k0 is not None:
-                dk += np.einsum("ta,ajk->tkj", load, modes.T @ k0 @ modes)
+                dk -= np.einsum("ta,ajk->tkj", load, modes.T @ k0 @ modes)
     return dk
 
 
@@ -323,7 +337,8 @@ class LeftOutTerms:
         nq = modes.shape[0]
         self.body, self.chosen, self.modes = body, set(chosen), modes
         self.probes = (w, g, np.concatenate([a, wdot, np.zeros((N_SIGNALS, nq))], axis=1), modes)
-        self.generic = (np.ones((1, 3)), np.ones((1, 3)), np.ones((1, 6 + nq)), np.ones((nq, 1)))
+        generic = np.random.default_rng(0).uniform(0.5, 1.5, 12 + 2 * nq)  # no cancellation (e.g. a = g)
+        self.generic = (generic[None, :3], generic[None, 3:6], generic[None, 6:12 + nq], generic[12 + nq:, None])
         self.probe_signals = signals(w, a, wdot, g)
         base = packed(body, self.chosen)[0]
         self.base, self.base_generic = elastic_rows(base, *self.probes), elastic_rows(base, *self.generic)
@@ -361,6 +376,7 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     to_modal = terms.Me @ modes  # eta = Phi^T Me q
     eta, eta_dot = samples["q"][idx] @ to_modal, samples["qd"][idx] @ to_modal
     ref = float(np.max(np.linalg.norm(samples["q"] @ to_modal, axis=1)))
+    amplitude = free_vibration(acc[:, 6:] @ to_modal, omega)
     terms_left_out = LeftOutTerms(body, set(chosen), modes)
     out = {}
     for effect in left_out:
@@ -375,7 +391,7 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
             f, k, c = coefficients
             stiffness, damping = np.einsum("ti,ikj->tkj", x, k), np.einsum("ti,ikj->tkj", x, c)
             force = x @ f + np.einsum("tkj,tj->tk", stiffness, eta) + np.einsum("tkj,tj->tk", damping, eta_dot)
-        change = modal_change(samples["t"][idx], eta_dot, force, stiffness, damping, omega)
+        change = modal_change(samples["t"][idx], amplitude, force, stiffness, damping, omega)
         out[effect] = (_relative(float(np.max(change)), ref), MEASURE)
     return out
 

@@ -103,13 +103,13 @@ def pendulum_scene(effects):
     return scene.system, scene.t_end
 
 
-@pytest.mark.parametrize("h, measured", [(1e-3, 1.91), (2.5e-4, 1.15)])
+@pytest.mark.parametrize("h, measured", [(1e-3, 1.32), (2.5e-4, 0.84)])
 def test_flexible_pendulum_estimate_against_a_second_run(h, measured):
     """The example's bar (Oe.M1 = Kom only: auto leaves centrifugal stiffening out).  Including
     it changes q by 3.2e-4 at the scene's step (issue 22: 3.0e-4; the force ratio said 5.5e-7)
     and 8.0e-4 at h / 4, where generalised-alpha resolves the 264 Hz mode's phase (at
     omega h = 1.66 it shifts the phase by about 0.6 of the physical shift); the estimate
-    (6.1e-4, 9.2e-4) is the free vibration's accumulated phase error."""
+    (4.2e-4, 6.7e-4) is mostly the free vibration's accumulated phase error."""
     run, pairs = two_run_check(pendulum_scene, "auto", dict(h=h, rho_inf=0.9, output_dt=1 / 200))
     assert pairs["bar", "centrifugal_stiffening"][1] > TRUTH_FLOOR
     assert_within_factor(pairs, measured)
@@ -130,13 +130,14 @@ def double_pendulum(effects):
     return s, 1.0
 
 
-def test_double_pendulum_estimate_against_a_second_run():
-    """The issue's flexible double pendulum (centrifugal stiffening changes q by 1.9e-4 and 9.4e-5
-    at h = 1 ms, the force ratio said 4e-7); at h = 0.5 ms measured estimate / truth 1.12 (upper)
-    and 1.93 (lower; at h = 1 ms 1.66 and 2.94: the integrator's phase lag, see the pendulum)."""
-    _, pairs = two_run_check(double_pendulum, "auto", dict(h=5e-4, rho_inf=0.9, output_dt=1 / 200))
+@pytest.mark.parametrize("h, measured", [(1e-3, {"upper": 1.15, "lower": 2.05}), (5e-4, {"upper": 0.68, "lower": 1.17})])
+def test_double_pendulum_estimate_against_a_second_run(h, measured):
+    """The issue's flexible double pendulum: centrifugal stiffening changes q by 1.9e-4 (upper)
+    and 9.4e-5 (lower) at h = 1 ms (the force ratio said 4e-7), 3.8e-4 and 2.0e-4 at 0.5 ms;
+    measured estimate / truth in the parameters."""
+    _, pairs = two_run_check(double_pendulum, "auto", dict(h=h, rho_inf=0.9, output_dt=1 / 200))
     assert pairs["upper", "centrifugal_stiffening"][1] > TRUTH_FLOOR
-    assert_within_factor(pairs, {"upper": 1.12, "lower": 1.93})
+    assert_within_factor(pairs, measured)
 
 
 def spin_up(sid, gravity=(0.0, 0.0, 0.0)):
@@ -154,25 +155,25 @@ def test_spin_up_estimates_against_second_runs():
     """An undamped bar spun up from rest keeping only the coupling: each left-out effect against
     a second run with it.  Measured estimate / truth: coriolis 1.47 (gyroscopic coupling of the
     in-plane modes: the pairwise frequency shift), centrifugal 1.00 (quasi-static), inertia_change
-    0.98, centrifugal_stiffening 1.17 (phase of the free vibration: 0.13 of max |q|)."""
+    0.98, centrifugal_stiffening 1.19 (phase of the free vibration: 0.13 of max |q|)."""
     run, pairs = two_run_check(spin_up(bar_sid(freqs=FREQS)), ["coupling"], dict(h=2e-3, output_dt=0.01))
     for effect in ("coriolis", "centrifugal", "centrifugal_stiffening"):  # truths 0.16, 1.8, 0.13
         assert pairs["rotor", effect][1] > WARN_LEVEL and entry(run.effects, effect).warning
     assert pairs["rotor", "inertia_change"][1] < WARN_LEVEL and not entry(run.effects, "inertia_change").warning
     assert_within_factor(pairs, {"coriolis": 1.47, "centrifugal": 1.0, "inertia_change": 0.98,
-                                 "centrifugal_stiffening": 1.17})
+                                 "centrifugal_stiffening": 1.19})
     assert "WARNING" in run.effects.text()
     json.dumps(run.effects.as_dict())  # serialisable for the results file
 
 
 @pytest.mark.parametrize("damping, measured", [
-    (True, {"centrifugal_stiffening": 1.11, "acceleration_stiffening": 1.38}),
-    (False, {"centrifugal_stiffening": 1.02, "acceleration_stiffening": 1.02, "damping": 1.6})])
+    (True, {"centrifugal_stiffening": 1.10, "acceleration_stiffening": 1.34}),
+    (False, {"centrifugal_stiffening": 1.06, "acceleration_stiffening": 1.02, "damping": 1.16})])
 def test_damped_spin_up_and_acceleration_stiffening_against_second_runs(damping, measured):
     """A damped bar (zeta = 0.3: quasi-static response) with K0omega and K0t, spun up under
-    gravity along -z: centrifugal and acceleration stiffening left out (measured 0.047 against
-    0.042 and 7.0e-4 against 5.0e-4), and with the damping left out as well (then the modes
-    vibrate: 0.19 against 0.18, 5.6e-3 against 5.5e-3; damping 0.73 against 0.46), each against
+    gravity along -z: centrifugal and acceleration stiffening left out (measured 0.046 against
+    0.042 and 6.8e-4 against 5.0e-4), and with the damping left out as well (then the modes
+    vibrate: 0.19 against 0.18, 5.6e-3 against 5.5e-3; damping 0.53 against 0.46), each against
     a second run that includes it."""
     rng = np.random.default_rng(1)
     a = rng.normal(size=(3, 4, 4))
@@ -219,7 +220,7 @@ def test_only_named_terms_are_assembled():
 def test_load_stiffening_by_a_tip_force():
     """A compressive tip force with K0F: the modal stiffness becomes Ke - P K0F_x (sid-spec 5.2
     h_ext,e = phi(q)^T F), checked against the linear modal ODE; left out, the report's estimate
-    against a second run with it (measured 0.078 against 0.113), and it warns."""
+    against a second run with it (measured 0.132 against 0.113), and it warns."""
     from scipy.integrate import solve_ivp
 
     from sidprep.solver.model.forces import PointForce
@@ -253,7 +254,7 @@ def test_load_stiffening_by_a_tip_force():
     q0, q1, me = left_out.bodies["rotor"].q, with_it.bodies["rotor"].q, sid.Me.M0
     truth = np.max(mass_norm(q1 - q0, me)) / np.max(mass_norm(q0, me))
     e = entry(left_out.effects, "load_stiffening")
-    assert_within_factor({("rotor", "load_stiffening"): (e.estimate, truth)}, 0.69)
+    assert_within_factor({("rotor", "load_stiffening"): (e.estimate, truth)}, 1.17)
     assert e.warning
 
 
