@@ -252,21 +252,30 @@ def frequency_shifts(stiffness, damping, omega) -> tuple[np.ndarray, np.ndarray]
     the left-out terms make, (nt, nq) each.
 
     stiffness, damping : (nt, nq, nq) modal dK, dC (Phi^T dK Phi).  The modal system
-    eta'' + dC eta' + (Omega^2 + dK) eta = 0 at eta ~ exp(i w t) couples mode k to mode j by
-    Z_kj = dK_kj + i omega_k dC_kj.  First order: d(omega_k^2) = Z_kk; each other mode adds the
-    two-level (2 x 2 eigenvalue) shift D/2 (sqrt(1 + 4 Z_kj Z_jk / D^2) - 1), D = omega_k^2 -
-    omega_j^2 (second-order perturbation Z_kj Z_jk / D when |Z| << |D|, sqrt(Z_kj Z_jk) when
-    the modes are degenerate: how gyroscopic terms split a pair).  The imaginary part of
-    d(omega_k^2) = 2 i omega_k (decay rate) is the damping.
+    eta'' + dC eta' + (Omega^2 + dK) eta = 0 at eta ~ exp(i w t), w ~ omega_k, couples mode k to
+    mode j by Z_kj = dK_kj + i omega_k dC_kj.  Each mode moves first to the level
+    L_k = omega_k^2 + Z_kk; each other mode j adds the two-level (2 x 2 eigenvalue) shift
+    D/2 (sqrt(1 + 4 Z_kj Z_jk / D^2) - 1), D = L_k - L_j: the second-order perturbation
+    Z_kj Z_jk / D when |Z| << |D|, sqrt(Z_kj Z_jk) when the levels coincide (how gyroscopic
+    terms split a pair).  The imaginary part of d(omega_k^2) = 2 omega_k sigma_k is the decay.
     """
-    z = stiffness + 1j * omega[None, :, None] * damping
-    pair = z * np.swapaxes(z, 1, 2)
-    half = 0.5 * (omega[:, None] ** 2 - omega[None, :] ** 2)
-    apart = np.abs(half) > 0.0
-    safe = np.where(apart, half, 1.0)
-    two_level = np.where(apart, half * (np.sqrt(1.0 + pair / safe**2) - 1.0), np.sqrt(pair))
-    n = omega.size
-    two_level[:, np.arange(n), np.arange(n)] = np.einsum("tkk->tk", z)
+    row = omega[None, :, None]
+    z, zt = stiffness, np.swapaxes(stiffness, 1, 2)
+    if np.any(damping):
+        z, zt = z + 1j * row * damping, zt + 1j * row * np.swapaxes(damping, 1, 2)
+    diagonal = np.arange(omega.size)
+    level = omega**2 + z[:, diagonal, diagonal]
+    pair = z * zt
+    half = 0.5 * (level[:, :, None] - level[:, None, :])
+    apart = half != 0.0
+    growth = np.where(apart, 1.0 + pair / np.where(apart, half, 1.0) ** 2, 1.0)
+    degenerate = ~apart
+    degenerate[:, diagonal, diagonal] = False
+    if np.iscomplexobj(growth) or np.any(growth < 0.0) or np.any(degenerate):
+        growth, pair = growth.astype(complex), pair.astype(complex)  # complex roots
+    two_level = half * (np.sqrt(growth) - 1.0)
+    two_level[degenerate] = np.sqrt(pair[degenerate])
+    two_level[:, diagonal, diagonal] = z[:, diagonal, diagonal]
     shift = two_level.sum(axis=2)
     return shift.real, shift.imag / (2.0 * np.maximum(omega, 1e-300))
 

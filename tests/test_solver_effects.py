@@ -371,3 +371,28 @@ def test_json_summary_keeps_the_estimates():
     assert est["centrifugal_stiffening"] == {"value": entry(r.effects, "centrifugal_stiffening").estimate,
                                              "measure": MEASURE}
     json.dumps(est)
+
+
+#: the pairwise (two-level) frequency shifts against the exact eigenvalues of the perturbed modal
+#: system, relative to the exact shift (measured 7.9 %, 2.1 %, 0.07 %: a close pair coupled
+#: strongly, |dK| up to 8 % of omega^2)
+SHIFT_RTOL = 0.1
+
+
+def test_frequency_shifts_against_the_exact_eigenvalues():
+    """A close pair (10 and 10.5 rad/s) and a third mode, perturbed by a symmetric stiffness
+    and a gyroscopic (antisymmetric) velocity coupling: the shifted frequencies
+    sqrt(omega^2 + d(omega^2)) against the eigenvalues of the first-order state matrix."""
+    from sidprep.solver.effects import frequency_shifts
+
+    omega = np.array([10.0, 10.5, 30.0])
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(3, 3))
+    dk = 2.0 * (a + a.T)
+    g = np.array([[0.0, 1.5, 0.4], [-1.5, 0.0, -0.8], [-0.4, 0.8, 0.0]])
+    shift, decay = frequency_shifts(dk[None], g[None], omega)
+    state = np.block([[np.zeros((3, 3)), np.eye(3)], [-(np.diag(omega**2) + dk), -g]])
+    exact = np.sort(np.abs(np.linalg.eigvals(state).imag))[::2]
+    approx = np.sort(np.sqrt(omega**2 + shift[0]))
+    assert np.max(np.abs(approx - exact) / np.abs(exact - omega)) < SHIFT_RTOL
+    assert np.max(np.abs(decay)) < 1e-12  # gyroscopic coupling conserves energy
