@@ -153,14 +153,14 @@ def spin_up(sid, gravity=(0.0, 0.0, 0.0)):
 
 def test_spin_up_estimates_against_second_runs():
     """An undamped bar spun up from rest keeping only the coupling: each left-out effect against
-    a second run with it.  Measured estimate / truth: coriolis 1.47 (gyroscopic coupling of the
+    a second run with it.  Measured estimate / truth: coriolis 1.23 (gyroscopic coupling of the
     in-plane modes: the pairwise frequency shift), centrifugal 1.00 (quasi-static), inertia_change
     0.98, centrifugal_stiffening 1.19 (phase of the free vibration: 0.13 of max |q|)."""
     run, pairs = two_run_check(spin_up(bar_sid(freqs=FREQS)), ["coupling"], dict(h=2e-3, output_dt=0.01))
     for effect in ("coriolis", "centrifugal", "centrifugal_stiffening"):  # truths 0.16, 1.8, 0.13
         assert pairs["rotor", effect][1] > WARN_LEVEL and entry(run.effects, effect).warning
     assert pairs["rotor", "inertia_change"][1] < WARN_LEVEL and not entry(run.effects, "inertia_change").warning
-    assert_within_factor(pairs, {"coriolis": 1.47, "centrifugal": 1.0, "inertia_change": 0.98,
+    assert_within_factor(pairs, {"coriolis": 1.23, "centrifugal": 1.0, "inertia_change": 0.98,
                                  "centrifugal_stiffening": 1.19})
     assert "WARNING" in run.effects.text()
     json.dumps(run.effects.as_dict())  # serialisable for the results file
