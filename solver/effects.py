@@ -18,6 +18,7 @@ import numpy as np
 from sidprep.solver.compile.layout import pack_terms
 from sidprep.solver.equations.body import body_equations
 from sidprep.solver.equations.rotations import jit
+from sidprep.solver.integrators.genalpha import genalpha_parameters
 from sidprep.solver.model.bodies import Ground
 from sidprep.solver.model.effects import DESCRIPTIONS, EFFECTS
 
@@ -286,10 +287,39 @@ def cumulative(t, rate) -> np.ndarray:
     return np.concatenate([np.zeros((1, rate.shape[1])), np.cumsum(steps, axis=0)])
 
 
-def modal_change(t, amplitude, force, stiffness, damping, omega) -> np.ndarray:
+def genalpha_phase_response(omega, h: float, rho_inf: float) -> np.ndarray:
+    """d(omega_num) / d(omega) of generalised-alpha at step h (s) for each modal frequency omega
+    (nq,) rad/s: how much of a physical frequency shift the integrator's free vibration shows
+    (1 when omega h << 1; 1 / (1 + (omega h / 2)^2) for the trapezoidal rule, rho_inf = 1).
+
+    omega_num = |arg lambda| / h of the principal eigenvalue lambda of the one-step map of
+    x'' + omega^2 x = 0 (Chung & Hulbert 1993; state x, v, a, ud; solver/integrators/genalpha.py).
+    """
+    am, af, gamma, beta = genalpha_parameters(rho_inf)
+
+    def frequency(w):
+        c = (1 - af) / (1 - am)
+        maps = np.zeros((w.size, 4, 4))
+        for i, unit in enumerate(np.eye(4)):  # columns: the step applied to x, v, a, ud = e_i
+            x, v, a, ud = unit
+            lag = (af * ud - am * a) / (1 - am)
+            ud1 = -w**2 * (x + h * v + h * h * ((0.5 - beta) * a + beta * lag)) / (1 + w**2 * h * h * beta * c)
+            a1 = lag + c * ud1
+            maps[:, :, i] = np.stack([x + h * v + h * h * ((0.5 - beta) * a + beta * a1),
+                                      v + h * ((1 - gamma) * a + gamma * a1), a1, ud1], axis=1)
+        lam = np.linalg.eigvals(maps)  # the principal pair: the largest imaginary parts (the
+        principal = lam[np.arange(w.size), np.argmax(np.abs(lam.imag), axis=1)]  # spurious roots are real)
+        return np.abs(np.angle(principal)) / h
+
+    dw = 1e-4 * np.maximum(omega, 1e-300)
+    return (frequency(omega + dw) - frequency(np.maximum(omega - dw, 0.0))) / (2 * dw)
+
+
+def modal_change(t, amplitude, force, stiffness, damping, omega, response=1.0) -> np.ndarray:
     """Estimated |d eta(t)| (nt,) the left-out terms would make to the mass-normalised modal
     coordinates eta (q = Phi eta) of a run; t (nt,) s, force (nt, nq) = Phi^T df, amplitude
-    (nt, nq) of the free vibration (``free_vibration``).
+    (nt, nq) of the free vibration (``free_vibration``), response (nq,) or 1: the part of a
+    frequency shift the integrator shows (``genalpha_phase_response``).
 
     Two parts per mode k of the modal oscillators eta_k'' + omega_k^2 eta_k = Phi_k^T f, whose
     stiffness the left-out terms change to omega_k^2 + d(omega_k^2) (``frequency_shifts``):
@@ -302,19 +332,21 @@ def modal_change(t, amplitude, force, stiffness, damping, omega) -> np.ndarray:
     """
     shift, decay = frequency_shifts(stiffness, damping, omega)
     stiff = omega**2 + shift
-    phase = cumulative(t, np.sqrt(np.maximum(stiff, 0.0)) - omega) + 1j * cumulative(t, decay)
+    phase = cumulative(t, response * (np.sqrt(np.maximum(stiff, 0.0)) - omega)) + 1j * cumulative(t, decay)
     vibration = amplitude * np.abs(1.0 - np.exp(1j * phase))
     with np.errstate(divide="ignore", invalid="ignore"):
         quasi_static = np.where(stiff > 0.0, np.abs(force) / stiff, np.where(np.abs(force) > 0.0, np.inf, 0.0))
     return np.linalg.norm(quasi_static + vibration, axis=1)
 
 
-def free_vibration(eta_ddot, omega) -> np.ndarray:
-    """Amplitude of each mode's free vibration, |eta_ddot_k| / omega_k^2, (nt, nq): a mode
-    vibrating freely at omega_k has eta_ddot = -omega_k^2 eta, while the response forced at a
-    lower frequency nu (the rigid motion's, the loads') is suppressed by (nu / omega_k)^2 (the
-    quasi-static part sees that, not the phase); eta_ddot (nt, nq) modal accelerations."""
-    return np.abs(eta_ddot) / np.maximum(omega, 1e-300) ** 2
+def free_vibration(eta_dot, eta_ddot, omega) -> np.ndarray:
+    """Amplitude of each mode's free vibration, (nt, nq): a mode vibrating freely as
+    a cos(omega_k t) has |eta_dot| / omega_k = a |sin| and |eta_ddot| / omega_k^2 = a |cos|, so
+    their root sum of squares is a at every sample; a response forced at a lower frequency nu
+    (by the rigid motion, the loads) counts only about nu / omega_k of its size (its phase does
+    not drift: the quasi-static part sizes it).  eta_dot, eta_ddot (nt, nq) modal rates."""
+    w = np.maximum(omega, 1e-300)
+    return np.hypot(eta_dot / w, eta_ddot / w**2)
 
 
 def load_stiffening(node_loads, modes) -> np.ndarray:
@@ -385,7 +417,10 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     to_modal = terms.Me @ modes  # eta = Phi^T Me q
     eta, eta_dot = samples["q"][idx] @ to_modal, samples["qd"][idx] @ to_modal
     ref = float(np.max(np.linalg.norm(samples["q"] @ to_modal, axis=1)))
-    amplitude = free_vibration(acc[:, 6:] @ to_modal, omega)
+    amplitude = free_vibration(eta_dot, acc[:, 6:] @ to_modal, omega)
+    settings = samples.get("settings")
+    fixed_step_genalpha = settings is not None and settings.method == "genalpha" and settings.tolerance is None
+    response = genalpha_phase_response(omega, settings.h, settings.rho_inf) if fixed_step_genalpha else 1.0
     terms_left_out = LeftOutTerms(body, set(chosen), modes)
     out = {}
     for effect in left_out:
@@ -400,7 +435,7 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
             f, k, c = coefficients
             stiffness, damping = np.einsum("ti,ikj->tkj", x, k), np.einsum("ti,ikj->tkj", x, c)
             force = x @ f + np.einsum("tkj,tj->tk", stiffness, eta) + np.einsum("tkj,tj->tk", damping, eta_dot)
-        change = modal_change(samples["t"][idx], amplitude, force, stiffness, damping, omega)
+        change = modal_change(samples["t"][idx], amplitude, force, stiffness, damping, omega, response)
         out[effect] = (_relative(float(np.max(change)), ref), MEASURE)
     return out
 

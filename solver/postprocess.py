@@ -94,7 +94,7 @@ def postprocess(run, s) -> Result:
         h = bodies[name]
         history = {"t": s.t, "q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation,
                    "acceleration": h.acceleration, "node_loads": [v for v in node_loads.values() if v[0].body is b],
-                   "gravity": system.gravity}
+                   "gravity": system.gravity, "settings": run.settings}
         estimates[name] = estimate_changes(b, chosen, history)
     report = build_report(run.choices, estimates, run.notes)
     return Result(s.t.copy(), bodies, joints, positions, energy, cerr, report, {})
