@@ -124,6 +124,12 @@ def _scene_facts(system, body) -> dict:
     }
 
 
+def assembled(effects: set, avail: dict) -> set:
+    """The effects a run assembles for the named ``effects``: with gravity also the coupling
+    (gravity's modal force Ct0 g uses the coupling matrix Ct0)."""
+    return effects | ({"coupling"} if "gravity" in effects and avail["coupling"] else set())
+
+
 def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
     """Effects to assemble for one flexible body and the reason for each decision.
 
@@ -134,9 +140,8 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
     kom_only = body.oe1_is_kom_only()
     if spec != "auto":
         reasons = {e: ("named by the scene" if e in spec else "not named by the scene") for e in EFFECTS}
-        chosen = {e for e in spec if avail[e]}
-        if "gravity" in chosen and "coupling" not in chosen and avail["coupling"]:
-            chosen.add("coupling")
+        chosen = assembled({e for e in spec if avail[e]}, avail)
+        if "coupling" in chosen and "coupling" not in spec:
             reasons["coupling"] = "not named, kept: gravity's modal force Ct0 g uses the coupling matrix Ct0"
         if "centrifugal_stiffening" in chosen and kom_only:
             reasons["centrifugal_stiffening"] = ("named by the scene; WARNING: Oe.M1 holds only Kom "
@@ -307,8 +312,8 @@ def genalpha_phase_response(omega, h: float, rho_inf: float) -> np.ndarray:
             a1 = lag + c * ud1
             maps[:, :, i] = np.stack([x + h * v + h * h * ((0.5 - beta) * a + beta * a1),
                                       v + h * ((1 - gamma) * a + gamma * a1), a1, ud1], axis=1)
-        lam = np.linalg.eigvals(maps)  # the principal pair: the largest imaginary parts (the
-        principal = lam[np.arange(w.size), np.argmax(np.abs(lam.imag), axis=1)]  # spurious roots are real)
+        lam = np.linalg.eigvals(maps)  # the principal pair has the largest imaginary parts
+        principal = lam[np.arange(w.size), np.argmax(np.abs(lam.imag), axis=1)]  # (the spurious roots are real)
         return np.abs(np.angle(principal)) / h
 
     dw = 1e-4 * np.maximum(omega, 1e-300)
@@ -327,8 +332,8 @@ def modal_change(t, amplitude, force, stiffness, damping, omega, response=1.0) -
     (infinite when the mode loses its stiffness: buckling), and the error of the free vibration:
     a mode vibrating with amplitude a_k at the shifted frequency
     sqrt(omega_k^2 + d(omega_k^2)) that decays faster by sigma_k drifts by the phasor difference
-    a_k |1 - exp(i int d(omega_k) dt - int sigma_k dt)| (at most 2 a_k; for a small shift the
-    accumulated phase (dk_k / k_k) / 2 omega_k T).
+    a_k |1 - exp(i r_k int d(omega_k) dt - int sigma_k dt)| (at most 2 a_k; for a small shift the
+    accumulated phase (dk_k / k_k) / 2 omega_k T), r_k = ``response``.
     """
     shift, decay = frequency_shifts(stiffness, damping, omega)
     stiff = omega**2 + shift
@@ -387,7 +392,7 @@ class LeftOutTerms:
     def coefficients(self, effect: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Modal force (19, nq), stiffness and damping (19, nq, nq) per signal that ``effect``
         adds to the elastic rows; None when it adds nothing there (rigid-body rows only)."""
-        pack = packed(self.body, self.chosen | {effect})[0]
+        pack = packed(self.body, assembled(self.chosen | {effect}, self.body.available()))[0]
         if not np.any(elastic_rows(pack, *self.generic) - self.base_generic):
             return None
         return signal_coefficients(elastic_rows(pack, *self.probes) - self.base, self.probe_signals, self.modes)
@@ -398,8 +403,10 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     max |q|, MEASURE)}, computed from the run's own samples (no second simulation).
 
     samples: t (nt,) s, q, qd (nt, nq), omega (nt, 3) 1/s, rotation (nt, 3, 3), acceleration
-    (nt, 6+nq) (inertial a_O, omega_dot, q_ddot), gravity (3,) m/s^2 and node_loads
-    [(marker, force (nt, 3), torque (nt, 3)) in K].  The left-out modal force, stiffness and
+    (nt, 6+nq) (inertial a_O, omega_dot, q_ddot), gravity (3,) m/s^2, node_loads
+    [(marker, force (nt, 3), torque (nt, 3)) in K] and optionally the run's SolverSettings
+    (``settings``: fixed-step generalised-alpha shows only part of a frequency shift,
+    ``genalpha_phase_response``).  The left-out modal force, stiffness and
     damping per signal (``LeftOutTerms``; load stiffening from the node loads) weighted by the
     run's signals at up to ESTIMATE_SAMPLES samples; ``modal_change`` turns them into the
     change of the modes.  An effect acting on the rigid-body rows only is sized 0.
