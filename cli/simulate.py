@@ -56,8 +56,10 @@ def register(subparsers) -> None:
 
 
 def effects_summary(report) -> dict:
-    """{"included": {body: [...]}, "left_out": {body: [...]}, "not_in_sid": {...}, "warnings": [...]}."""
-    out = {"included": {}, "left_out": {}, "not_in_sid": {}, "warnings": list(report.warnings)}
+    """{"included": {body: [...]}, "left_out": {body: [...]}, "not_in_sid": {...}, "estimates": {body:
+    {effect: {"value", "measure"}}}, "warnings": [...]}."""
+    out = {"included": {}, "left_out": {}, "not_in_sid": {}, "estimates": report.estimates(),
+           "warnings": list(report.warnings)}
     for body, entries in report.bodies.items():
         out["included"][body] = [e.effect for e in entries if e.included]
         out["left_out"][body] = [e.effect for e in entries if not e.included and e.available]

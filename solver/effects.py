@@ -3,8 +3,8 @@
 A scene names the effects it wants, or ``"auto"``.  Each effect switches a group of SID terms
 (docs/sid-spec.md 5.4); only the switched-on terms are assembled.  Every run ends with an
 :class:`EffectsReport`: what was included, what was left out, and for each left-out effect an
-estimate of its relative size measured along the simulated motion, with a WARNING above
-:data:`WARN_LEVEL`.
+estimate of the change it would make to the body's modal coordinates, computed from the run's
+own result, with a WARNING above :data:`WARN_LEVEL`.
 
 The effect names and their SID terms: solver/model/effects.py.
 """
@@ -17,11 +17,15 @@ import numpy as np
 
 from sidprep.solver.compile.layout import pack_terms
 from sidprep.solver.equations.body import body_equations
+from sidprep.solver.equations.rotations import jit
+from sidprep.solver.integrators.genalpha import genalpha_parameters
 from sidprep.solver.model.bodies import Ground
 from sidprep.solver.model.effects import DESCRIPTIONS, EFFECTS
 
-#: a left-out effect whose estimated relative size exceeds this gets a WARNING in the report
+#: a left-out effect whose estimated change of the modal coordinates (MEASURE) exceeds this gets
+#: a WARNING in the report
 WARN_LEVEL = 0.01
+
 
 @dataclass(frozen=True)
 class EffectEntry:
@@ -30,8 +34,9 @@ class EffectEntry:
     included : bool
     available : bool   -- the SID holds the data for this effect
     reason : str       -- why it was included/left out (for ``auto``: the scene property)
-    estimate : float   -- relative size measured along the motion (NaN when not estimated)
-    measure : str      -- what ``estimate`` is, e.g. "Omega_max^2 / omega_1^2"
+    estimate : float   -- estimated change of the modal coordinates if the effect were included,
+                          relative (NaN when not estimated: included or not in the SID)
+    measure : str      -- what ``estimate`` is (MEASURE)
     """
 
     effect: str
@@ -43,7 +48,7 @@ class EffectEntry:
 
     @property
     def warning(self) -> bool:
-        return bool((not self.included) and np.isfinite(self.estimate) and self.estimate > WARN_LEVEL)
+        return bool((not self.included) and self.estimate > WARN_LEVEL)  # NaN: False, inf: True
 
 
 @dataclass(frozen=True)
@@ -56,8 +61,8 @@ class EffectsReport:
     @property
     def warnings(self) -> list[str]:
         out = [
-            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but its size "
-            f"{e.measure} = {e.estimate:.3g} exceeds {WARN_LEVEL:.0%}"
+            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but it would change the "
+            f"modal coordinates by an estimated {e.measure} = {e.estimate:.3g}, above {WARN_LEVEL:.0%}"
             for b, entries in self.bodies.items()
             for e in entries
             if e.warning
@@ -71,7 +76,7 @@ class EffectsReport:
             lines.append(f"body '{b}':")
             for e in entries:
                 state = "included" if e.included else ("left out" if e.available else "not in SID")
-                est = f"  [{e.measure} = {e.estimate:.3g}]" if np.isfinite(e.estimate) else ""
+                est = f"  [estimated {e.measure} = {e.estimate:.3g}]" if not np.isnan(e.estimate) else ""
                 lines.append(f"  {e.effect:24s} {state:9s} {e.reason}{est}")
         lines += [f"note: {n}" for n in self.notes if not n.startswith("WARNING")]
         lines += self.warnings
@@ -99,6 +104,12 @@ class EffectsReport:
             "warnings": self.warnings,
         }
 
+    def estimates(self) -> dict:
+        """{body: {left-out effect: {"value": estimate (None if infinite), "measure": MEASURE}}}."""
+        return {b: {e.effect: {"value": float(e.estimate) if np.isfinite(e.estimate) else None, "measure": e.measure}
+                    for e in entries if not np.isnan(e.estimate)}
+                for b, entries in self.bodies.items()}
+
 
 # ---------------------------------------------------------------------------- choosing effects
 def _scene_facts(system, body) -> dict:
@@ -113,6 +124,12 @@ def _scene_facts(system, body) -> dict:
     }
 
 
+def assembled(effects: set, avail: dict) -> set:
+    """The effects a run assembles for the named ``effects``: with gravity also the coupling
+    (gravity's modal force Ct0 g uses the coupling matrix Ct0)."""
+    return effects | ({"coupling"} if "gravity" in effects and avail["coupling"] else set())
+
+
 def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
     """Effects to assemble for one flexible body and the reason for each decision.
 
@@ -123,9 +140,8 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
     kom_only = body.oe1_is_kom_only()
     if spec != "auto":
         reasons = {e: ("named by the scene" if e in spec else "not named by the scene") for e in EFFECTS}
-        chosen = {e for e in spec if avail[e]}
-        if "gravity" in chosen and "coupling" not in chosen and avail["coupling"]:
-            chosen.add("coupling")
+        chosen = assembled({e for e in spec if avail[e]}, avail)
+        if "coupling" in chosen and "coupling" not in spec:
             reasons["coupling"] = "not named, kept: gravity's modal force Ct0 g uses the coupling matrix Ct0"
         if "centrifugal_stiffening" in chosen and kom_only:
             reasons["centrifugal_stiffening"] = ("named by the scene; WARNING: Oe.M1 holds only Kom "
@@ -162,138 +178,284 @@ def choose_effects(system, body, spec) -> tuple[set[str], dict[str, str]]:
 
 
 # ---------------------------------------------------------------------------- size estimates
-def _lowest_modal_stiffness(model) -> float:
-    """omega_1^2 = smallest eigenvalue of (Ke, Me), 1/s^2."""
-    import scipy.linalg  # deferred: 0.22 CPU-s of import, needed only for the effects estimates
-
-    if model.nq == 0:
-        return float("nan")
-    lam = scipy.linalg.eigh(model.Ke, model.Me, eigvals_only=True)
-    return float(max(lam[0], 1e-300))
+#: what every estimate is: the largest change of the body's modal coordinates the left-out effect
+#: would make, relative to their largest value, both in the mass norm |x| = sqrt(x^T Me x)
+MEASURE = "max |dq| / max |q|"
+#: output samples (evenly spread) at which the left-out terms are evaluated
+ESTIMATE_SAMPLES = 200
 
 
-def _ratio(num: float, den: float) -> float:
-    if num == 0.0:
-        return 0.0
-    return num / den if den > 0 else float("inf")
+#: the number of signals the left-out terms are weighted by (``signals``)
+N_SIGNALS = 19
 
 
-def estimate_sizes(body, samples: dict, gravity: np.ndarray) -> dict[str, tuple[float, str]]:
-    """Relative size of each effect along the simulated motion: {effect: (value, measure)}.
-
-    samples: q, qd, omega, rotation, acceleration (nt, ...) of the body and ``node_loads``
-    [(marker, force (nt, 3) K, torque (nt, 3) K)] at node markers (joint reactions included).
-    """
-    full = body.terms(set(EFFECTS), gravity=True)
-    s = body.sid
-    q, qd, w = samples["q"], samples["qd"], samples["omega"]
-    rot, acc = samples["rotation"], samples["acceleration"]
-    a_k = np.einsum("tji,tj->ti", rot, acc[:, :3])
-    g_k = np.einsum("tji,j->ti", rot, gravity)
-    wdot = acc[:, 3:6]
-    w1sq = _lowest_modal_stiffness(full)
-    ref = float(np.max(np.linalg.norm(q @ full.Ke.T, axis=1))) if len(q) else 0.0
+def signals(w, a, wdot, g) -> np.ndarray:
+    """The N_SIGNALS signals the elastic rows of the body equations are linear in, (n, 19):
+    1, the squares and products w_hat of omega (6), omega (3), a_O (3), omega_dot (3) and g (3),
+    all in K (sid-spec 5.2: Oe w_hat, Ge(w) qd, Ct(q) a_O + Cr(q) w_dot, Ct g, ksigma, De qd).
+    w, a, wdot, g : (n, 3)."""
     w_hat = np.stack([w[:, 0] ** 2, w[:, 1] ** 2, w[:, 2] ** 2, w[:, 0] * w[:, 1], w[:, 1] * w[:, 2],
                       w[:, 0] * w[:, 2]], axis=1)
-    out = {}
-    spin = float(np.max(np.linalg.norm(w, axis=1))) if len(w) else 0.0
-    out["centrifugal_stiffening"] = (spin**2 / w1sq, "Omega_max^2 / omega_1^2")
-    i0 = np.linalg.norm(full.I0)
-    if full.I1 is not None:
-        out["inertia_change"] = (float(np.max(np.linalg.norm(np.tensordot(q, full.I1, 1), axis=(1, 2)))) / i0,
-                                 "max |J.M1 q| / |J0|")
-    if full.P is not None:
-        pq = np.einsum("abjk,tj,tk->tab", full.P, q, q)
-        i2 = np.einsum("taa->t", pq)[:, None, None] * np.eye(3) - pq
-        out["second_order_inertia"] = (float(np.max(np.linalg.norm(i2, axis=(1, 2)))) / i0, "max |I2(q)| / |J0|")
-    if full.Ct1 is not None or full.Cr1 is not None:
-        k0 = np.zeros((len(q), full.nq, full.nq))
-        if full.Ct1 is not None:
-            k0 += np.einsum("kja,ta->tkj", full.Ct1, a_k - g_k)
-        k0r = body._k0r()
-        if k0r is not None:
-            k0 += np.einsum("akj,ta->tkj", k0r, wdot)
-        out["acceleration_stiffening"] = (float(np.max(np.linalg.norm(k0, ord=2, axis=(1, 2)))) / w1sq,
-                                          "|K0t (a - g) + K0r w_dot| / omega_1^2")
-    loads = [0.0]
-    for marker, force, torque in samples.get("node_loads", []):
-        k = np.zeros((len(q), full.nq, full.nq))
-        if marker.k0f is not None:
-            k += np.einsum("ajk,ta->tkj", marker.k0f, force)
-        if marker.k0m is not None:
-            k += np.einsum("ajk,ta->tkj", marker.k0m, torque)
-        loads.append(float(np.max(np.linalg.norm(k, ord=2, axis=(1, 2)))))
-    out["load_stiffening"] = (max(loads) / w1sq, "max |K0F F + K0M T| / omega_1^2")
-    if full.Oe0 is not None:
-        out["centrifugal"] = (_ratio(float(np.max(np.linalg.norm(w_hat @ full.Oe0.T, axis=1))), ref),
-                              "max |Oe0 w_hat| / max |Ke q|")
-    if full.Ge is not None:
-        ge = np.einsum("akj,ta,tj->tk", full.Ge, w, qd)
-        out["coriolis"] = (_ratio(float(np.max(np.linalg.norm(ge, axis=1))), ref), "max |Ge(w) qd| / max |Ke q|")
-    if np.any(s.Ct.M0) or np.any(s.Cr.M0):
-        c = a_k @ s.Ct.M0.T + wdot @ s.Cr.M0.T
-        out["coupling"] = (_ratio(float(np.max(np.linalg.norm(c, axis=1))), ref),
-                           "max |Ct a + Cr w_dot| / max |Ke q|")
-    if np.any(s.De.M0):
-        zeta = np.diag(s.De.M0) / (2 * np.sqrt(np.abs(np.diag(s.Ke.M0) * np.diag(s.Me.M0))) + 1e-300)
-        out["damping"] = (float(np.max(zeta)), "max modal damping ratio")
-    if np.any(s.ksigma.M0):
-        out["preload"] = (_ratio(float(np.linalg.norm(s.ksigma.M0)), ref), "|ksigma| / max |Ke q|")
-    amax = float(np.max(np.linalg.norm(acc[:, :3], axis=1))) if len(acc) else 0.0
-    out["gravity"] = (_ratio(float(np.linalg.norm(gravity)), amax), "|g| / max |a_O|")
+    return np.concatenate([np.ones((len(w), 1)), w_hat, w, a, wdot, g], axis=1)
+
+
+def probe_states() -> tuple[np.ndarray, ...]:
+    """N_SIGNALS states (w, a, wdot, g), (19, 3) each, whose signals are independent: at rest;
+    omega = +-e_i and e_i + e_j; a_O, omega_dot and g = e_i."""
+    e = np.eye(3)
+    zero = np.zeros((1, 3))
+    w = np.vstack([zero, e, -e, e + np.roll(e, 1, axis=0), np.zeros((9, 3))])
+    a, wdot, g = (np.zeros((N_SIGNALS, 3)) for _ in range(3))
+    a[10:13], wdot[13:16], g[16:19] = e, e, e
+    return w, a, wdot, g
+
+
+@jit
+def elastic_rows(pack, w, gk, ud, modes):  # pragma: no cover - compiled
+    """Elastic rows of M ud - h (sid-spec 5.2) of one body's packed terms at S states, at rest
+    (q = qd = 0) and their change with q or qd along each of the n columns of ``modes``:
+    (S, 1 + 2 n, nq).
+
+    pack : (F, off, flags, mass) of ``pack_terms`` plus the mass; w, gk (S, 3) angular velocity
+    (1/s) and gravity (m/s^2) in K; ud (S, 6 + nq) accelerations in K; modes (nq, n).
+    """
+    F, off, flags, mass = pack
+    nq, n = modes.shape
+    out = np.zeros((w.shape[0], 1 + 2 * n, nq))
+    zero = np.zeros(nq)
+    for s in range(w.shape[0]):
+        m, h = body_equations(F, off, flags, mass, zero, zero, w[s], gk[s])
+        out[s, 0] = (m @ ud[s] - h)[6:]
+        for j in range(n):
+            mode = modes[:, j].copy()
+            m, h = body_equations(F, off, flags, mass, mode, zero, w[s], gk[s])
+            out[s, 1 + j] = (m @ ud[s] - h)[6:] - out[s, 0]
+            m, h = body_equations(F, off, flags, mass, zero, mode, w[s], gk[s])
+            out[s, 1 + n + j] = (m @ ud[s] - h)[6:] - out[s, 0]
     return out
 
 
-#: effects whose terms are part of the body equations (load stiffening acts through the node
-#: Jacobians and keeps its load-based estimate)
-BODY_EFFECTS = tuple(e for e in EFFECTS if e != "load_stiffening")
-#: output samples (evenly spread) at which the left-out generalised forces are evaluated
-RUN_ESTIMATE_SAMPLES = 200
+def signal_coefficients(rows, probe_signals, modes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The left-out modal force, stiffness and damping per signal, from the difference of
+    ``elastic_rows`` with and without the effect at the probe states: force (19, nq) and, in
+    modal coordinates (Phi^T dK Phi, Phi^T dC Phi), stiffness and damping (19, nq, nq)."""
+    nq = modes.shape[0]
+    coef = np.linalg.solve(probe_signals, rows.reshape(N_SIGNALS, -1)).reshape(rows.shape)
+    return (coef[:, 0] @ modes, np.swapaxes(coef[:, 1:1 + nq] @ modes, 1, 2),
+            np.swapaxes(coef[:, 1 + nq:] @ modes, 1, 2))
 
 
-def run_estimates(body, chosen: set, samples: dict) -> dict[str, tuple[float, str]]:
-    """Each left-out effect measured on the run itself: the modal generalised force it would
-    have added, Delta(h) - Delta(M) u_dot of the body equations with and without it, at up to
-    RUN_ESTIMATE_SAMPLES output samples, max over them, relative to the largest kept modal
-    elastic force |Ke q| of the run (the deflection the left-out force would add, relative to
-    the run's; the inertial modal force |(M u_dot)_e| when nothing deforms).
+def free_modes(ke, me) -> tuple[np.ndarray, np.ndarray]:
+    """omega (nq,) rad/s and the mass-normalised modes (nq, nq) of (Ke, Me) (nq, nq)."""
+    import scipy.linalg  # deferred: 0.22 CPU-s of import, needed only for the effects estimates
 
-    samples: q, qd, omega, rotation, acceleration (nt, ...) of the body and gravity (3,).
+    lam, modes = scipy.linalg.eigh(ke, me)
+    return np.sqrt(np.maximum(lam, 0.0)), modes
+
+
+def frequency_shifts(stiffness, damping, omega) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample and mode: the change of omega_k^2 (1/s^2) and the added decay rate (1/s) that
+    the left-out terms make, (nt, nq) each.
+
+    stiffness, damping : (nt, nq, nq) modal dK, dC (Phi^T dK Phi).  The modal system
+    eta'' + dC eta' + (Omega^2 + dK) eta = 0 at eta ~ exp(i w t), w ~ omega_k, couples mode k to
+    mode j by Z_kj = dK_kj + i omega_k dC_kj.  Each mode moves first to the level
+    L_k = omega_k^2 + Z_kk; each other mode j adds the two-level (2 x 2 eigenvalue) shift
+    D/2 (sqrt(1 + 4 Z_kj Z_jk / D^2) - 1), D = L_k - L_j: the second-order perturbation
+    Z_kj Z_jk / D when |Z| << |D|, sqrt(Z_kj Z_jk) when the levels coincide (how gyroscopic
+    terms split a pair).  The imaginary part of d(omega_k^2) = 2 omega_k sigma_k is the decay.
+    """
+    row = omega[None, :, None]
+    z, zt = stiffness, np.swapaxes(stiffness, 1, 2)
+    if np.any(damping):
+        z, zt = z + 1j * row * damping, zt + 1j * row * np.swapaxes(damping, 1, 2)
+    diagonal = np.arange(omega.size)
+    level = omega**2 + z[:, diagonal, diagonal]
+    pair = z * zt
+    half = 0.5 * (level[:, :, None] - level[:, None, :])
+    apart = half != 0.0
+    growth = np.where(apart, 1.0 + pair / np.where(apart, half, 1.0) ** 2, 1.0)
+    degenerate = ~apart
+    degenerate[:, diagonal, diagonal] = False
+    if np.iscomplexobj(growth) or np.any(growth < 0.0) or np.any(degenerate):
+        growth, pair = growth.astype(complex), pair.astype(complex)  # complex roots
+    two_level = half * (np.sqrt(growth) - 1.0)
+    two_level[degenerate] = np.sqrt(pair[degenerate])
+    two_level[:, diagonal, diagonal] = z[:, diagonal, diagonal]
+    shift = two_level.sum(axis=2)
+    return shift.real, shift.imag / (2.0 * np.maximum(omega, 1e-300))
+
+
+def cumulative(t, rate) -> np.ndarray:
+    """int_0^t rate dt by the trapezoidal rule over the samples, (nt, nq)."""
+    steps = 0.5 * np.diff(t)[:, None] * (rate[1:] + rate[:-1])
+    return np.concatenate([np.zeros((1, rate.shape[1])), np.cumsum(steps, axis=0)])
+
+
+def genalpha_phase_response(omega, h: float, rho_inf: float) -> np.ndarray:
+    """d(omega_num) / d(omega) of generalised-alpha at step h (s) for each modal frequency omega
+    (nq,) rad/s: how much of a physical frequency shift the integrator's free vibration shows
+    (1 when omega h << 1; 1 / (1 + (omega h / 2)^2) for the trapezoidal rule, rho_inf = 1).
+
+    omega_num = |arg lambda| / h of the principal eigenvalue lambda of the one-step map of
+    x'' + omega^2 x = 0 (Chung & Hulbert 1993; state x, v, a, ud; solver/integrators/genalpha.py).
+    """
+    am, af, gamma, beta = genalpha_parameters(rho_inf)
+
+    def frequency(w):
+        c = (1 - af) / (1 - am)
+        maps = np.zeros((w.size, 4, 4))
+        for i, unit in enumerate(np.eye(4)):  # columns: the step applied to x, v, a, ud = e_i
+            x, v, a, ud = unit
+            lag = (af * ud - am * a) / (1 - am)
+            ud1 = -w**2 * (x + h * v + h * h * ((0.5 - beta) * a + beta * lag)) / (1 + w**2 * h * h * beta * c)
+            a1 = lag + c * ud1
+            maps[:, :, i] = np.stack([x + h * v + h * h * ((0.5 - beta) * a + beta * a1),
+                                      v + h * ((1 - gamma) * a + gamma * a1), a1, ud1], axis=1)
+        lam = np.linalg.eigvals(maps)  # the principal pair has the largest imaginary parts
+        principal = lam[np.arange(w.size), np.argmax(np.abs(lam.imag), axis=1)]  # (the spurious roots are real)
+        return np.abs(np.angle(principal)) / h
+
+    dw = 1e-4 * np.maximum(omega, 1e-300)
+    return (frequency(omega + dw) - frequency(np.maximum(omega - dw, 0.0))) / (2 * dw)
+
+
+def modal_change(t, amplitude, force, stiffness, damping, omega, response=1.0) -> np.ndarray:
+    """Estimated |d eta(t)| (nt,) the left-out terms would make to the mass-normalised modal
+    coordinates eta (q = Phi eta) of a run; t (nt,) s, force (nt, nq) = Phi^T df, amplitude
+    (nt, nq) of the free vibration (``free_vibration``), response (nq,) or 1: the part of a
+    frequency shift the integrator shows (``genalpha_phase_response``).
+
+    Two parts per mode k of the modal oscillators eta_k'' + omega_k^2 eta_k = Phi_k^T f, whose
+    stiffness the left-out terms change to omega_k^2 + d(omega_k^2) (``frequency_shifts``):
+    the quasi-static response |Phi_k^T df| / (omega_k^2 + d(omega_k^2)) to the added force
+    (infinite when the mode loses its stiffness: buckling), and the error of the free vibration:
+    a mode vibrating with amplitude a_k at the shifted frequency
+    sqrt(omega_k^2 + d(omega_k^2)) that decays faster by sigma_k drifts by the phasor difference
+    a_k |1 - exp(i r_k int d(omega_k) dt - int sigma_k dt)| (at most 2 a_k; for a small shift the
+    accumulated phase (dk_k / k_k) / 2 omega_k T), r_k = ``response``.
+    """
+    shift, decay = frequency_shifts(stiffness, damping, omega)
+    stiff = omega**2 + shift
+    phase = cumulative(t, response * (np.sqrt(np.maximum(stiff, 0.0)) - omega)) + 1j * cumulative(t, decay)
+    vibration = amplitude * np.abs(1.0 - np.exp(1j * phase))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        quasi_static = np.where(stiff > 0.0, np.abs(force) / stiff, np.where(np.abs(force) > 0.0, np.inf, 0.0))
+    return np.linalg.norm(quasi_static + vibration, axis=1)
+
+
+def free_vibration(eta_dot, eta_ddot, omega) -> np.ndarray:
+    """Amplitude of each mode's free vibration, (nt, nq): a mode vibrating freely as
+    a cos(omega_k t) has |eta_dot| / omega_k = a |sin| and |eta_ddot| / omega_k^2 = a |cos|, so
+    their root sum of squares is a at every sample; a response forced at a lower frequency nu
+    (by the rigid motion, the loads) counts only about nu / omega_k of its size (its phase does
+    not drift: the quasi-static part sizes it).  eta_dot, eta_ddot (nt, nq) modal rates."""
+    w = np.maximum(omega, 1e-300)
+    return np.hypot(eta_dot / w, eta_ddot / w**2)
+
+
+def load_stiffening(node_loads, modes) -> np.ndarray:
+    """Modal geometric stiffness of the node loads Phi^T dK Phi, (nt, nq, nq): the node force
+    phi(q)^T F (sid-spec 5.2) with phi(q) = phi0 + K0F q gives dK = -sum_a (F_a K0F_a^T +
+    T_a K0M_a^T) (sid-spec 6.2: a tension stiffens); F, T (nt, 3) in K at the node markers,
+    joint reactions included."""
+    nt, nq = (len(node_loads[0][1]) if node_loads else 0), modes.shape[0]
+    dk = np.zeros((nt, nq, nq))
+    for marker, force, torque in node_loads:
+        for k0, load in ((marker.k0f, force), (marker.k0m, torque)):
+            if k0 is not None:
+                dk -= np.einsum("ta,ajk->tkj", load, modes.T @ k0 @ modes)
+    return dk
+
+
+def packed(body, effects: set) -> tuple:
+    """((F, off, flags, mass) for the compiled body equations, BodyTerms) of ``effects``."""
+    terms = body.terms(effects, gravity="gravity" in effects)
+    return pack_terms(terms) + (float(terms.mass),), terms
+
+
+class LeftOutTerms:
+    """The left-out terms of one body's elastic rows, per signal (``signal_coefficients``), from
+    the body equations at the probe states with and without each effect."""
+
+    def __init__(self, body, chosen: set, modes: np.ndarray):
+        w, a, wdot, g = probe_states()
+        nq = modes.shape[0]
+        self.body, self.chosen, self.modes = body, set(chosen), modes
+        self.probes = (w, g, np.concatenate([a, wdot, np.zeros((N_SIGNALS, nq))], axis=1), modes)
+        generic = np.random.default_rng(0).uniform(0.5, 1.5, 12 + 2 * nq)  # no cancellation (e.g. a = g)
+        self.generic = (generic[None, :3], generic[None, 3:6], generic[None, 6:12 + nq], generic[12 + nq:, None])
+        self.probe_signals = signals(w, a, wdot, g)
+        base = packed(body, self.chosen)[0]
+        self.base, self.base_generic = elastic_rows(base, *self.probes), elastic_rows(base, *self.generic)
+
+    def coefficients(self, effect: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Modal force (19, nq), stiffness and damping (19, nq, nq) per signal that ``effect``
+        adds to the elastic rows; None when it adds nothing there (rigid-body rows only)."""
+        pack = packed(self.body, assembled(self.chosen | {effect}, self.body.available()))[0]
+        if not np.any(elastic_rows(pack, *self.generic) - self.base_generic):
+            return None
+        return signal_coefficients(elastic_rows(pack, *self.probes) - self.base, self.probe_signals, self.modes)
+
+
+def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float, str]]:
+    """Each effect the SID provides but the run left out: {effect: (estimated max |dq| /
+    max |q|, MEASURE)}, computed from the run's own samples (no second simulation).
+
+    samples: t (nt,) s, q, qd (nt, nq), omega (nt, 3) 1/s, rotation (nt, 3, 3), acceleration
+    (nt, 6+nq) (inertial a_O, omega_dot, q_ddot), gravity (3,) m/s^2, node_loads
+    [(marker, force (nt, 3), torque (nt, 3)) in K] and optionally the run's SolverSettings
+    (``settings``: fixed-step generalised-alpha shows only part of a frequency shift,
+    ``genalpha_phase_response``).  The left-out modal force, stiffness and
+    damping per signal (``LeftOutTerms``; load stiffening from the node loads) weighted by the
+    run's signals at up to ESTIMATE_SAMPLES samples; ``modal_change`` turns them into the
+    change of the modes.  An effect acting on the rigid-body rows only is sized 0.
     """
     avail = body.available()
-    left_out = [e for e in BODY_EFFECTS if avail[e] and e not in chosen]
-    q, qd, w, rot, acc = (samples[k] for k in ("q", "qd", "omega", "rotation", "acceleration"))
-    if not left_out or len(q) == 0:
+    left_out = [e for e in EFFECTS if avail[e] and e not in chosen]
+    if not left_out or len(samples["q"]) == 0:
         return {}
-    idx = np.unique(np.linspace(0, len(q) - 1, min(len(q), RUN_ESTIMATE_SAMPLES)).astype(int))
-
-    def packed(effects):
-        terms = body.terms(effects, gravity="gravity" in effects)
-        return pack_terms(terms) + (float(terms.mass),)
-
-    def evaluated(pack, k):
-        F, off, flags, mass = pack
-        gk = rot[k].T @ samples["gravity"]
-        mk, h = body_equations(F, off, flags, mass, q[k].copy(), qd[k].copy(), w[k].copy(), gk)
-        ud = np.concatenate([rot[k].T @ acc[k, :3], acc[k, 3:]])
-        return mk @ ud - h, mk, h, ud
-
-    base = packed(set(chosen))
-    kept = [evaluated(base, k) for k in idx]
-    ke = body.terms(set(), gravity=False).Ke
-    ref = max(np.linalg.norm(ke @ q[k]) for k in idx)
-    if ref == 0.0:  # no deformation: against the inertial modal force
-        ref = max(np.linalg.norm((mk @ ud)[6:]) for _, mk, _, ud in kept)
+    idx = np.unique(np.linspace(0, len(samples["q"]) - 1, min(len(samples["q"]), ESTIMATE_SAMPLES)).astype(int))
+    rot, acc = samples["rotation"][idx], samples["acceleration"][idx]  # A: K -> inertial
+    x = signals(samples["omega"][idx], np.einsum("tji,tj->ti", rot, acc[:, :3]), acc[:, 3:6],
+                np.einsum("tji,j->ti", rot, samples["gravity"]))
+    terms = packed(body, set(chosen))[1]
+    omega, modes = free_modes(terms.Ke, terms.Me)
+    to_modal = terms.Me @ modes  # eta = Phi^T Me q
+    eta, eta_dot = samples["q"][idx] @ to_modal, samples["qd"][idx] @ to_modal
+    ref = float(np.max(np.linalg.norm(samples["q"] @ to_modal, axis=1)))
+    amplitude = free_vibration(eta_dot, acc[:, 6:] @ to_modal, omega)
+    settings = samples.get("settings")
+    fixed_step_genalpha = settings is not None and settings.method == "genalpha" and settings.tolerance is None
+    response = genalpha_phase_response(omega, settings.h, settings.rho_inf) if fixed_step_genalpha else 1.0
+    terms_left_out = LeftOutTerms(body, set(chosen), modes)
     out = {}
     for effect in left_out:
-        pack = packed(set(chosen) | {effect})
-        size = max(np.linalg.norm((evaluated(pack, k)[0] - r[0])[6:]) for k, r in zip(idx, kept))
-        out[effect] = (_ratio(float(size), float(ref)), "max |modal force left out| / max |Ke q| (sampled on the run)")
+        if effect == "load_stiffening":
+            stiffness = load_stiffening([(m, f[idx], tq[idx]) for m, f, tq in samples.get("node_loads", [])], modes)
+            damping, force = np.zeros_like(stiffness), np.einsum("tkj,tj->tk", stiffness, eta)
+        else:
+            coefficients = terms_left_out.coefficients(effect)
+            if coefficients is None:
+                out[effect] = (0.0, MEASURE)
+                continue
+            f, k, c = coefficients
+            stiffness, damping = np.einsum("ti,ikj->tkj", x, k), np.einsum("ti,ikj->tkj", x, c)
+            force = x @ f + np.einsum("tkj,tj->tk", stiffness, eta) + np.einsum("tkj,tj->tk", damping, eta_dot)
+        change = modal_change(samples["t"][idx], amplitude, force, stiffness, damping, omega, response)
+        out[effect] = (_relative(float(np.max(change)), ref), MEASURE)
     return out
+
+
+def _relative(change: float, ref: float) -> float:
+    """change / ref; 0 when nothing changes, inf when an undeformed body would deform."""
+    if change == 0.0:
+        return 0.0
+    return change / ref if ref > 0 else float("inf")
 
 
 def build_report(choices: dict, estimates: dict, notes=()) -> EffectsReport:
-    """EffectsReport from {body: (body, chosen, reasons)} and {body: estimate_sizes(...)}."""
+    """EffectsReport from {body: (body, chosen, reasons)} and {body: estimate_changes(...)}."""
     bodies = {}
     for name, (body, chosen, reasons) in choices.items():
         avail = body.available()

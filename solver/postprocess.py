@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.effects import build_report, estimate_sizes, run_estimates
+from sidprep.solver.effects import build_report, estimate_changes
 from sidprep.solver.equations.assemble import energies, evaluate, every_marker, markers, moving_masses
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
@@ -92,8 +92,9 @@ def postprocess(run, s) -> Result:
     estimates = {}
     for name, (b, chosen, _) in run.choices.items():
         h = bodies[name]
-        history = {"q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation, "acceleration": h.acceleration,
-                   "node_loads": [v for v in node_loads.values() if v[0].body is b], "gravity": system.gravity}
-        estimates[name] = {**estimate_sizes(b, history, system.gravity), **run_estimates(b, chosen, history)}
+        history = {"t": s.t, "q": h.q, "qd": h.qd, "omega": h.omega, "rotation": h.rotation,
+                   "acceleration": h.acceleration, "node_loads": [v for v in node_loads.values() if v[0].body is b],
+                   "gravity": system.gravity, "settings": run.settings}
+        estimates[name] = estimate_changes(b, chosen, history)
     report = build_report(run.choices, estimates, run.notes)
     return Result(s.t.copy(), bodies, joints, positions, energy, cerr, report, {})
