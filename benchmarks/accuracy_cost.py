@@ -27,10 +27,12 @@ Every time is the median of ``--repeat`` runs; the load average of the shared ma
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -254,6 +256,8 @@ def pendulum_run(sid, h, *, rtol=None, newton_tol=1e-8, effects="auto", rho_inf=
     simulated s, stats)."""
     from solver_speed import OUTPUT_DT, T_END, pendulum
 
+    from sidprep.solver.run import simulate
+
     res = simulate(pendulum(sid, planar=False), T_END, h=h, rtol=rtol, newton_tol=newton_tol, output_dt=OUTPUT_DT,
                                                static_start=True, effects=effects, rho_inf=rho_inf)
     deflection = res.bodies["bar"].q @ sid.nodes[1].phi.M0.T
@@ -325,9 +329,248 @@ def plot_solve(rows: list[dict]) -> None:
     plt.close(fig)
 
 
+# ---------------------------------------------------------------------------------------------
+# d. integration methods on the examples
+# ---------------------------------------------------------------------------------------------
+
+#: a modal coordinate is compared when its peak is at least this share of its body's largest
+MODE_SHARE = 0.1
+#: Newton tolerance of the generalised-alpha reference runs (position correction / system length)
+REFERENCE_NEWTON_TOL = 1e-11
+GA_FIXED, GA_RTOL, RK4, RK45, DOP853 = ("genalpha, fixed h", "genalpha, rtol", "rk4, fixed h", "rk45, rtol",
+                                        "dop853, rtol")
+METHOD_STYLE = {GA_FIXED: "o-", GA_RTOL: "s--", RK4: "^-", RK45: "v--", DOP853: "D--"}
+
+
+@dataclass(frozen=True)
+class MethodCase:
+    """One scene of the method study: its file (``prepare`` makes the folder), the simulated
+    time (s), the joints whose coordinates and the flexible bodies whose modal coordinates
+    (those with a peak >= MODE_SHARE of the body's largest) are compared, the settings of the
+    reference run, of a looser run of the same method (their difference bounds the reference's
+    error) and of an independent run of the other family, and the ladder of settings per method."""
+
+    name: str
+    scene: str
+    t_end: float
+    joints: tuple
+    bodies: tuple
+    reference: dict
+    looser: dict
+    independent: dict
+    ladders: dict
+    prepare: object = None
+
+
+def method_cases(quick: bool) -> list[MethodCase]:
+    """The three scenes of issue 21 item 6 and their ladders (h in s)."""
+    def ladders(steps, h0, rtols, rk4, rk45, dop853):
+        out = {GA_FIXED: [dict(h=h) for h in steps], GA_RTOL: [dict(h=h0, rtol=r) for r in rtols],
+               RK4: [dict(method="rk4", h=h) for h in rk4], RK45: [dict(method="rk45", h=h0, rtol=r) for r in rk45],
+               DOP853: [dict(method="dop853", h=h0, rtol=r) for r in dop853]}
+        return {k: v[:2 if k == GA_FIXED else 1] if quick else v for k, v in out.items()}
+
+    def ga(h):
+        return dict(h=h, newton_tol=REFERENCE_NEWTON_TOL)
+
+    def dop(rtol, h0):
+        return dict(method="dop853", rtol=rtol, atol=1e-14, h=h0)
+
+    from engine import prepared_folder
+
+    return [
+        MethodCase("flexible pendulum", "flexible_pendulum/scene.toml", 1.0, ("hinge",), ("bar",),
+                   dop(1e-11, 1e-4), dop(1e-10, 1e-4), ga(1.25e-5),
+                   ladders((1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5), 1e-3, (1e-4, 1e-5, 1e-6, 1e-7, 1e-8),
+                           (1.5e-4, 1e-4, 5e-5), (1e-3, 1e-6), (1e-3, 1e-7))),
+        MethodCase("seed slider crank", "beam_slider_crank/scene.toml", 10.0, ("slider_joint",), ("crank", "conrod"),
+                   ga(3.125e-5), ga(6.25e-5), dop(1e-9, 1e-3),
+                   ladders((1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4), 2e-3, (1e-5, 1e-6, 1e-7, 1e-8), (2e-3, 1e-3),
+                           (1e-4, 1e-6), (1e-4, 1e-6, 1e-8))),
+        MethodCase("engine, flexible rod (0.1 s)", "engine/scene.toml", 0.1, ("crank_joint", "piston_joint"),
+                   ("rod",), dop(1e-10, 1e-5), dop(1e-9, 1e-5), ga(1.25e-5),
+                   ladders((1e-3, 5e-4, 2e-4, 1e-4, 5e-5), 2e-4, (1e-5, 1e-6, 1e-7, 1e-8), (4e-5, 2e-5),
+                           (1e-6,), (1e-6, 1e-8)),
+                   prepare=lambda tmp: prepared_folder(tmp) / "scene.toml"),
+    ]
+
+
+def compared_signals(result, case: MethodCase, modes: dict) -> list[np.ndarray]:
+    """The joint coordinates and the chosen modal coordinates (modes: body -> indices) of a run."""
+    return ([result.joints[j].coordinate for j in case.joints]
+            + [result.bodies[b].q[:, k] for b in case.bodies for k in modes[b]])
+
+
+def relative_error(result, reference, case: MethodCase, modes: dict, joints_only: bool = False) -> float:
+    """max over the compared signals (or the joint coordinates only) of
+    max_t |x - x_ref| / max_t |x_ref| at the output times."""
+    if result.t.shape != reference.t.shape or np.max(np.abs(result.t - reference.t)) > 1e-9:
+        raise ValueError(f"{case.name}: output times differ from the reference's")
+    pairs = list(zip(compared_signals(result, case, modes), compared_signals(reference, case, modes)))
+    return max(float(np.max(np.abs(x - r)) / np.max(np.abs(r))) for x, r in pairs[:len(case.joints) if joints_only else None])
+
+
+def timed_runs(run, kw: dict, repeat: int):
+    """(last Result or the failure message, median integration CPU s, median whole-run CPU s)
+    of ``repeat`` runs (process time; whole run = set-up + integration + post-processing)."""
+    from sidprep.errors import SimulationFailed
+
+    integ, total, result = [], [], None
+    for _ in range(repeat):
+        t0 = time.process_time()
+        try:
+            result = run(**kw)
+        except SimulationFailed as exc:
+            return str(exc).splitlines()[0][:90], np.nan, np.nan
+        total.append(time.process_time() - t0)
+        integ.append(result.stats["cpu_integration"])
+        if not all(np.all(np.isfinite(b.q)) and np.all(np.isfinite(b.position)) for b in result.bodies.values()):
+            return "diverged (non-finite state, no error raised)", np.nan, np.nan
+    return result, float(np.median(integ)), float(np.median(total))
+
+
+def fixed_step_cpu(rows: list[dict], error: float) -> tuple[float, bool]:
+    """CPU of the fixed-step generalised-alpha curve at ``error`` (log-log interpolation; beyond
+    its ends the end segment's slope, flagged True)."""
+    pts = sorted((r["error"], r["integ"]) for r in rows if r["method"] == GA_FIXED and np.isfinite(r["error"]))
+    e, c = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    x = np.log(error)
+    if e[0] <= x <= e[-1]:
+        return float(np.exp(np.interp(x, e, c))), False
+    i = (0, 1) if x < e[0] else (-2, -1)
+    slope = (c[i[1]] - c[i[0]]) / (e[i[1]] - e[i[0]])
+    return float(np.exp(c[i[0]] + slope * (x - e[i[0]]))), True
+
+
+def step_history(result) -> str:
+    """min / 10 % / median / 90 % / max of the accepted steps of a run sampled at every step, s."""
+    h = np.diff(result.t)[:-1]          # the last step is cut to land on t_end
+    return " / ".join(f"{v:.2g}" for v in np.percentile(h, (0, 10, 50, 90, 100)))
+
+
+def method_study(repeat: int, quick: bool, names=None) -> list[dict]:
+    from sidprep.solver.run import simulate
+    from sidprep.solver.scene import load_scene, simulate as run_scene
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    rows = []
+    for case in method_cases(quick):
+        if names and not any(n in case.name for n in names):
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            path = case.prepare(Path(tmp)) if case.prepare else ROOT / "examples" / case.scene
+            scene = load_scene(path)
+
+            def run(t_end=None, **kw):
+                return run_scene(scene, t_end=t_end or case.t_end, **kw)
+
+            def every_step(**kw):            # the scene's settings with a sample after every step
+                return simulate(scene.system, case.t_end, replace(scene.settings, **kw, output_dt=None))
+
+            rows += method_table(case, run, every_step, repeat)
+    return rows
+
+
+def method_reference(case: MethodCase, run):
+    """(reference Result, compared modes, printed line on its error and independent check)."""
+    ref = run(**case.reference)
+    modes = {b: np.flatnonzero(np.abs(ref.bodies[b].q).max(0) >= MODE_SHARE * np.abs(ref.bodies[b].q).max())
+             for b in case.bodies}
+    looser, independent = run(**case.looser), run(**case.independent)
+
+    def describe(kw):
+        return ", ".join(f"{k} = {v:g}" if not isinstance(v, str) else v for k, v in kw.items())
+
+    line = (f"reference {describe(case.reference)} ({ref.stats['cpu_integration']:.1f} CPU-s); the same method at "
+            f"{describe(case.looser)} differs from it by {relative_error(looser, ref, case, modes):.1e} (joints "
+            f"{relative_error(looser, ref, case, modes, True):.1e}); independent {describe(case.independent)}: "
+            f"{relative_error(independent, ref, case, modes):.1e} (joints "
+            f"{relative_error(independent, ref, case, modes, True):.1e})")
+    return ref, modes, line
+
+
+def method_table(case: MethodCase, run, every_step, repeat: int) -> list[dict]:
+    """Every ladder of the case against its reference: table rows (printed) and step histories."""
+    ref, modes, line = method_reference(case, run)
+    signals = list(case.joints) + [f"{b}.q{k + 1}" for b in case.bodies for k in modes[b]]
+    print(f"\n### {case.name}, {case.t_end:g} s ({load_average()})\n")
+    print(f"compared: {', '.join(signals)}; {line}\n")
+    print("| method | setting | steps | rejected | mean h [s] | error | joints only | integration CPU s | "
+          "whole-run CPU s | CPU / fixed genalpha at equal error |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for method, ladder in case.ladders.items():
+        run(**ladder[0], t_end=min(case.t_end, 50 * ladder[0]["h"]))     # kernels loaded before timing
+        for kw in ladder:
+            result, integ, total = timed_runs(run, kw, repeat)
+            setting = ", ".join(f"{k} = {v:g}" for k, v in kw.items() if k != "method")
+            row = dict(scene=case.name, method=method, setting=setting, error=np.nan, integ=integ, total=total)
+            if isinstance(result, str):
+                row["failed"] = result
+            else:
+                st = result.stats
+                row.update(error=relative_error(result, ref, case, modes),
+                           joints=relative_error(result, ref, case, modes, True), steps=st["steps"],
+                           rejected=st.get("rejected", 0), mean_h=case.t_end / st["steps"])
+            rows.append(row)
+    for row in rows:
+        if "failed" in row:
+            print(f"| {row['method']} | {row['setting']} | - | - | - | {row['failed']} | - | - | - | - |")
+            continue
+        ratio = "1 (this curve)"
+        if row["method"] != GA_FIXED:
+            cpu, extrapolated = fixed_step_cpu(rows, row["error"])
+            ratio = f"{row['integ'] / cpu:.2g}" + (" (extrap.)" if extrapolated else "")
+        print(f"| {row['method']} | {row['setting']} | {row['steps']} | {row['rejected']} | {row['mean_h']:.2g} | "
+              f"{row['error']:.2e} | {row['joints']:.2e} | {row['integ']:.3f} | {row['total']:.3f} | {ratio} |",
+              flush=True)
+    print("\nstep sizes of the error-controlled runs (every step sampled): min / 10 % / median / 90 % / max [s]\n")
+    print("| method | setting | steps | rejected | h [s] |")
+    print("|---|---|---|---|---|")
+    for method in (GA_RTOL, RK45, DOP853):
+        kw = case.ladders[method][len(case.ladders[method]) // 2]
+        try:
+            result = every_step(**kw)
+        except Exception as exc:          # a failed run is a finding, not a crash of the benchmark
+            print(f"| {method} | {kw} | failed: {str(exc)[:80]} |")
+            continue
+        print(f"| {method} | rtol = {kw['rtol']:g} | {result.stats['steps']} | {result.stats.get('rejected', 0)} | "
+              f"{step_history(result)} |", flush=True)
+    return rows
+
+
+def plot_methods(rows: list[dict]) -> None:
+    """Error against integration CPU, one panel per scene (top: all compared signals, bottom:
+    the joint coordinates), one line per method: docs/img/accuracy_methods.png."""
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(2, len(scenes), figsize=(4.6 * len(scenes), 7.6), squeeze=False)
+    for col, scene in enumerate(scenes):
+        for method, style in METHOD_STYLE.items():
+            r = sorted((x for x in rows if x["scene"] == scene and x["method"] == method and np.isfinite(x["error"])),
+                       key=lambda x: x["integ"])
+            for ax, key in zip(axes[:, col], ("error", "joints")):
+                if r:
+                    ax.loglog([x["integ"] for x in r], [x[key] for x in r], style, label=method)
+        for ax, what in zip(axes[:, col], ("joint and modal coordinates", "joint coordinates")):
+            ax.set_title(f"{scene}: {what}", fontsize=9)
+            ax.set_xlabel("integration CPU [s]")
+            ax.set_ylabel("max error / peak of the signal")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(IMG / "accuracy_methods.png", dpi=100)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--part", nargs="*", choices=("fe", "reduce", "solve"), default=["fe", "reduce", "solve"])
+    p.add_argument("--part", nargs="*", choices=("fe", "reduce", "solve", "methods"),
+                   default=["fe", "reduce", "solve", "methods"])
+    p.add_argument("--scene", nargs="*", help="methods part: only the scenes whose name contains one of these")
+    p.add_argument("--rows", nargs="*", type=Path, default=[],
+                   help="methods part: write its rows to the first JSON file; the plot shows the rows of all given files")
     p.add_argument("--repeat", type=int, default=3, help="runs per configuration (median time)")
     p.add_argument("--quick", action="store_true", help="two configurations per part, one run each")
     args = p.parse_args(argv)
@@ -342,6 +585,13 @@ def main(argv=None) -> int:
         plot_reduce(reduce_study(repeat, args.quick))
     if "solve" in args.part:
         plot_solve(solve_study(repeat, args.quick))
+    if "methods" in args.part:
+        rows = method_study(repeat, args.quick, args.scene)
+        if args.rows and rows:
+            args.rows[0].write_text(json.dumps(rows))
+        if args.rows:
+            rows = [r for f in args.rows if f.exists() for r in json.loads(f.read_text())]
+        plot_methods(rows)
     print(f"\nplots in {IMG.relative_to(ROOT)}; {load_average()}")
     return 0
 

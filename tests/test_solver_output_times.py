@@ -1,6 +1,8 @@
 """Output samples at the asked times: every sample at exactly k / rate, taken from the stepper's own
 interpolant inside the step that contains it (issue 21 item 5), against an independent reference."""
 
+import math
+
 import numpy as np
 from scipy.integrate import solve_ivp
 from test_solver_integrate import AXIS_Y, pendulum
@@ -32,10 +34,15 @@ def ode_angle(times):
     return sol.y[0]
 
 
-def angle(settings):
+def run(settings):
+    """(Result, name of the hinge) of the pendulum run with ``settings`` at RATE samples/s."""
     s, _, joint = pendulum(rod)
-    r = simulate(s, T_END, output_dt=1 / RATE, **settings)
-    return r.t, r.joints[joint.name].coordinate
+    return simulate(s, T_END, output_dt=1 / RATE, **settings), joint.name
+
+
+def angle(settings):
+    r, hinge = run(settings)
+    return r.t, r.joints[hinge].coordinate
 
 
 def test_genalpha_samples_at_k_over_rate_match_a_fine_run_to_second_order():
@@ -56,3 +63,19 @@ def test_rk4_samples_at_k_over_rate_match_the_pendulum_equation():
     t, rk4 = angle(dict(h=3e-4, method="rk4", baumgarte=0.0))
     assert t.size == k.size and np.max(np.abs(t - k / RATE)) <= OUTPUT_TIME_TOL
     assert np.max(np.abs(rk4 - ode_angle(k / RATE))) < RK4_ANGLE_TOL
+
+
+def test_the_output_rate_never_limits_the_step():
+    """A fixed step is not cut to land on the output times (ceil(T_END / h) steps); error-controlled
+    steps grow beyond the output interval, and a tighter rtol takes more of them (before the
+    dense output, rtol 1e-3 and 1e-4 gave identical runs capped at the output interval)."""
+    k = np.arange(round(T_END * RATE) + 1)
+    for method in ("genalpha", "rk4"):
+        assert run(dict(h=3e-4, method=method))[0].stats["steps"] == math.ceil(T_END / 3e-4)
+    steps = {}
+    for method, rtol in (("genalpha", 1e-3), ("genalpha", 1e-4), ("rk45", 1e-3), ("dop853", 1e-3)):
+        r, _ = run(dict(h=1e-3, method=method, rtol=rtol))
+        assert r.stats["h_max"] > 2 / RATE, (method, r.stats["h_max"])
+        assert np.max(np.abs(r.t - k / RATE)) <= OUTPUT_TIME_TOL
+        steps[method, rtol] = r.stats["steps"]
+    assert steps["genalpha", 1e-4] > steps["genalpha", 1e-3]
