@@ -132,22 +132,26 @@ def coarse_dofs(owned: list[np.ndarray], boundary) -> np.ndarray:
     return np.union1d(np.flatnonzero(count > 1), np.asarray(boundary, dtype=np.int64))
 
 
-def part_models(mesh, material, labels: np.ndarray, im, boundary) -> tuple[list[PartModel], np.ndarray]:
+def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) -> tuple[list[PartModel], np.ndarray]:
     """Each part's model matrices (T^T K_p T restricted to its DOFs, K_p from its cells) and the
-    coarse DOFs G; ``boundary`` the monolithic reduction's boundary DOFs (model indices)."""
+    coarse DOFs G; ``boundary`` the monolithic reduction's boundary DOFs (model indices).
+    ``material`` : one Material, or one per part (an assembly's components); ``names`` : one per
+    part (default "part k/N")."""
 
     n = int(labels.max()) + 1
+    materials = list(material) if isinstance(material, (list, tuple)) else [material] * n
+    names = names or [f"part {p + 1}/{n}" for p in range(n)]
     cells = [mesh.cells[labels == p] for p in range(n)]
     owned = [part_dofs(im, c) for c in cells]
     G = coarse_dofs(owned, boundary)
     parts = []
-    for p, (c, dofs) in enumerate(zip(cells, owned)):
+    for c, dofs, mat, name in zip(cells, owned, materials, names):
         sub = replace(mesh, cells=c)
         T = im.T[:, dofs]
-        K = (T.T @ (stiffness_matrix(sub, material) @ T)).tocsr()
-        M = (T.T @ (vector_mass(scalar_mass_matrix(sub, material.rho)) @ T)).tocsr()
+        K = (T.T @ (stiffness_matrix(sub, mat) @ T)).tocsr()
+        M = (T.T @ (vector_mass(scalar_mass_matrix(sub, mat.rho)) @ T)).tocsr()
         x = mesh.points[np.unique(c)]
-        parts.append(PartModel(f"part {p + 1}/{n}", dofs, K, M, np.flatnonzero(np.isin(dofs, G)), np.ptp(x, axis=0)))
+        parts.append(PartModel(name, dofs, K, M, np.flatnonzero(np.isin(dofs, G)), np.ptp(x, axis=0)))
     return parts, G
 
 
