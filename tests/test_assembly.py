@@ -1,7 +1,7 @@
 """Assemblies of components (``sidprep reduce ASSEMBLY.toml``: sidprep.jobs.assembly, sidprep.fe.joined,
 sidprep.fe.ties).
 
-Independent references: the monolithic reduction of the same geometry as ONE mesh (shared joins:
+Independent references: CalculiX's own element matrices of a component (ccx); the monolithic reduction of the same geometry as ONE mesh (shared joins:
 frequencies within 1e-4, mass properties within 1e-10, issue 28); the spread of two monolithic meshes
 of the sizes of the tied halves (tied joins); the closed-form mass and centre of mass of a bar of two
 materials; the triangle shape functions' exact reproduction of linear fields (the ties' weights).
@@ -10,6 +10,7 @@ materials; the triangle shape functions' exact reproduction of linear fields (th
 import importlib.util
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -20,6 +21,8 @@ from readme_numbers import check_numbers
 
 from sidprep.errors import InputError
 from sidprep.fe.material import builtin_material
+from sidprep.fe.matrices.calculix import tet_deck
+from sidprep.fe.mesh import read_mesh
 from sidprep.fe.ties import tie_to_faces
 from sidprep.jobs.assembly import reduce_assembly
 from sidprep.jobs.jobfile import read_job
@@ -193,3 +196,29 @@ def test_cli_reduces_the_example_as_its_readme_says_and_exits_2_on_a_bad_assembl
                           str(tmp_path / "bad.sid.h5")], capture_output=True, text=True, env=env, timeout=120)
     assert run.returncode == 2 and "matches no nodes" in run.stderr and len(run.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad.sid.h5").exists()
+
+
+#: a component from CalculiX's own C3D10 matrices vs the same mesh assembled by sidprep: mass to
+#: 1e-8 (ccx's 13-digit files); frequencies to 1e-4 (CalculiX's C3D10 mass quadrature differs from the
+#: exact one by ~3e-5: tests/test_import_calculix.py, issue 25)
+CCX_MASS_RTOL = 1e-8
+CCX_FREQUENCY_RTOL = 1e-4
+
+
+@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed: apt-get install calculix-ccx")
+def test_a_component_from_calculix_matrices_gives_the_assembly_of_its_mesh(meshes, tmp_path):
+    deck = tmp_path / "right.inp"
+    tet_deck(read_mesh(meshes / "right.msh"), deck, builtin_material("steel"))
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1", "CCX_NPROC_EQUATION_SOLVER": "1"}
+    done = subprocess.run(["ccx", deck.stem], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and "*ERROR" not in done.stdout, done.stdout[-2000:]
+    (tmp_path / "left.msh").write_bytes((meshes / "left.msh").read_bytes())
+    own = reduce_assembly(read_job(job_file(meshes, HALVES, SHARED, "modes = 4")), workers=2)
+    job = job_file(tmp_path, HALVES, SHARED, "modes = 4").read_text().replace(
+        'mesh = "right.msh"', 'mesh = "right.inp"\nmatrices = "right.sti"')
+    (tmp_path / "ccx.toml").write_text(job)
+    ccx = reduce_assembly(read_job(tmp_path / "ccx.toml"), workers=2)
+    assert abs(ccx.sid.mass / own.sid.mass - 1) < CCX_MASS_RTOL
+    np.testing.assert_allclose(eigen(ccx), eigen(own), rtol=CCX_FREQUENCY_RTOL)
+    assert ccx.passed and any("right: stiffness and mass: " in n for n in ccx.notes)
+    assert ccx.sid.metadata["material"][1]["name"].startswith("none: K and M from")

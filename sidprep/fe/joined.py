@@ -20,7 +20,7 @@ import hashlib
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
@@ -139,9 +139,9 @@ def shared_pairs(points: np.ndarray, a: np.ndarray, b: np.ndarray, tol: float, w
     return np.stack([b, near_a], axis=1)
 
 
-def merged(mesh: FEMesh, pairs: np.ndarray) -> FEMesh:
+def merged(mesh: FEMesh, pairs: np.ndarray) -> tuple[FEMesh, np.ndarray]:
     """Every pair of nodes (chains too) made one node: the lowest index of each group, nodes renumbered
-    in their order."""
+    in their order; and (n,) the new node of every old one."""
 
     n = mesh.n_nodes
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
@@ -154,7 +154,7 @@ def merged(mesh: FEMesh, pairs: np.ndarray) -> FEMesh:
     to = new[first[group]]                                # old node -> new node
     sets = {k: np.unique(to[v]) for k, v in mesh.node_sets.items()}
     return FEMesh(points=mesh.points[keep], cells=to[mesh.cells], node_ids=mesh.node_ids[keep], node_sets=sets,
-                  cell_sets=mesh.cell_sets, source=mesh.source, sha256=mesh.sha256, notes=mesh.notes)
+                  cell_sets=mesh.cell_sets, source=mesh.source, sha256=mesh.sha256, notes=mesh.notes), to
 
 
 def tied_nodes(mesh: FEMesh, labels: np.ndarray, master: int, slaves: np.ndarray, masters: np.ndarray,
@@ -179,6 +179,14 @@ def tied_nodes(mesh: FEMesh, labels: np.ndarray, master: int, slaves: np.ndarray
     return ties
 
 
+def embedded(A, nodes: np.ndarray, n_nodes: int, per_node: int = 3):
+    """A component's matrix A (per_node n_c square) on the joined mesh's DOFs (per_node n_nodes square),
+    its node i being joined node ``nodes[i]`` (merged nodes add up)."""
+    rows = (per_node * np.asarray(nodes)[:, None] + np.arange(per_node)).ravel()
+    P = csr_matrix((np.ones(len(rows)), (rows, np.arange(len(rows)))), shape=(per_node * n_nodes, len(rows)))
+    return (P @ A @ P.T).tocsr()
+
+
 def check_connected(names: list[str], edges: list[tuple[int, int]], source) -> None:
     """Every component joined to the first, directly or through others (a floating component would
     add rigid-body motions of its own to one body)."""
@@ -192,11 +200,13 @@ def check_connected(names: list[str], edges: list[tuple[int, int]], source) -> N
 
 
 def joined_mesh(meshes: list[FEMesh], names: list[str], joins: list[Join], source,
-                length_to_m: float = 1.0) -> tuple[FEMesh, np.ndarray]:
-    """One FEMesh of the joined components (module docstring) and (ne,) the component of every cell;
-    join tolerances are in the job's length units (``length_to_m`` m each)."""
+                length_to_m: float = 1.0) -> tuple[FEMesh, np.ndarray, list[np.ndarray]]:
+    """One FEMesh of the joined components (module docstring), (ne,) the component of every cell and
+    per component (n_c,) the joined mesh's node of each of its nodes; join tolerances are in the
+    job's length units (``length_to_m`` m each)."""
 
     mesh, labels = stacked(meshes, names)
+    to = np.arange(mesh.n_nodes)
     diagonal = float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
     resolved, edges = [], []
     for k, join in enumerate(joins):
@@ -211,9 +221,9 @@ def joined_mesh(meshes: list[FEMesh], names: list[str], joins: list[Join], sourc
     check_connected(names, edges, source)
     shared = [shared_pairs(mesh.points, a, b, tol, where) for join, where, a, b, _, tol in resolved if join.nodes]
     if shared:
-        mesh = merged(mesh, np.vstack(shared))
+        mesh, to = merged(mesh, np.vstack(shared))
     ties = [tied_nodes(mesh, labels, cb, mesh.node_sets[join.tied], mesh.node_sets[join.to], tol, where)
             for join, where, _, _, cb, tol in resolved if join.nodes is None]
     return FEMesh(points=mesh.points, cells=mesh.cells, node_ids=mesh.node_ids, node_sets=mesh.node_sets,
                   cell_sets=mesh.cell_sets, source=str(source), sha256=mesh.sha256, notes=mesh.notes,
-                  ties=Ties.joined(ties)), labels
+                  ties=Ties.joined(ties)), labels, np.split(to, np.cumsum([m.n_nodes for m in meshes])[:-1])

@@ -19,8 +19,10 @@ from sidprep.tables import checked_table, read_toml
 @dataclass(frozen=True)
 class Component:
     """One component of an assembly: its ``name`` (node sets are "NAME.SET"), its ``mesh`` (path),
-    its material (a name, or E, nu, rho in the job's units; default the job's) and ``size`` (the
-    element size when the mesh is a geometry file; default the job's)."""
+    its material (a name, or E, nu, rho in the job's units; default the job's), ``size`` (the
+    element size when the mesh is a geometry file; default the job's) and ``matrices``: K and M
+    written by another FE code for that mesh (a tetrahedral deck; sidprep.fe.matrices), instead of
+    the material."""
 
     name: str
     mesh: str
@@ -29,6 +31,7 @@ class Component:
     nu: float | None = None
     rho: float | None = None
     size: float | None = None
+    matrices: str | None = None
 
 
 @dataclass(frozen=True)
@@ -101,9 +104,8 @@ def read_job(path) -> Job:
 
 
 #: job-file keys that an assembly takes from its components instead
-NOT_IN_ASSEMBLIES = {"mesh": "give each [[component]] its mesh", "matrices": "imported matrices are not supported "
-                     "in assemblies yet: reduce that model on its own", "parts": "an assembly's parts are its "
-                     "components"}
+NOT_IN_ASSEMBLIES = {"mesh": "give each [[component]] its mesh", "matrices": "give the [[component]] whose K "
+                     "and M another FE code wrote its matrices", "parts": "an assembly's parts are its components"}
 
 
 def read_assembly(path: Path, doc: dict) -> Job:
@@ -124,11 +126,15 @@ def read_assembly(path: Path, doc: dict) -> Job:
         if not c.name or "." in c.name or c.name in {x.name for x in comps}:
             raise InputError(f"{path}: [[component]] {k + 1}: name = {c.name!r}: give each component a unique name "
                              "without '.' (its node sets are NAME.SET)")
-        mesh = (path.parent / c.mesh).resolve()
-        if not mesh.is_file():
-            raise InputError(f"{path}: [[component]] {c.name}: mesh {c.mesh} not found (looked for {mesh}); check the "
-                             "path (relative to the job file)")
-        comps.append(Component(**{**vars(c), "mesh": str(mesh)}))
+        files = {}
+        for key in ("mesh", "matrices"):
+            if getattr(c, key) is None:
+                continue
+            files[key] = (path.parent / getattr(c, key)).resolve()
+            if not files[key].is_file():
+                raise InputError(f"{path}: [[component]] {c.name}: {key} {getattr(c, key)} not found (looked for "
+                                 f"{files[key]}); check the path (relative to the job file)")
+        comps.append(Component(**{**vars(c), **{k: str(v) for k, v in files.items()}}))
     js = []
     for k, table in enumerate(joins):
         j = Join(**checked_table(table, Join, path, context=f"[[join]] {k + 1}"))
