@@ -108,8 +108,6 @@ def run(args) -> int:
     ph = Phases(verbose=not args.quiet)
     with cli_flags():
         job = job_from_args(args)
-        if job.components and job.options.parts:
-            raise InputError(f"--parts: {job.mesh} is an assembly, whose parts are its components; drop --parts")
         if (args.scheduler or args.workers) and not (job.options.parts or job.components):
             raise InputError("--scheduler and --workers apply to a reduction in parts; add --parts N")
         paths = output_paths(job.mesh, job.output)

@@ -13,6 +13,7 @@ import os
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -222,3 +223,13 @@ def test_a_component_from_calculix_matrices_gives_the_assembly_of_its_mesh(meshe
     np.testing.assert_allclose(eigen(ccx), eigen(own), rtol=CCX_FREQUENCY_RTOL)
     assert ccx.passed and any("right: stiffness and mass: " in n for n in ccx.notes)
     assert ccx.sid.metadata["material"][1]["name"].startswith("none: K and M from")
+
+
+def test_parts_and_matrices_of_a_single_mesh_do_not_apply_to_an_assembly(meshes):
+    path = job_file(meshes, HALVES, SHARED, "parts = 2", name="parts.toml")
+    with pytest.raises(InputError, match=r"parts = \.\.\. does not apply to an assembly"):
+        read_job(path)
+    job = read_job(job_file(meshes, HALVES, SHARED))
+    for options in (ReduceOptions(parts=2), ReduceOptions(matrices="k.sti")):
+        with pytest.raises(InputError, match=r"does not apply to an assembly"):
+            reduce_assembly(replace(job, options=options))

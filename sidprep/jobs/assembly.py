@@ -24,10 +24,11 @@ from sidprep.fe.joined import embedded, joined_mesh
 from sidprep.fe.linalg import single_threaded_blas
 from sidprep.fe.material import unit_system
 from sidprep.fe.matrices.onto_model import imported_model
+from sidprep.jobs.jobfile import NOT_IN_ASSEMBLIES
 from sidprep.jobs.options import check_reduce_options, material_given
 from sidprep.jobs.parts import PartsSettings, parts_reducer
 from sidprep.jobs.reduce import (FEModel, ReductionResult, check_mode_count, check_parts_held, default_interfaces,
-    interface_from_spec, load_mesh, model_material, reduce_model)
+    interface_from_spec, load_mesh, model_material, reduce_fe_model)
 from sidprep.progress import Phases
 from sidprep.reduction.parts import GivenMatrices, part_fe_matrices
 from sidprep.reduction.paths import located_paths
@@ -86,6 +87,9 @@ def reduce_assembly(job, *, phases=None, scheduler=None, workers: int | None = N
 
     o = job.options
     check_reduce_options(o)
+    for key, value in (("matrices", o.matrices), ("parts", o.parts)):
+        if value:
+            raise InputError(f"{job.mesh}: {key} = {value}: does not apply to an assembly; {NOT_IN_ASSEMBLIES[key]}")
     ph = phases or Phases(verbose=False)
     names = [c.name for c in job.components]
     pairs = [component_material(c, o) for c in job.components]
@@ -119,4 +123,4 @@ def reduce_assembly(job, *, phases=None, scheduler=None, workers: int | None = N
         metadata = [{"component": c.name, **({"name": f"none: K and M from {c.matrices}"} if c.matrices
                                              else m.as_dict())} for c, m in zip(job.components, materials)]
         model = FEModel(mesh, str(job.mesh), assembled, Ms, materials[0], metadata, None, notes, interfaces, paths)
-        return reduce_model(model, o, ph, reducer)
+        return reduce_fe_model(model, o, ph, reducer)

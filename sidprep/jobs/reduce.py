@@ -302,10 +302,10 @@ def model_material(o):
 
 @dataclass(frozen=True)
 class FEModel:
-    """An assembled FE model ready to reduce (what ``reduce_model`` needs).
+    """An assembled FE model ready to reduce (what ``reduce_fe_model`` needs).
 
     mesh : FEMesh (m); source : its name; assembled : {"K", "M"} FE matrices (N/m, kg), popped by
-    ``reduce_model`` so they are freed once projected; Ms : scalar mass matrix (kg); material : the
+    ``reduce_fe_model`` so they are freed once projected; Ms : scalar mass matrix (kg); material : the
     Material of the stresses, the geometric stiffening and the unit plausibility warnings;
     material_metadata : what the SID metadata says of the material(s); imported : the
     sidprep.fe.matrices model when K, M come from another FE code, else None; notes : list of
@@ -353,10 +353,10 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
     reducer = parts_reducer(mesh, material, PartsSettings(o.parts, *cluster), notes) if o.parts else None
     metadata = {"name": f"none: K and M from {o.matrices}"} if o.matrices else material.as_dict()
     model = FEModel(mesh, source, assembled, Ms, material, metadata, imported, notes, interfaces, paths)
-    return reduce_model(model, o, ph, reducer)
+    return reduce_fe_model(model, o, ph, reducer)
 
 
-def reduce_model(model: FEModel, o: ReduceOptions, ph, reducer=None) -> ReductionResult:
+def reduce_fe_model(model: FEModel, o: ReduceOptions, ph, reducer=None) -> ReductionResult:
     """Steps 2-6 of the module docstring for an assembled FE model (``reduce`` and assemblies,
     sidprep.jobs.assembly); ``reducer`` : the Craig-Bampton step in parts (reduce_body)."""
 
