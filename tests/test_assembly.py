@@ -145,6 +145,9 @@ def test_tied_halves_lie_between_a_finer_mesh_and_the_stiffer_of_their_meshes(me
     assert np.all((f >= lo * (1 - TIED_MARGIN_RTOL)) & (f <= hi * (1 + TIED_MARGIN_RTOL))), (f, lo, hi)
     assert_same_mass_properties(tied, coarse)                # the same straight-sided geometry
     assert tied.passed and tied.checks["zero_energy_modes"] == 6     # the tie carries rigid motions exactly
+    centroids = tied.sid.surface.points[tied.sid.surface.triangles].mean(axis=1)
+    on_box = np.isclose(centroids, 0.0) | np.isclose(centroids, example_meshes().BOX)
+    assert on_box.any(axis=1).all()                           # the joint's faces are not on the surface
 
 
 def test_components_of_two_materials_have_the_closed_form_mass(meshes):

@@ -119,3 +119,13 @@ def tie_map(ties: Ties, n_nodes: int) -> sp.csr_matrix:
     vals = np.repeat(ties.weights[:, None, :], 3, axis=1).ravel()
     return sp.csr_matrix((np.r_[np.ones(len(keep)), vals], (np.r_[keep, rows], np.r_[keep, cols])),
                          shape=(n_dof, n_dof))
+
+
+def untied_triangles(triangles: np.ndarray, ties: Ties) -> np.ndarray:
+    """The surface ``triangles`` (nt, 3) without those of the tied joints, now inside the body: the
+    triangles whose nodes are all tied nodes, or all nodes of the faces the tied nodes follow."""
+    tied = np.zeros(int(max(triangles.max(initial=0), ties.masters.max(initial=0), ties.slaves.max(initial=0))) + 1, bool)
+    under = tied.copy()
+    tied[ties.slaves] = True
+    under[ties.masters.ravel()] = True
+    return triangles[~(tied[triangles].all(axis=1) | under[triangles].all(axis=1))]

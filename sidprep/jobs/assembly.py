@@ -23,6 +23,7 @@ from sidprep.fe.assemble import scalar_mass_matrix, vector_mass
 from sidprep.fe.joined import embedded, joined_mesh
 from sidprep.fe.linalg import single_threaded_blas
 from sidprep.fe.material import unit_system
+from sidprep.fe.ties import untied_triangles
 from sidprep.fe.matrices.onto_model import imported_model
 from sidprep.jobs.jobfile import NOT_IN_ASSEMBLIES
 from sidprep.jobs.options import check_reduce_options, material_given
@@ -30,6 +31,7 @@ from sidprep.jobs.parts import PartsSettings, parts_reducer
 from sidprep.jobs.reduce import (FEModel, ReductionResult, check_mode_count, check_parts_held, default_interfaces,
     interface_from_spec, load_mesh, model_material, reduce_fe_model)
 from sidprep.progress import Phases
+from sidprep.reduction.interfaces import linear_surface_triangles
 from sidprep.reduction.parts import GivenMatrices, part_fe_matrices
 from sidprep.reduction.paths import located_paths
 
@@ -101,6 +103,8 @@ def reduce_assembly(job, *, phases=None, scheduler=None, workers: int | None = N
         read = [read_component(c, o, units, ph) for c in job.components]
         with ph("join", f"{len(job.joins)} join(s) of {len(names)} components"):
             mesh, labels, nodes = joined_mesh([m for m, _ in read], names, list(job.joins), job.mesh, units.length_to_m)
+        if mesh.ties is not None:                         # the tied joints' faces are inside the body
+            mesh = replace(mesh, surface=untied_triangles(linear_surface_triangles(mesh), mesh.ties))
         imported = [i for _, i in read]
         del read
         notes = list(mesh.notes) + notes + [f"{c.name}: stiffness and mass: {c.matrices} ({i.fmt}); material not used"
