@@ -28,7 +28,10 @@ from sidprep.fe.ties import tie_to_faces
 from sidprep.jobs.assembly import reduce_assembly
 from sidprep.jobs.jobfile import read_job
 from sidprep.jobs.options import ReduceOptions
+from sidprep.jobs.parts import check_parts_fit
 from sidprep.jobs.reduce import reduce
+from sidprep.reduction.interfaces import interface_model
+from sidprep.reduction.parts import part_models
 from sidprep.sid.io import read_sid
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -240,3 +243,13 @@ def test_parts_and_matrices_of_a_single_mesh_do_not_apply_to_an_assembly(meshes)
     for options in (ReduceOptions(parts=2), ReduceOptions(matrices="k.sti")):
         with pytest.raises(InputError, match=r"does not apply to an assembly"):
             reduce_assembly(replace(job, options=options))
+
+
+def test_a_component_that_does_not_fit_a_worker_is_named_before_it_starts():
+    mesh = read_mesh(EXAMPLE / "bar.msh")
+    im = interface_model(mesh.n_nodes, [], mesh.points)
+    labels = (mesh.points[mesh.cells[:, :4]].mean(axis=1)[:, 0] > example_meshes().JOINT_X).astype(np.int64)
+    parts, _ = part_models(mesh, builtin_material("steel"), labels, im, np.zeros(0, np.int64), ["left", "right"])
+    with pytest.raises(InputError, match=r"^components = 2: (left|right) \(\d+ of 4323 DOF\) needs ~.* GB, a worker has "
+                                         r"0.00 GB; split it into smaller components"):
+        check_parts_fit(parts, mesh.n_dof, 1e3, components=True)
