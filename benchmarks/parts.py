@@ -6,7 +6,8 @@ modes + FRMs, all checks), meshed once to a binary .msh for the DOF target; then
 ``sidprep reduce MESH`` and ``sidprep reduce MESH --parts P --workers W``, each in a fresh process
 with one BLAS thread.  Columns: wall time (median), the driver's peak RSS (the JSON summary's
 peak_memory_mb), the largest worker peak (the parts note), the largest relative difference of the
-eigen-mode frequencies to the monolithic run, and whether the checks passed.  The machine is
+eigen-mode frequencies to the monolithic run, and whether the checks passed; then each variant's
+wall time per phase (the last run).  The machine is
 shared: quote the ratios measured side by side.
 
     python benchmarks/parts.py --dof 200000 --parts 8 --workers 2
@@ -41,7 +42,7 @@ def run(mesh: Path, work: Path, parts: int | None, workers: int) -> dict:
     eigen = [f for f, k in zip(read_frequencies(work / "out.sid.h5"), summary["kinds"]) if k == "eigen"]
     return {"wall_s": wall, "driver_mb": summary["peak_memory_mb"], "tree_mb": rss,
             "worker_mb": float(worker.group(1)) if worker else None, "passed": summary["checks"]["passed"],
-            "dof": summary["dof"], "eigen_hz": eigen, "note": note}
+            "dof": summary["dof"], "eigen_hz": eigen, "note": note, "phases": summary["timings_s"]}
 
 
 def read_frequencies(path: Path) -> list[float]:
@@ -78,6 +79,8 @@ def main(argv=None) -> int:
               f"| {statistics.median(r['wall_s'] for r in rs):.1f} | {max(r['driver_mb'] for r in rs):.0f} "
               f"| {worker:.0f} | {diff:.1e} | {'passed' if all(r['passed'] for r in rs) else 'FAILED'} |")
     for parts, rs in rows.items():
+        phases = ", ".join(f"{k} {v:.1f}" for k, v in rs[-1]["phases"].items())
+        print(f"{'monolithic' if parts is None else f'parts {parts}'}: wall s per phase: {phases}")
         if parts:
             print(f"parts {parts}: {rs[-1]['note']}")
     return 0

@@ -67,8 +67,10 @@ def register(subparsers) -> None:
     p.add_argument("--parts", type=int, metavar="N",
                    help="reduce the model in N parts (component mode synthesis: each part a task, docs/scale.md)")
     p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="with --parts: run the parts on this Dask scheduler (tcp://host:port); default a local pool")
-    p.add_argument("--workers", type=int, metavar="N", help="with --parts: local worker processes (default: cores)")
+                   help="with --parts or an assembly: run the parts on this Dask scheduler (tcp://host:port); "
+                        "default a local pool")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="with --parts or an assembly: local worker processes (default: cores)")
     p.add_argument("--json", action="store_true", default=None, help="print a JSON summary on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
@@ -98,6 +100,7 @@ def run(args) -> int:
     from sidprep.cli.options import cli_flags, quiet_native_output
     from sidprep.errors import InputError
     from sidprep.reduction.fe_checks import format_checks
+    from sidprep.jobs.assembly import reduce_assembly
     from sidprep.jobs.reduce import reduce
     from sidprep.jobs.output import output_paths, write_reduction
     from sidprep.progress import Phases
@@ -105,11 +108,14 @@ def run(args) -> int:
     ph = Phases(verbose=not args.quiet)
     with cli_flags():
         job = job_from_args(args)
-        if (args.scheduler or args.workers) and not job.options.parts:
+        if (args.scheduler or args.workers) and not (job.options.parts or job.components):
             raise InputError("--scheduler and --workers apply to a reduction in parts; add --parts N")
         paths = output_paths(job.mesh, job.output)
         with quiet_native_output():
-            result = reduce(job.mesh, job.options, phases=ph, scheduler=args.scheduler, workers=args.workers)
+            if job.components:
+                result = reduce_assembly(job, phases=ph, scheduler=args.scheduler, workers=args.workers)
+            else:
+                result = reduce(job.mesh, job.options, phases=ph, scheduler=args.scheduler, workers=args.workers)
     if not args.quiet:
         for note in result.notes:
             print(f"note: {note}", file=sys.stderr)

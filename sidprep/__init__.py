@@ -13,6 +13,7 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     read_mesh(path, size=None, order=2, units="si") -> FEMesh
     modal_analysis(mesh_or_path, ModalOptions(...)) -> ModalResult
     reduce_model(mesh_or_path, ReduceOptions(...)) -> ReductionResult (.sid, .checks, .notes)
+    reduce_assembly(read_job("assembly.toml")) -> ReductionResult   (components joined: docs/scale.md)
     read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
     sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks: ``sidprep info``)
     run_batch(jobs, BatchOptions(...)) -> BatchReport
@@ -27,7 +28,8 @@ __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "reduce", "read_sid", "write_sid",
            "sid_info", "run_batch", "beam", "load_scene", "simulate", "recover_stress",
-           "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "BeamOptions", "Job"]
+           "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "BeamOptions", "Job",
+           "read_job", "reduce_assembly"]
 
 #: names resolved on first use (module, attribute): keeps ``import sidprep`` and ``sidprep --help`` fast
 _LAZY = {
@@ -36,6 +38,8 @@ _LAZY = {
     "OutputOptions": ("sidprep.jobs.options", "OutputOptions"),
     "BatchOptions": ("sidprep.jobs.batch", "BatchOptions"),
     "Job": ("sidprep.jobs.jobfile", "Job"),
+    "read_job": ("sidprep.jobs.jobfile", "read_job"),                 # job file (one mesh or an assembly) -> Job
+    "reduce_assembly": ("sidprep.jobs.assembly", "reduce_assembly"),  # assembly Job -> ReductionResult
     "sid_info": ("sidprep.sid.summary", "sid_info"),
     "BeamOptions": ("sidprep.reduction.beam", "BeamOptions"),
     "beam": ("sidprep.reduction.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)

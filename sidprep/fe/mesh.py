@@ -59,6 +59,9 @@ class FEMesh:
     surface : (nt, 3) int64 or None
         Outer-surface triangles given by the model (imported decks of other elements,
         sidprep.fe.matrices.deck); None: the boundary faces of ``cells``.
+    ties : sidprep.fe.ties.Ties or None
+        Multipoint constraints of tied surfaces (assemblies, sidprep.jobs.assembly): nodes whose
+        displacement is interpolated from other nodes; None: no constraint.
     """
 
     points: np.ndarray
@@ -71,6 +74,7 @@ class FEMesh:
     notes: tuple[str, ...] = ()
     length_unit: str = "m"
     surface: np.ndarray | None = None
+    ties: object = None
 
     @property
     def order(self) -> int:
@@ -804,21 +808,27 @@ def boundary_faces(mesh: FEMesh) -> np.ndarray:
     return _corner_faces(mesh.cells, _boundary_face_rows(mesh.cells))
 
 
-def surface_node_indices(mesh: FEMesh) -> np.ndarray:
-    """Sorted indices of all nodes on the outer surface (corner and, for tet10, mid-edge nodes)."""
-    rows = _boundary_face_rows(mesh.cells)
+def boundary_face_nodes(cells: np.ndarray) -> np.ndarray:
+    """(nf, 3) or (nf, 6) nodes of the faces that belong to one cell only: the corners (outward
+    order, ``TET_FACES``), then for tet10 the mid-edge nodes of the edges (0,1), (1,2), (2,0)."""
+    rows = _boundary_face_rows(cells)
     local = TET_FACES[rows % 4]
-    if mesh.order == 2:
+    if cells.shape[1] == 10:
         edge_node = {frozenset(e): 4 + k for k, e in enumerate(TET10_EDGES)}
         face_mids = np.array(
             [[edge_node[frozenset((f[i], f[(i + 1) % 3]))] for i in range(3)] for f in TET_FACES]
         )
         local = np.hstack([local, face_mids[rows % 4]])
-    return np.unique(np.take_along_axis(mesh.cells[rows // 4], local, axis=1))
+    return np.take_along_axis(cells[rows // 4], local, axis=1)
+
+
+def surface_node_indices(mesh: FEMesh) -> np.ndarray:
+    """Sorted indices of all nodes on the outer surface (corner and, for tet10, mid-edge nodes)."""
+    return np.unique(boundary_face_nodes(mesh.cells))
 
 
 def connected_parts(mesh: FEMesh) -> tuple[int, np.ndarray]:
-    """Connected components of the mesh.
+    """Connected components of the mesh (through shared nodes of cells and the ties' constraints).
 
     Returns
     -------
@@ -830,6 +840,9 @@ def connected_parts(mesh: FEMesh) -> tuple[int, np.ndarray]:
     c = mesh.cells
     rows = np.repeat(c[:, 0], c.shape[1] - 1)
     cols = c[:, 1:].ravel()
+    if mesh.ties is not None:                            # a tied node hangs on its master face's nodes
+        rows = np.r_[rows, np.repeat(mesh.ties.slaves, mesh.ties.masters.shape[1])]
+        cols = np.r_[cols, mesh.ties.masters.ravel()]
     n = mesh.n_nodes
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
     n_parts, labels = connected_components(graph, directed=False)

@@ -66,9 +66,10 @@ def worker_memory_bytes(pool) -> float:
     return available_memory_bytes() / max(pool.workers, 1)
 
 
-def check_parts_fit(parts, n_dof: int, memory: float) -> None:
+def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) -> None:
     """InputError before any part starts when a part's estimated reduction peak exceeds ``memory``
-    (bytes, one worker), naming the ``parts`` that would fit."""
+    (bytes, one worker), naming the ``parts`` that would fit (``components``: an assembly's, whose
+    split is the user's)."""
 
     need = [reduction_peak_bytes(len(p.dofs), p.K.nnz, p.extent) for p in parts]
     worst = int(np.argmax(need))
@@ -80,9 +81,11 @@ def check_parts_fit(parts, n_dof: int, memory: float) -> None:
                  if reduction_peak_bytes(size * n // m, None, parts[worst].extent * (n / m) ** (1 / 3))
                  <= MEMORY_HEADROOM * memory), None)
     advice = f"use --parts {fits} or more (or workers with more memory)" if fits else "use workers with more memory"
+    if components:
+        advice = "split it into smaller components (or use workers with more memory)"
     gb = 1024.0 ** 3
-    raise InputError(f"parts = {n}: {parts[worst].name} ({size} of {n_dof} DOF) needs ~{need[worst] / gb:.2f} GB, "
-                     f"a worker has {memory / gb:.2f} GB; {advice}")
+    raise InputError(f"{'components' if components else 'parts'} = {n}: {parts[worst].name} ({size} of {n_dof} DOF) "
+                     f"needs ~{need[worst] / gb:.2f} GB, a worker has {memory / gb:.2f} GB; {advice}")
 
 
 def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: dict, results: dict) -> None:
@@ -172,26 +175,29 @@ def sent_mb(items) -> float:
     return sum(a.nbytes for a in arrays) / 2.0**20
 
 
-def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None):
+def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None, components=None):
     """The Craig-Bampton step of sidprep.jobs.reduce.reduce_body done in parts: a function
     (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel; ``notes`` gets one line on
-    the parts (sizes, modes, peak memory of the workers)."""
+    the parts (sizes, modes, peak memory of the workers).  ``components`` : (labels (ne,), names) of
+    an assembly's components (sidprep.jobs.assembly) as the parts, ``material`` then one per
+    component; default a METIS partition into ``settings.n_parts``."""
 
-    labels = partition_cells(mesh.cells, settings.n_parts)
+    labels, names = components if components is not None else (partition_cells(mesh.cells, settings.n_parts), None)
 
     def reducer(im, K_model, M_model, boundary, n_modes=None, fmax=None):
 
-        parts, coarse = part_models(mesh, material, labels, im, boundary)
+        parts, coarse = part_models(mesh, material, labels, im, boundary, names)
         pools = [task_pool(settings.scheduler, settings.workers)]
         try:
             memory = worker_memory_bytes(pools[0])
-            check_parts_fit(parts, mesh.n_dof, memory)
+            check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
             ordered, assembly, level2 = reduce_parts(pools, settings, parts, coarse, boundary, memory,
                                                      n_modes, fmax)
         finally:
             pools[0].close()
         if notes is not None:
-            notes.append(f"reduced in {len(parts)} parts of {min(len(p.dofs) for p in parts)}-"
+            notes.append(f"reduced in {len(parts)} {'components' if names else 'parts'} of "
+                         f"{min(len(p.dofs) for p in parts)}-"
                          f"{max(len(p.dofs) for p in parts)} DOF, {len(coarse)} coarse DOF, "
                          f"{sum(len(r.frequencies_hz) for r in ordered)} part modes up to "
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "

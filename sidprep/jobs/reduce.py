@@ -38,7 +38,7 @@ from sidprep.progress import Phases, peak_memory_mb
 from sidprep.reduction.craig_bampton import craig_bampton
 from sidprep.reduction.fe_checks import STATIC_CHECK_TOL, fe_checks, structured_checks
 from sidprep.reduction.interfaces import (KINDS, SELECTIONS, SELECTORS, check_patch, interface_model,
-    linear_surface_triangles, make_interface, rigid_modes_model, select_patch)
+    linear_surface_triangles, make_interface, rigid_modes_model, select_patch, tied_interface_model)
 from sidprep.reduction.modes import modal_basis, modal_damping, mode_labels
 from sidprep.reduction.paths import fe_path, located_paths
 from sidprep.reduction.stiffening import stiffening_parts, support_dofs
@@ -166,7 +166,7 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
     if frame != "free" and frame not in names:
         raise InputError(f"frame = {frame!r}: no such interface; valid: free, {', '.join(names) or '(no interfaces)'}")
     with ph("interfaces", f"{len(interfaces)} master node(s)"):
-        im = interface_model(mesh.n_nodes, interfaces, mesh.points)
+        im = tied_interface_model(interface_model(mesh.n_nodes, interfaces, mesh.points), mesh.ties)
         K_model, M_model = im.project(K_fe), im.project(M_fe)
         del K_fe, M_fe                            # freed here unless the caller keeps them (peak memory)
         rigid = rigid_modes_model(im, mesh.points)
@@ -300,6 +300,30 @@ def model_material(o):
                f"rho = {m.rho:g} kg/m^3); set material or E, nu, rho"]
 
 
+@dataclass(frozen=True)
+class FEModel:
+    """An assembled FE model ready to reduce (what ``reduce_fe_model`` needs).
+
+    mesh : FEMesh (m); source : its name; assembled : {"K", "M"} FE matrices (N/m, kg), popped by
+    ``reduce_fe_model`` so they are freed once projected; Ms : scalar mass matrix (kg); material : the
+    Material of the stresses, the geometric stiffening and the unit plausibility warnings;
+    material_metadata : what the SID metadata says of the material(s); imported : the
+    sidprep.fe.matrices model when K, M come from another FE code, else None; notes : list of
+    advice lines (appended to); interfaces : Interface list; paths : located load paths.
+    """
+
+    mesh: FEMesh
+    source: str
+    assembled: dict
+    Ms: object
+    material: object
+    material_metadata: object
+    imported: object
+    notes: list
+    interfaces: list
+    paths: list
+
+
 def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> ReductionResult:
 
     ph = phases or Phases(verbose=False)
@@ -310,6 +334,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
     paths = located_paths(mesh, o.paths, units.length_to_m)
     interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
     check_mode_count(o, mesh.n_dof, len(interfaces))
+    imported = None
     if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
         with ph("import", str(o.matrices)):
             imported = imported_model(mesh, o.matrices, units, len(interfaces))
@@ -325,32 +350,42 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
             Ms = scalar_mass_matrix(mesh, material.rho, pattern)
             assembled["M"] = vector_mass(Ms)
             del pattern
+    reducer = parts_reducer(mesh, material, PartsSettings(o.parts, *cluster), notes) if o.parts else None
+    metadata = {"name": f"none: K and M from {o.matrices}"} if o.matrices else material.as_dict()
+    model = FEModel(mesh, source, assembled, Ms, material, metadata, imported, notes, interfaces, paths)
+    return reduce_fe_model(model, o, ph, reducer)
+
+
+def reduce_fe_model(model: FEModel, o: ReduceOptions, ph, reducer=None) -> ReductionResult:
+    """Steps 2-6 of the module docstring for an assembled FE model (``reduce`` and assemblies,
+    sidprep.jobs.assembly); ``reducer`` : the Craig-Bampton step in parts (reduce_body)."""
+
+    mesh, material, imported, notes = model.mesh, model.material, model.imported, model.notes
     load_nodes = np.unique(np.concatenate([np.zeros(0, np.int64)] + [select_patch(mesh, n) for n in o.frm_nodes]))
     # K_fe and M_fe are handed over (popped), so that reduce_body frees them once projected, before
     # the factorisation (peak memory); M_fe is rebuilt from Ms afterwards
-    reducer = parts_reducer(mesh, material, PartsSettings(o.parts, *cluster), notes) if o.parts else None
-    red = reduce_body(mesh, assembled.pop("K"), assembled.pop("M"), interfaces, frame=o.frame, n_modes=o.modes,
-                      fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes, phases=ph,
-                      reducer=reducer)
-    M_fe = imported.M if o.matrices else vector_mass(Ms)
+    red = reduce_body(mesh, model.assembled.pop("K"), model.assembled.pop("M"), model.interfaces, frame=o.frame,
+                      n_modes=o.modes, fmax=o.fmax, frm=o.frm, cutoff_factor=o.cutoff_factor, load_nodes=load_nodes,
+                      phases=ph, reducer=reducer)
+    M_fe = imported.M if imported is not None else vector_mass(model.Ms)
     eigen_hz = [f for f, kind in zip(red.basis.frequencies_hz, red.basis.kinds) if kind == "eigen" and f > 0]
     notes += unit_warnings(mesh.points, material, float(M_fe.sum() / 3.0),
-                           None if o.matrices else min(eigen_hz, default=None))
+                           None if imported is not None else min(eigen_hz, default=None))
     stiff = None
     if o.stiffening:
         with ph("stiffening", "unit load cases"):
             stiff = stiffening_parts(mesh, material, M_fe, red.im, red.static_solve, red.Phi_fe)
-    metadata = {"source": source, "mesh_sha256": mesh.sha256, "notes": notes,
-                "material": {"name": f"none: K and M from {o.matrices}"} if o.matrices else material.as_dict(),
-                "options": {"mesh": source, **asdict(o)},
+    metadata = {"source": model.source, "mesh_sha256": mesh.sha256, "notes": notes,
+                "material": model.material_metadata,
+                "options": {"mesh": model.source, **asdict(o)},
                 "interfaces": [{"name": i.name, "kind": i.kind, "nodes": int(len(i.nodes)),
-                                "master_point_m": i.master_point.tolist()} for i in interfaces],
+                                "master_point_m": i.master_point.tolist()} for i in model.interfaces],
                 "frame": o.frame, "frm_omega_hz": red.basis.frm_omega_hz, "cutoff_hz": red.basis.cutoff_hz,
                 "rejected_frm_hz": red.basis.rejected_frm_hz.tolist(),
                 "fixed_interface_modes": int(len(red.cb.fixed_interface_hz))}
-    sid = build_sid(red, mesh, Ms, damping=o.damping, stiffening=stiff, metadata=metadata)
-    if paths:
-        sid = replace(sid, paths={p.name: fe_path(mesh, red.Phi_fe, p) for p in paths})
+    sid = build_sid(red, mesh, model.Ms, damping=o.damping, stiffening=stiff, metadata=metadata)
+    if model.paths:
+        sid = replace(sid, paths={p.name: fe_path(mesh, red.Phi_fe, p) for p in model.paths})
     if o.stress:
         with ph("stress", f"modal stresses at the {o.stress} nodes"):
             sid = replace(sid, stress=stress_modes(mesh, material, red.Phi_fe, o.stress))
@@ -358,7 +393,7 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
         checks = fe_checks(red, mesh, M_fe, sid, full_frequencies=o.check_frequencies)
         if sid.stress is not None:
             checks.update(stress_check(red, mesh, material, sid.stress))
-        if o.matrices:
+        if imported is not None:
             checks.update(imported_checks(imported, red.basis))
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)
     sid = replace(sid, metadata={**sid.metadata, "notes": notes,

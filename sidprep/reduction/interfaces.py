@@ -26,6 +26,7 @@ import scipy.sparse as sp
 
 from sidprep.errors import InputError
 from sidprep.fe.mesh import TET10_EDGES, boundary_faces
+from sidprep.fe.ties import tie_map
 
 
 KINDS = ("rbe2", "rbe3")
@@ -295,3 +296,26 @@ def rigid_modes_model(im: InterfaceModel, points: np.ndarray) -> np.ndarray:
         R[m[:3]] = rigid_rows(itf.master_point[None])[0]
         R[m[3:], 3:] = np.eye(3)
     return R
+
+
+def tied_interface_model(im: InterfaceModel, ties) -> InterfaceModel:
+    """The interface model with the tied nodes' constraints (sidprep.fe.ties.Ties) imposed:
+    u_FE = S T u_model (sidprep.fe.ties.tie_map), the tied nodes' own columns dropped.  A tied node
+    may be neither in an interface patch nor the master of another tie (one-line InputError)."""
+
+    if ties is None:
+        return im
+    for itf in im.interfaces:
+        clash = np.intersect1d(itf.nodes, ties.slaves)
+        if len(clash):
+            raise InputError(f"interface '{itf.name}' holds {len(clash)} tied node(s) (node indices from "
+                             f"{int(clash[0])}); put the interface on the master side of the tie")
+    if np.isin(ties.masters, ties.slaves).any():
+        raise InputError("ties: a tied node is also a master node of another tie; tie each surface to an "
+                         "untied one (chains of ties are not resolved)")
+    n_nodes = im.T.shape[0] // 3
+    tied_dofs = (3 * ties.slaves[:, None] + np.arange(3)).ravel()
+    keep = ~np.isin(im.retained, tied_dofs)
+    cols = np.r_[np.flatnonzero(keep), np.arange(len(im.retained), im.T.shape[1])]
+    T = (tie_map(ties, n_nodes) @ im.T)[:, cols].tocsr()
+    return InterfaceModel(T, im.master_dofs - int((~keep).sum()), im.retained[keep], im.interfaces)

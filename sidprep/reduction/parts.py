@@ -132,22 +132,43 @@ def coarse_dofs(owned: list[np.ndarray], boundary) -> np.ndarray:
     return np.union1d(np.flatnonzero(count > 1), np.asarray(boundary, dtype=np.int64))
 
 
-def part_models(mesh, material, labels: np.ndarray, im, boundary) -> tuple[list[PartModel], np.ndarray]:
+@dataclass(frozen=True)
+class GivenMatrices:
+    """A part's FE stiffness and mass as given (imported from another FE code, sidprep.fe.matrices)
+    on the whole mesh's DOFs: K (3n, 3n) N/m and M (3n, 3n) kg, csr."""
+
+    K: sp.csr_matrix
+    M: sp.csr_matrix
+
+
+def part_fe_matrices(mesh, cells: np.ndarray, material) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """K, M (3n, 3n) of the part of ``cells``: assembled with ``material``, or GivenMatrices."""
+    if isinstance(material, GivenMatrices):
+        return material.K, material.M
+    sub = replace(mesh, cells=cells)
+    return stiffness_matrix(sub, material), vector_mass(scalar_mass_matrix(sub, material.rho))
+
+
+def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) -> tuple[list[PartModel], np.ndarray]:
     """Each part's model matrices (T^T K_p T restricted to its DOFs, K_p from its cells) and the
-    coarse DOFs G; ``boundary`` the monolithic reduction's boundary DOFs (model indices)."""
+    coarse DOFs G; ``boundary`` the monolithic reduction's boundary DOFs (model indices).
+    ``material`` : one Material, or one per part (an assembly's components: a Material or
+    GivenMatrices); ``names`` : one per part (default "part k/N")."""
 
     n = int(labels.max()) + 1
+    materials = list(material) if isinstance(material, (list, tuple)) else [material] * n
+    names = names or [f"part {p + 1}/{n}" for p in range(n)]
     cells = [mesh.cells[labels == p] for p in range(n)]
     owned = [part_dofs(im, c) for c in cells]
     G = coarse_dofs(owned, boundary)
     parts = []
-    for p, (c, dofs) in enumerate(zip(cells, owned)):
-        sub = replace(mesh, cells=c)
+    for c, dofs, mat, name in zip(cells, owned, materials, names):
         T = im.T[:, dofs]
-        K = (T.T @ (stiffness_matrix(sub, material) @ T)).tocsr()
-        M = (T.T @ (vector_mass(scalar_mass_matrix(sub, material.rho)) @ T)).tocsr()
+        K_fe, M_fe = part_fe_matrices(mesh, c, mat)
+        K = (T.T @ (K_fe @ T)).tocsr()
+        M = (T.T @ (M_fe @ T)).tocsr()
         x = mesh.points[np.unique(c)]
-        parts.append(PartModel(f"part {p + 1}/{n}", dofs, K, M, np.flatnonzero(np.isin(dofs, G)), np.ptp(x, axis=0)))
+        parts.append(PartModel(name, dofs, K, M, np.flatnonzero(np.isin(dofs, G)), np.ptp(x, axis=0)))
     return parts, G
 
 
