@@ -1,94 +1,183 @@
 """From a run's samples to the Result: body histories, marker positions, joint reactions and
-coordinates, energies and the effects report (each sample is evaluated once more with the
-compiled equations)."""
+coordinates, energies and the effects report.
+
+Every output sample is evaluated once more with the compiled equations, all samples in one
+compiled loop (``sample_outputs``; from Python one call of ``evaluate`` costs ~150 us of
+dispatch against ~20 us inside compiled code), into named arrays that ``postprocess`` hands
+out per body, marker and joint.
+"""
 
 from __future__ import annotations
+
+from collections import namedtuple
 
 import numpy as np
 
 from sidprep.solver.effects import build_report, estimate_changes
-from sidprep.solver.equations.assemble import energies, evaluate, every_marker, markers, moving_masses
+from sidprep.solver.equations.assemble import energies, evaluate, every_marker, moving_masses
+from sidprep.solver.equations.rotations import jit, put, tmatvec
+from sidprep.solver.integrators.base import SampleBuffers, advance_pose, expand
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
-from sidprep.solver.stiffening_work import base_layout, stiffening_power
+from sidprep.solver.stiffening_work import RATE_STEP, base_layout, model_power, motion_energy
 
 ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
+
+#: what ``sample_outputs`` needs besides the layouts and the samples: the run's kept rows
+#: ``kept``, the 3D rows ``kept_3d`` (constraint error), the out-of-plane rows ``dropped`` and
+#: coordinates ``fixed`` of a planar run (empty otherwise); per constraint (joints, then
+#: drivers) its first row c_off (nc + 1,), its markers c_marker (nc, 2), the joint whose
+#: coordinate it reports c_joint (nc,; -1: none) and c_driver (nc,; 1: a driver, its effort);
+#: per marker the flexible body whose node load it reports node_body (nmk,; -1: none); and
+#: ``stiffening`` (1: the work of the stiffening terms is booked, L0 their reference layout)
+PostConstants = namedtuple("PostConstants", ["kept", "kept_3d", "dropped", "fixed", "c_off", "c_marker", "c_joint",
+                                             "c_driver", "node_body", "stiffening"])
+#: per output sample (nt): marker positions P (nt, nmk, 3) m; constraint error cerr (nt,);
+#: energy (nt, 4) = kinetic, strain, gravity, spring, J; power (nt,) of the stiffening terms, W;
+#: per constraint force, torque (nt, nc, 3) on body 2, inertial, force_local, torque_local in
+#: marker-1 components, N and N m; coord (nt, nc, 3) = joint coordinate, rate, driver effort
+#: (NaN where none); node_force, node_torque (nt, nmk, 3) applied and reaction loads at node
+#: markers of flexible bodies, body components (zero at other markers)
+SampledOutputs = namedtuple("SampledOutputs", ["P", "cerr", "energy", "power", "force", "torque", "force_local",
+                                               "torque_local", "coord", "node_force", "node_torque"])
+
+
+@jit
+def empty_outputs(nt, nmk, nc):  # pragma: no cover - compiled
+    """SampledOutputs of nt samples, nmk markers, nc constraints (zeros; coord NaN)."""
+    return SampledOutputs(np.zeros((nt, nmk, 3)), np.zeros(nt), np.zeros((nt, 4)), np.zeros(nt),
+                          np.zeros((nt, nc, 3)), np.zeros((nt, nc, 3)), np.zeros((nt, nc, 3)), np.zeros((nt, nc, 3)),
+                          np.full((nt, nc, 3), np.nan), np.zeros((nt, nmk, 3)), np.zeros((nt, nmk, 3)))
+
+
+@jit
+def constraint_outputs(out, k, e, lam, c):  # pragma: no cover - compiled
+    """Sample k of the reactions, joint coordinates and node loads (SampledOutputs out) from the
+    Evaluation e (every marker's kinematics) and the multipliers lam (m_all,) of all rows."""
+    C, AM = e.C, e.kin.AM
+    nmk = AM.shape[0]
+    react = np.zeros((nmk, 6))  # reactions at node markers, inertial
+    for ci in range(c.c_driver.shape[0]):
+        force, torque = np.zeros(3), np.zeros(3)
+        for r in range(c.c_off[ci], c.c_off[ci + 1]):
+            for a in range(3):
+                force[a] -= lam[r] * C[r, 2, a]
+                torque[a] -= lam[r] * C[r, 3, a]
+            for which in range(2):
+                key = c.c_marker[ci, which]
+                if c.node_body[key] >= 0:
+                    for a in range(3):
+                        react[key, a] -= lam[r] * C[r, 2 * which, a]
+                        react[key, 3 + a] -= lam[r] * C[r, 2 * which + 1, a]
+        a1 = AM[c.c_marker[ci, 0]]
+        put(out.force[k, ci], 0, force)
+        put(out.torque[k, ci], 0, torque)
+        put(out.force_local[k, ci], 0, tmatvec(a1, force))
+        put(out.torque_local[k, ci], 0, tmatvec(a1, torque))
+        if c.c_joint[ci] >= 0:
+            out.coord[k, ci, 0], out.coord[k, ci, 1] = e.coords[c.c_joint[ci], 0], e.coords[c.c_joint[ci], 1]
+        if c.c_driver[ci]:
+            out.coord[k, ci, 2] = -lam[c.c_off[ci]]
+    return react
+
+
+@jit
+def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
+    """The SampledOutputs of the samples s (base.SampleBuffers, nt rows) of a run with layout L
+    (every marker active: every_marker), L0 the reference layout of the stiffening work
+    (stiffening_work.base_layout; L when c.stiffening is 0) and the PostConstants c.  (evaluate is
+    called here, not through helpers: every compiled function that calls it compiles its whole
+    call tree once more; docs/performance.md.)"""
+    nt, nmk = s.t.shape[0], L.mk_body.shape[0]
+    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+    out = empty_outputs(nt, nmk, c.c_driver.shape[0])
+    for k in range(nt):
+        R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
+        lam = expand(s.lam[k], c.kept, m_all)
+        if c.fixed.shape[0]:
+            lam = out_of_plane_reactions(evaluate(L, R, A, Q, u, t, lam, refs), ud, lam, c.kept, c.dropped, c.fixed)
+        e = evaluate(L, R, A, Q, u, t, lam, refs)
+        for mk in range(nmk):
+            put(out.P[k, mk], 0, e.kin.P[mk])
+        for r in c.kept_3d:
+            out.cerr[k] = max(out.cerr[k], abs(e.g[r]))
+        kinetic, strain, grav = energies(L, R, A, Q, u, e.M)
+        _, mass_kinetic, mass_potential = moving_masses(L, e.kin, R, A, Q, u, ud, t)
+        out.energy[k, 0], out.energy[k, 1] = kinetic + mass_kinetic, strain
+        out.energy[k, 2], out.energy[k, 3] = grav + mass_potential, e.flows[2]
+        if c.stiffening:  # model power of L minus that of L0 (stiffening_work.py)
+            for which in range(2):
+                Lw = L if which == 0 else L0
+                side = np.zeros(2)
+                for i in range(2):
+                    sign = 1.0 - 2.0 * i
+                    Rs, As, Qs = advance_pose(Lw, R, A, Q, sign * RATE_STEP * u)
+                    es = evaluate(Lw, Rs, As, Qs, u, t + sign * RATE_STEP, lam, refs)
+                    side[i] = motion_energy(Lw, Rs, As, Qs, u, es.M)
+                p = model_power(evaluate(Lw, R, A, Q, u, t, lam, refs), u, lam, side[0], side[1])
+                out.power[k] += p if which == 0 else -p
+        react = constraint_outputs(out, k, e, lam, c)
+        for mk in range(nmk):
+            b = c.node_body[mk]
+            if b >= 0:
+                put(out.node_force[k, mk], 0, tmatvec(A[b], e.loads[mk, :3] + react[mk, :3]))
+                put(out.node_torque[k, mk], 0, tmatvec(A[b], e.loads[mk, 3:] + react[mk, 3:]))
+    return out
+
+
+def post_constants(run, stiffening: bool) -> PostConstants:
+    """The PostConstants of ``run`` (solver.run.Run)."""
+    system, L = run.system, run.L
+    all_markers = system.markers()
+    mindex = {id(m): k for k, m in enumerate(all_markers)}
+    jindex = {id(j): i for i, j in enumerate(system.joints)}
+    constraints = list(system.joints) + list(system.drivers)
+    joint_of = [getattr(c, "joint", c) for c in constraints]
+    flexible = {b.name: i for i, b in enumerate(system.bodies) if b.name in run.choices}
+    fixed = (np.setdiff1d(np.arange(int(L.uoff[-1])), run.free) if run.free.size < L.uoff[-1]
+             else np.zeros(0, np.int64))
+    return PostConstants(
+        np.asarray(run.kept, np.int64), np.asarray(run.kept_3d, np.int64),
+        np.setdiff1d(run.kept_3d, run.kept).astype(np.int64), fixed.astype(np.int64),
+        np.cumsum([0] + [len(c.rows) for c in system.joints] + [1] * len(system.drivers)).astype(np.int64),
+        np.array([[mindex[id(c.marker1)], mindex[id(c.marker2)]] for c in constraints], np.int64).reshape(-1, 2),
+        np.array([jindex[id(j)] if j.coordinate_kind else -1 for j in joint_of], np.int64),
+        np.array([j is not c for j, c in zip(joint_of, constraints)], np.int64),
+        np.array([flexible[m.body.name] if m.node is not None and m.body.name in flexible else -1
+                  for m in all_markers], np.int64),
+        int(stiffening))
 
 
 def postprocess(run, s) -> Result:
     """The Result of ``run`` (solver.run.Run) from its Samples ``s``."""
     system, L = run.system, run.L
-    nt = s.t.size
-    m_all = len(run.names)
-    planar = run.free.size < L.uoff[-1]
-    all_markers = system.markers()
-    constraints = list(system.joints) + list(system.drivers)
+    L0 = base_layout(run)
+    c = post_constants(run, L0 is not None)
+    samples = SampleBuffers(*(np.ascontiguousarray(getattr(s, f)) for f in SampleBuffers._fields))
+    out = sample_outputs(every_marker(L), every_marker(L if L0 is None else L0), samples, c)
     bodies = {}
     for i, b in enumerate(system.bodies):
         u0, u1, q0, q1 = L.uoff[i], L.uoff[i + 1], L.qoff[i], L.qoff[i + 1]
         bodies[b.name] = BodyHistory(b.name, s.R[:, i].copy(), s.A[:, i].copy(), s.u[:, u0:u0 + 3].copy(),
                                      s.u[:, u0 + 3:u0 + 6].copy(), s.Q[:, q0:q1].copy(), s.u[:, u0 + 6:u1].copy(),
                                      s.ud[:, u0:u1].copy())
-    positions = {m.name: np.zeros((nt, 3)) for m in all_markers}
-    joints = {c.name: JointHistory(c.name, getattr(c, "kind", "driver"), *(np.zeros((nt, 3)) for _ in range(4)),
-                                   np.full(nt, np.nan), np.full(nt, np.nan), np.full(nt, np.nan)) for c in constraints}
-    energy = {k: np.zeros(nt) for k in ENERGY_KINDS}
-    cerr = np.zeros(nt)
-    flexible = {name: i for i, name in enumerate(b.name for b in system.bodies) if name in run.choices}
-    node_markers = [(k, m) for k, m in enumerate(all_markers) if m.node is not None and m.body.name in flexible]
-    node_loads = {k: (m, np.zeros((nt, 3)), np.zeros((nt, 3))) for k, m in node_markers}
-    offsets = np.cumsum([0] + [len(c.rows) for c in system.joints] + [1] * len(system.drivers))
-    jindex = {id(j): i for i, j in enumerate(system.joints)}
-    mindex = {id(m): k for k, m in enumerate(all_markers)}
-    L0 = base_layout(run)
-    power = np.zeros(nt)  # of the geometric-stiffening terms, W (stiffening_work.py)
-    every = every_marker(L)
-    for k in range(nt):
-        R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
-        lam = np.zeros(m_all)
-        lam[run.kept] = s.lam[k]
-        if planar:
-            lam = out_of_plane_reactions(L, R, A, Q, u, ud, t, lam, refs, run.free, run.kept, run.kept_3d)
-        M, f, g, B, BF, bt, C, coords, loads, flows = evaluate(L, R, A, Q, u, t, lam, refs)
-        P, AM = markers(L, R, A, Q, u, t, every)[:2]
-        cerr[k] = np.max(np.abs(g[run.kept_3d]), initial=0.0)
-        for mk, m in enumerate(all_markers):
-            positions[m.name][k] = P[mk]
-        kinetic, strain, grav = energies(L, R, A, Q, u, M)
-        _, mass_kinetic, mass_potential = moving_masses(L, R, A, Q, u, ud, t)
-        kinetic, grav = kinetic + mass_kinetic, grav + mass_potential
-        energy["kinetic"][k], energy["strain"][k], energy["gravity"][k] = kinetic, strain, grav
-        energy["spring"][k] = flows[2]
-        energy["dissipated"][k] = s.work[k, 1]
-        energy["external"][k] = s.work[k, 0] + s.work[k, 2]
-        if L0 is not None:
-            power[k] = stiffening_power(run, L0, R, A, Q, u, t, lam, refs)
-        reactions = {}
-        for c_index, c in enumerate(constraints):
-            r0, r1 = offsets[c_index], offsets[c_index + 1]
-            lc, cc = lam[r0:r1], C[r0:r1]
-            jh = joints[c.name]
-            jh.force[k], jh.torque[k] = -lc @ cc[:, 2], -lc @ cc[:, 3]
-            a1 = AM[mindex[id(c.marker1)]]
-            jh.force_local[k], jh.torque_local[k] = a1.T @ jh.force[k], a1.T @ jh.torque[k]
-            joint = getattr(c, "joint", c)
-            if joint.coordinate_kind:
-                jh.coordinate[k], jh.rate[k] = coords[jindex[id(joint)]]
-            if joint is not c:
-                jh.effort[k] = -lc[0]
-            for which, mk in enumerate((c.marker1, c.marker2)):
-                key = mindex[id(mk)]
-                if key in node_loads:
-                    old = reactions.get(key, (0.0, 0.0))
-                    reactions[key] = (old[0] - lc @ cc[:, 2 * which], old[1] - lc @ cc[:, 2 * which + 1])
-        for key, (m, force, torque) in node_loads.items():
-            extra = reactions.get(key, (0.0, 0.0))
-            at = A[flexible[m.body.name]].T
-            force[k] = at @ (loads[key, :3] + extra[0])
-            torque[k] = at @ (loads[key, 3:] + extra[1])
-    energy["stiffening"][1:] = -np.cumsum(0.5 * np.diff(s.t) * (power[1:] + power[:-1]))
+    all_markers = system.markers()
+    positions = {m.name: out.P[:, k].copy() for k, m in enumerate(all_markers)}
+    constraints = list(system.joints) + list(system.drivers)
+    joints = {ch.name: JointHistory(ch.name, getattr(ch, "kind", "driver"), out.force[:, ci].copy(),
+                                    out.torque[:, ci].copy(), out.force_local[:, ci].copy(),
+                                    out.torque_local[:, ci].copy(), out.coord[:, ci, 0].copy(),
+                                    out.coord[:, ci, 1].copy(), out.coord[:, ci, 2].copy())
+              for ci, ch in enumerate(constraints)}
+    energy = {kind: out.energy[:, i].copy() for i, kind in enumerate(ENERGY_KINDS[:4])}
+    energy["dissipated"] = s.work[:, 1].copy()
+    energy["external"] = s.work[:, 0] + s.work[:, 2]
+    energy["stiffening"] = np.zeros(s.t.size)
+    energy["stiffening"][1:] = -np.cumsum(0.5 * np.diff(s.t) * (out.power[1:] + out.power[:-1]))
     energy["total"] = (energy["kinetic"] + energy["strain"] + energy["gravity"] + energy["spring"]
                        + energy["dissipated"] - energy["external"] + energy["stiffening"])
+    node_loads = {k: (m, out.node_force[:, k].copy(), out.node_torque[:, k].copy())
+                  for k, m in enumerate(all_markers) if c.node_body[k] >= 0}
     estimates = {}
     for name, (b, chosen, _) in run.choices.items():
         h = bodies[name]
@@ -97,4 +186,4 @@ def postprocess(run, s) -> Result:
                    "gravity": system.gravity, "settings": run.settings}
         estimates[name] = estimate_changes(b, chosen, history)
     report = build_report(run.choices, estimates, run.notes)
-    return Result(s.t.copy(), bodies, joints, positions, energy, cerr, report, {})
+    return Result(s.t.copy(), bodies, joints, positions, energy, out.cerr, report, {})

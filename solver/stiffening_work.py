@@ -15,7 +15,8 @@ centrifugal stiffening: the exact model is conservative with all three, the firs
 with none); dM/dt u and dV/dt are central differences along the motion (step
 RATE_STEP s).  The other terms (loads, drives, damping, friction, springs, moving masses) are
 the same in both layouts and cancel; a term outside the stiffening effects that did not
-conserve energy would still show in the balance error.
+conserve energy would still show in the balance error.  P_s is computed at every output sample
+by the compiled post-processing (postprocess.sample_outputs) from ``model_power``.
 
 The work W_s(t) = int_0^t P_s dt is integrated by the trapezoidal rule over the output samples;
 the energy kind "stiffening" is -W_s, so that the total stays constant.
@@ -25,8 +26,8 @@ from __future__ import annotations
 
 
 from sidprep.solver.compile.layout import build_layout
-from sidprep.solver.equations.assemble import energies, evaluate
-from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.equations.assemble import energies
+from sidprep.solver.equations.rotations import dot, jit, matvec
 
 #: effects whose work is booked here (preload is a potential, booked in the strain energy)
 STIFFENING_EFFECTS = ("centrifugal_stiffening", "acceleration_stiffening", "load_stiffening")
@@ -36,16 +37,21 @@ PAIRED_EFFECTS = ("second_order_inertia",)
 RATE_STEP = 1e-6
 
 
-def model_power(L, R, A, Q, u, t, lam, refs) -> float:
-    """P (module doc) of layout L at a state, W."""
-    M, f, _, _, BF = evaluate(L, R, A, Q, u, t, lam, refs)[:5]
-    power = float(u @ f - lam @ (BF @ u))
-    for sign in (1.0, -1.0):
-        Rs, As, Qs = advance_pose(L, R, A, Q, sign * RATE_STEP * u)
-        Ms = evaluate(L, Rs, As, Qs, u, t + sign * RATE_STEP, lam, refs)[0]
-        _, strain, grav = energies(L, Rs, As, Qs, u, Ms)
-        power += sign * (0.5 * float(u @ Ms @ u) + strain + grav) / (2.0 * RATE_STEP)
-    return power
+@jit
+def motion_energy(L, R, A, Q, u, M):  # pragma: no cover - compiled
+    """1/2 u.M u + V (J) of layout L at a pose (M its mass matrix there): the part of the model
+    energy whose rate along the motion enters P."""
+    kinetic, strain, grav = energies(L, R, A, Q, u, M)
+    return kinetic + strain + grav
+
+
+@jit
+def model_power(e, u, lam, energy_plus, energy_minus):  # pragma: no cover - compiled
+    """P (module doc, W) at a state from its Evaluation e, the velocities u (n,), the
+    multipliers lam (m_all,) and the motion_energy at the poses moved by +-RATE_STEP u (the
+    central difference of 1/2 u.M u + V along the motion; the caller evaluates them:
+    postprocess.sample_outputs)."""
+    return dot(u, e.f) - dot(lam, matvec(e.BF, u)) + (energy_plus - energy_minus) / (2.0 * RATE_STEP)
 
 
 def base_layout(run):
@@ -58,8 +64,3 @@ def base_layout(run):
         terms.append(t if choice is None else b.terms(set(choice[1]) - set(STIFFENING_EFFECTS + PAIRED_EFFECTS),
                                                         t.gravity))
     return build_layout(run.system, terms, [False] * len(terms))._replace(fe_par=run.L.fe_par)
-
-
-def stiffening_power(run, L0, R, A, Q, u, t, lam, refs) -> float:
-    """P_s (W) at one output sample: model power of the run's layout minus that of L0."""
-    return model_power(run.L, R, A, Q, u, t, lam, refs) - model_power(L0, R, A, Q, u, t, lam, refs)

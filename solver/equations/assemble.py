@@ -36,8 +36,8 @@ PROJECTION_ITERATIONS = 3
 #: JRF (nmk, 3, w_max), convective velocities VC and angular velocities WC (nmk, 3) of path markers
 MarkerKinematics = namedtuple("MarkerKinematics", ["P", "AM", "VEL", "OMG", "JT", "JR", "JTF", "JRF", "VC", "WC"])
 #: the system at a state (``evaluate``): M (n, n), f (n,), g, b_t (m,), B, B_F (m, n), C (m, 4, 3),
-#: coords (nj, 2), loads (nmk, 6), flows (4,)
-Evaluation = namedtuple("Evaluation", ["M", "f", "g", "B", "BF", "bt", "C", "coords", "loads", "flows"])
+#: coords (nj, 2), loads (nmk, 6), flows (4,) and kin, the MarkerKinematics of the active markers
+Evaluation = namedtuple("Evaluation", ["M", "f", "g", "B", "BF", "bt", "C", "coords", "loads", "flows", "kin"])
 
 
 @jit
@@ -117,19 +117,24 @@ def path_acceleration(L, k, R, A, Q, u, t):  # pragma: no cover - compiled
 
 
 @jit
-def moving_masses(L, R, A, Q, u, ud, t):  # pragma: no cover - compiled
+def has_moving_masses(L):  # pragma: no cover - compiled
+    """Whether the layout has a moving mass (model/forces.py MovingMass)."""
+    for i in range(L.fe_int.shape[0]):
+        if L.fe_int[i, 0] == FE_MOVING_MASS:
+            return True
+    return False
+
+
+@jit
+def moving_masses(L, kin, R, A, Q, u, ud, t):  # pragma: no cover - compiled
     """(drive power W, kinetic energy J, gravity potential J) of the moving masses on their
     paths (model/forces.py MovingMass): the drive that keeps s(t) does the work
     m (a - g) . (s_dot tau) on the mass (tau = dr/ds, a = J ud + convective part); its kinetic
     energy is 1/2 m |J u + s_dot tau|^2, of which the system mass matrix (m J^T J) holds
-    1/2 m |J u|^2, so the rest is returned; its potential is -m g . r.  Zeros off the path."""
+    1/2 m |J u|^2, so the rest is returned; its potential is -m g . r.  Zeros off the path.
+    kin: the MarkerKinematics at the state (markers, or an Evaluation's; the caller computes
+    them, so that this function does not compile the markers' call tree once more)."""
     power = kinetic = potential = 0.0
-    count = 0
-    for i in range(L.fe_int.shape[0]):
-        count += L.fe_int[i, 0] == FE_MOVING_MASS
-    if count == 0:
-        return power, kinetic, potential
-    kin = markers(L, R, A, Q, u, t, L.mk_active)
     P, VEL, JT, VC = kin.P, kin.VEL, kin.JT, kin.VC
     for i in range(L.fe_int.shape[0]):
         if L.fe_int[i, 0] != FE_MOVING_MASS:
@@ -194,10 +199,9 @@ def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rota
 
 
 @jit
-def markers(L, R, A, Q, u, t, active):  # pragma: no cover - compiled
-    """Kinematics at time t (s; path markers move) of the markers with ``active`` (nmk,) != 0
-    (L.mk_active: those that joints and forces use; every_marker(L): all; an array, not a flag,
-    so that the compiled callers and Python share one compiled signature):
+def markers(L, R, A, Q, u, t):  # pragma: no cover - compiled
+    """Kinematics at time t (s; path markers move) of the markers with L.mk_active (nmk,) != 0
+    (those that joints and forces use; every marker in the layout of ``every_marker``):
     P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial velocities of the material point (the
     body's motion), the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max),
     zero-padded (JTF, JRF are JT, JR when no marker is load-stiffened), and VC, WC (nmk, 3) the
@@ -227,7 +231,7 @@ def markers(L, R, A, Q, u, t, active):  # pragma: no cover - compiled
     shapes = L.shapes
     for sweep in range(2 * nmk):  # markers that follow a partner on their path (OnPath) after the others
         k = sweep % nmk
-        if not active[k] or (L.mk_path[k, 2] >= 0) != (sweep >= nmk):
+        if not L.mk_active[k] or (L.mk_path[k, 2] >= 0) != (sweep >= nmk):
             continue
         b = L.mk_body[k]
         if b < 0:
@@ -271,9 +275,9 @@ def markers(L, R, A, Q, u, t, active):  # pragma: no cover - compiled
     return MarkerKinematics(P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC)
 
 
-def every_marker(L) -> np.ndarray:
-    """The ``active`` argument of ``markers`` that selects every marker."""
-    return np.ones(L.mk_body.shape[0], dtype=np.int64)
+def every_marker(L):
+    """The layout L with every marker active: its Evaluation's ``kin`` holds all markers."""
+    return L._replace(mk_active=np.ones(L.mk_body.shape[0], dtype=np.int64))
 
 
 @jit
@@ -286,7 +290,9 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     cR2), coords (nj, 2) joint coordinates and rates, loads (nmk, 6) applied marker loads
     (inertial) and flows (4,) = [power in by loads, power dissipated, spring energy, power in by
     the drives of force elements on moving markers] (the drives' power through constraint rows is
-    constraint_power, taken with the step's converged multipliers), as an Evaluation.
+    constraint_power, taken with the step's converged multipliers) and kin, the MarkerKinematics
+    of the markers with L.mk_active != 0 (a layout with every marker active gives them all), as
+    an Evaluation.
     """
     nb = R.shape[0]
     n = u.shape[0]
@@ -306,7 +312,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    kin = markers(L, R, A, Q, u, t, L.mk_active)
+    kin = markers(L, R, A, Q, u, t)
     P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = kin
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]
@@ -387,7 +393,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
                 add_rows(B, r, L.uoff[b], C[r], JT[k], JR[k], which, w)
                 if stiffened:
                     add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
-    return Evaluation(M, f, g, B, BF, bt, C, coords, loads, flows)
+    return Evaluation(M, f, g, B, BF, bt, C, coords, loads, flows, kin)
 
 
 @jit

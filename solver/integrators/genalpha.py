@@ -43,14 +43,15 @@ from collections import namedtuple
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
+from sidprep.solver.equations.assemble import (constraint_power, evaluate, has_moving_masses, markers,
+                                               moving_masses)
 from sidprep.solver.equations.rotations import jit, matvec, put, put2
 from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
                                              Samples, Stepper, advance_pose, expand, first_samples, lu_factor,
                                              lu_solve, new_status, restrict, sample_buffers, store_sample)
 from sidprep.solver.integrators.runge_kutta import hermite
 from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
-                                            evaluate_se3, inertial_accelerations, inertial_velocities)
+                                            inertial_accelerations, inertial_velocities, to_body_frame)
 
 #: maximum Newton iterations with one iteration matrix
 MAX_NEWTON = 6
@@ -127,6 +128,17 @@ def dense_state(L, x0, x1, h, theta):  # pragma: no cover - compiled
 
 
 @jit
+def state_flows(L, e, x, lam_all, mass_power):  # pragma: no cover - compiled
+    """The power flows (4,) at the GaState x (SE(3) coordinates) from its Evaluation e (the same
+    coordinates): e.flows, to whose drives' power flows[3] the power through the rheonomic rows
+    at the multipliers lam_all (m_all,) and that of the moving masses (mass_power, W;
+    assemble.moving_masses, computed by the loop) are added."""
+    flows = e.flows.copy()
+    flows[3] += constraint_power(L, e.B, e.bt, x.u, lam_all) + mass_power
+    return flows
+
+
+@jit
 def iteration_matrix(Mf, D, Bk, BFk):  # pragma: no cover - compiled
     """[M + D, B_F^T; B, 0]."""
     nf, m = Mf.shape[0], Bk.shape[0]
@@ -175,7 +187,7 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
 
     c.rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  work (3,)
     the work integrals [applied loads, dissipated, drivers] and flows0 (4,) the power flows at
-    the current state are updated in place, as refs (angle references) and stats (base.STATUS,
+    the current state (NaN before the first call: computed here, and x.a set to x.ud) are updated in place, as refs (angle references) and stats (base.STATUS,
     one record).  Returns the new GaState, t, step size, next output index and the samples.
     x.u, x.ud in and out and the samples are inertial (v_O); the steps are taken in the SE(3)
     coordinates of se3.py, in which x.a is kept.
@@ -187,6 +199,14 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
     nf, m = free.shape[0], kept.shape[0]
     nj = refs.shape[0]
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+    masses = has_moving_masses(L)
+    if not np.isfinite(flows0[0]):  # the first call: a = ud and the power flows at the start state
+        x = GaState(x.R, x.A, x.Q, x.u, x.ud, x.ud.copy(), x.lam)
+        lam_all = expand(x.lam, kept, m_all)
+        u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
+        e0 = evaluate(L, x.R, x.A, x.Q, u_o, t, lam_all, refs)
+        mass_power = moving_masses(L, e0.kin, x.R, x.A, x.Q, u_o, ud_o, t)[0] if masses else 0.0
+        put(flows0, 0, state_flows(L, to_body_frame(L, x.A, x.u, e0), x, lam_all, mass_power))
     buf = sample_buffers(capacity, x.R, x.Q, x.u, x.lam, refs)
     ns = 0
     end_tol = 1e-12 * max(1.0, t_end)
@@ -219,7 +239,8 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
         it = 0
         converged = False
         _, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
-        e = evaluate_se3(L, R2, A2, Q2, un, t + h, expand(lamn, kept, m_all), refs)
+        e = to_body_frame(L, A2, un, evaluate(L, R2, A2, Q2, inertial_velocities(L, A2, un), t + h,
+                                              expand(lamn, kept, m_all), refs))
         r = newton_residual(e, udn, lamn, h, c)
         while True:
             if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
@@ -230,8 +251,9 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
                     trial = udn.copy()
                     trial[free[col]] += delta
                     _, R3, A3, Q3, u3 = ga_state(L, trial, x, h, c.prm)
-                    r1 = newton_residual(evaluate_se3(L, R3, A3, Q3, u3, t + h, expand(lamn, kept, m_all), refs),
-                                         trial, lamn, h, c)
+                    e3 = evaluate(L, R3, A3, Q3, inertial_velocities(L, A3, u3), t + h, expand(lamn, kept, m_all),
+                                  refs)
+                    r1 = newton_residual(to_body_frame(L, A3, u3, e3), trial, lamn, h, c)
                     for row in range(nf):
                         D[row, col] = (r1[row] - r[row]) / delta - e.M[free[row], free[col]]
                 D_h, have_d, fresh_d, want_d, factor_now = h, True, True, False, True
@@ -263,7 +285,8 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
                 converged = True
                 break
             _, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
-            e = evaluate_se3(L, R2, A2, Q2, un, t + h, expand(lamn, kept, m_all), refs)
+            e = to_body_frame(L, A2, un, evaluate(L, R2, A2, Q2, inertial_velocities(L, A2, un), t + h,
+                                                  expand(lamn, kept, m_all), refs))
             r = newton_residual(e, udn, lamn, h, c)
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
@@ -301,12 +324,13 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
         status.steps += 1
         status.h_min = min(status.h_min, h)
         status.h_max = max(status.h_max, h)
-        # the drives' power through their rows with the converged multipliers (the last evaluation
-        # predates them), and that of the moving masses with the converged ud
-        flows = e.flows
+        # with the converged multipliers (the last evaluation predates them) and ud
         u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
-        flows[3] += (constraint_power(L, e.B, e.bt, x.u, expand(lamn, kept, m_all))
-                     + moving_masses(L, x.R, x.A, x.Q, u_o, ud_o, t)[0])
+        mass_power = 0.0
+        if masses:
+            kin = markers(L, x.R, x.A, x.Q, u_o, t)
+            mass_power = moving_masses(L, kin, x.R, x.A, x.Q, u_o, ud_o, t)[0]
+        flows = state_flows(L, e, x, expand(lamn, kept, m_all), mass_power)
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
@@ -351,17 +375,11 @@ class GeneralizedAlpha(Stepper):
                                      settings.deformation_limit * problem.sizes, float(settings.newton_tol),
                                      float(settings.tolerance or 0.0), float(settings.atol), float(settings.h),
                                      float(settings.output_dt or 0.0))
-        u_k = body_velocities(problem.L, state.A, state.u)
-        self.a = body_accelerations(problem.L, state.A, u_k, state.ud)  # in the coordinates of se3.py
+        self.a = np.full(state.u.size, np.nan)  # in the coordinates of se3.py: ga_loop starts it at ud
         self.h = settings.h
         self.next_index = 1
         self.work = np.zeros(3)
-        lam_full = np.zeros(problem.m_all)
-        lam_full[problem.kept] = state.lam
-        e = evaluate(problem.L, state.R, state.A, state.Q, state.u, state.t, lam_full, problem.refs)
-        self.flows = e.flows
-        self.flows[3] += (constraint_power(problem.L, e.B, e.bt, state.u, lam_full)
-                          + moving_masses(problem.L, state.R, state.A, state.Q, state.u, state.ud, state.t)[0])
+        self.flows = np.full(4, np.nan)  # the power flows of the current state: ga_loop computes them first
         self.status_record = new_status(settings.max_steps)
 
     def advance(self, t_stop: float) -> Samples:

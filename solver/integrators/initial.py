@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.integrators.base import advance_pose, index1_accelerations, kkt_solve, restrict
+from sidprep.solver.integrators.base import advance_pose, evaluation_at, index1_accelerations, kkt_solve, restrict
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -79,7 +78,8 @@ def rigid_columns(L) -> np.ndarray:
 
 def constraints_at(L, R, A, Q, t, refs):
     """(g, B) of all rows at a pose (zero velocities)."""
-    e = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), refs)
+    e = evaluation_at(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)),
+                      refs)
     return e.g, e.B
 
 
@@ -169,7 +169,7 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     m_all = int(L.joint_off[-1] + L.drv_joint.size)
 
     def error(v):
-        e = evaluate(L, R, A, Q, v, t, np.zeros(m_all), refs)
+        e = evaluation_at(L, R, A, Q, v, t, np.zeros(m_all), refs)
         return (e.B @ v + e.bt)[kept], e
 
     err, e = error(u)
@@ -188,7 +188,7 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
 def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
     """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte)."""
     guess = np.zeros(kept.size) if lam is None else lam
-    return index1_accelerations(L, R, A, Q, u, t, refs, free, kept, 0.0, guess, 3 if kept.size else 1)
+    return index1_accelerations(L, R, A, Q, u, t, refs, free, kept, 0.0, guess, 3 if kept.size else 1)[:2]
 
 
 def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):

@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate, every_marker, markers
-from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.equations.assemble import every_marker
+from sidprep.solver.equations.rotations import jit
+from sidprep.solver.integrators.base import advance_pose, evaluation_at
 
 #: relative size below which an out-of-plane coupling counts as zero
 PLANAR_TOL = 1e-9
@@ -37,7 +38,9 @@ AXES = "xyz"
 def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
-    AM = markers(L, R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, every_marker(L)).AM
+    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+    AM = evaluation_at(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, np.zeros(m_all),
+                       np.zeros(L.joint_mk.shape[0])).kin.AM
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):
@@ -89,7 +92,7 @@ def planar_coordinates(system, L, state, refs, kept, weights, length, t_end):
         Rt, At, Qt = advance_pose(L, R, A, Q, np.where(free, PLANAR_MOTION * length * rng.standard_normal(n)
                                                        / weights, 0.0))
         vel = np.where(free, u + rng.standard_normal(n) / weights, 0.0)
-        e = evaluate(L, Rt, At, Qt, vel, t, np.zeros(m_all), refs)
+        e = evaluation_at(L, Rt, At, Qt, vel, t, np.zeros(m_all), refs)
         M, f, B = e.M, e.f, e.B[kept]
         inplane = np.linalg.norm(B[:, free], axis=1) > PLANAR_TOL * np.linalg.norm(B, axis=1)
         if rows is not None and np.any(rows != inplane):
@@ -110,16 +113,30 @@ def planar_coordinates(system, L, state, refs, kept, weights, length, t_end):
     return np.flatnonzero(free), kept[rows], note
 
 
-def out_of_plane_reactions(L, R, A, Q, u, ud, t, lam_full, refs, free, planar_rows, kept_3d):
-    """Multipliers of all 3D rows from those of a planar run: the reactions of the dropped
-    out-of-plane rows balance the out-of-plane equations of motion (least squares)."""
-    e = evaluate(L, R, A, Q, u, t, lam_full, refs)
-    M, f, BF = e.M, e.f, e.BF
-    out = np.ones(u.size, bool)
-    out[free] = False
-    load = M @ ud - f + BF[planar_rows].T @ lam_full[planar_rows]
-    dropped = np.setdiff1d(kept_3d, planar_rows)
+@jit
+def out_of_plane_reactions(e, ud, lam_full, planar_rows, dropped, fixed):  # pragma: no cover - compiled
+    """Multipliers of all 3D rows from those of a planar run (lam_full (m_all,), zero on the
+    dropped rows): the reactions of the dropped out-of-plane rows ``dropped`` balance the
+    out-of-plane equations of motion (the coordinates ``fixed``), M ud - f + B_F^T lambda = 0
+    there, in the least-squares sense; e the Evaluation at the sample's state and lam_full,
+    ud (n,) its accelerations, planar_rows the rows the run kept."""
     full = lam_full.copy()
-    if dropped.size:
-        full[dropped] = np.linalg.lstsq(BF[dropped][:, out].T, -load[out], rcond=None)[0]
+    if dropped.shape[0] == 0:
+        return full
+    no, nd = fixed.shape[0], dropped.shape[0]
+    load = np.empty(no)
+    a = np.empty((no, nd))
+    for i in range(no):
+        o = fixed[i]
+        acc = -e.f[o]
+        for j in range(ud.shape[0]):
+            acc += e.M[o, j] * ud[j]
+        for r in planar_rows:
+            acc += e.BF[r, o] * lam_full[r]
+        load[i] = -acc
+        for d in range(nd):
+            a[i, d] = e.BF[dropped[d], o]
+    react = np.linalg.lstsq(a, load, rcond=np.finfo(np.float64).eps * max(no, nd))[0]
+    for d in range(nd):
+        full[dropped[d]] = react[d]
     return full

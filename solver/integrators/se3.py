@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import Evaluation, evaluate
+from sidprep.solver.equations.assemble import Evaluation
 from sidprep.solver.equations.rotations import (SMALL_ANGLE, cross, jit, matmul, matvec, put, se3_jacobian,
                                                 tmatvec)
 
@@ -102,10 +102,11 @@ def left_multiply(X, L, A):  # pragma: no cover - compiled
 
 
 @jit
-def evaluate_se3(L, R, A, Q, u_K, t, lam, refs):  # pragma: no cover - compiled
-    """``evaluate`` (assemble.py) at velocities u_K: its Evaluation with M, f, B, B_F in the
-    coordinates of this module (module doc), the rest as evaluate gives it."""
-    e = evaluate(L, R, A, Q, inertial_velocities(L, A, u_K), t, lam, refs)
+def to_body_frame(L, A, u_K, e):  # pragma: no cover - compiled
+    """The Evaluation e of ``evaluate`` (assemble.py) at the inertial velocities S u_K with M, f,
+    B, B_F in the coordinates of this module (module doc; M, B, B_F changed in place), the rest
+    as evaluate gives it.  (The callers evaluate themselves: every compiled function that calls
+    evaluate compiles its whole call tree once more; docs/performance.md.)"""
     M, B, BF = e.M, e.B, e.BF
     rhs = (e.f - matvec(M, convective(L, A, u_K))).reshape((-1, 1))
     left_multiply(rhs, L, A)
@@ -117,7 +118,7 @@ def evaluate_se3(L, R, A, Q, u_K, t, lam, refs):  # pragma: no cover - compiled
         stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
     if stiffened:
         right_multiply(BF, L, A)
-    return Evaluation(M, rhs[:, 0].copy(), e.g, B, BF, e.bt, e.C, e.coords, e.loads, e.flows)
+    return Evaluation(M, rhs[:, 0].copy(), e.g, B, BF, e.bt, e.C, e.coords, e.loads, e.flows, e.kin)
 
 
 @jit

@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""What a warm `sidprep simulate` process spends, split up (issue 21 items 2 and 3): imports, scene
+building, the start (consistent initial state), the kernel cache loading, the integration and the
+post-processing, each in CPU seconds, medians of ``--repeat`` fresh processes; with ``--before``
+the same for another checkout (e.g. /work/main), the two alternating, so that the pairs share the
+machine's load.
+
+Every child process runs the scene twice: the second run has every kernel loaded, so the first
+run's excess over it is the kernel cache loading (and first-call overheads) of that stage.
+
+    python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --repeat 5
+    python benchmarks/process_cost.py examples/engine/scene.toml --before /work/main --output-dt 2e-4
+
+The kernel cache must be warm (run the scene once first); the load average is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the child: one process, timed stage by stage (CPU s), printed as JSON
+CHILD = r"""
+import json, sys, time
+t0 = time.process_time()
+from sidprep.solver.scene import load_scene, simulate
+t_import = time.process_time() - t0
+kwargs = {} if sys.argv[2] == "-" else {"output_dt": float(sys.argv[2])}
+runs = []
+for _ in range(2):
+    t1 = time.process_time()
+    scene = load_scene(sys.argv[1])
+    t2 = time.process_time()
+    result = simulate(scene, **kwargs)
+    t3 = time.process_time()
+    s = result.stats
+    runs.append({"scene": t2 - t1, "start": s["cpu_setup"], "integration": s["cpu_integration"],
+                 "post": t3 - t2 - s["cpu_setup"] - s["cpu_integration"], "samples": int(result.t.size)})
+first, second = runs
+loading = sum(first[k] - second[k] for k in ("start", "integration", "post"))
+print(json.dumps({"imports": t_import, "scene": first["scene"], "start": second["start"],
+                  "kernel loading": loading, "integration": second["integration"], "post": second["post"],
+                  "samples": second["samples"],
+                  "before first step": t_import + first["scene"] + first["start"]
+                  + first["integration"] - second["integration"],
+                  "process (one run)": t_import + first["scene"] + first["start"] + first["integration"]
+                  + first["post"]}))
+"""
+STAGES = ("imports", "scene", "start", "kernel loading", "integration", "post", "before first step",
+          "process (one run)")
+
+
+def child_run(root: Path, scene: Path, output_dt: str) -> dict:
+    """The stage costs of one fresh process importing sidprep from ``root``."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    out = subprocess.run([sys.executable, "-c", CHILD, str(scene), output_dt], env=env, cwd=scene.parent,
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("scene", type=Path)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--before", type=Path, help="another checkout to run side by side (e.g. /work/main)")
+    parser.add_argument("--output-dt", default="-", help="output interval, s (default: the scene's)")
+    args = parser.parse_args()
+    scene = args.scene.resolve()
+    roots = {"this": ROOT} | ({"before": args.before.resolve()} if args.before else {})
+    rows: dict[str, list[dict]] = {name: [] for name in roots}
+    loads = [os.getloadavg()[0]]
+    for _ in range(args.repeat):
+        for name, root in roots.items():
+            rows[name].append(child_run(root, scene, args.output_dt))
+        loads.append(os.getloadavg()[0])
+    print(f"{scene.relative_to(ROOT) if scene.is_relative_to(ROOT) else scene}, output_dt {args.output_dt}, "
+          f"medians of {args.repeat} processes, load average {min(loads):.1f}-{max(loads):.1f}, CPU s")
+    names = list(roots)
+    print("| stage | " + " | ".join(names) + (" | ratio |" if len(names) == 2 else " |"))
+    print("|---" * (len(names) + 1 + (len(names) == 2)) + "|")
+    for stage in STAGES:
+        med = [float(np.median([r[stage] for r in rows[n]])) for n in names]
+        ratio = f" | {med[0] / med[1]:.2f}" if len(med) == 2 and med[1] > 0 else ""
+        print(f"| {stage} | " + " | ".join(f"{m:.3f}" for m in med) + ratio + " |")
+    print(f"samples per run: {rows[names[0]][0]['samples']}")
+
+
+if __name__ == "__main__":
+    main()
