@@ -850,8 +850,8 @@ MANY_MODES = 60
 MANY_MODES_EXCURSION = 2e-4
 #: explicit methods with error control on this stiff body choose stable steps themselves, at a
 #: cost: h_max omega_max stays below this (measured rk45 1.15, dop853 2.96; 10 ms of motion cost
-#: 3.5 and 2.9 CPU-s against 0.2 s for genalpha's 300 ms) and the energy law holds to (in m g L;
-#: measured 1e-13, 5e-14)
+#: 3.0 and 2.5 integration CPU-s, genalpha's 300 ms 0.24: ~300x per simulated second) and the
+#: energy law holds to (in m g L; measured 1e-13, 5e-14)
 MANY_MODES_H_OMEGA = 4.0
 MANY_MODES_ENERGY = 1e-10
 
