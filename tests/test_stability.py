@@ -21,6 +21,7 @@ from sidprep.fe.assemble import mass_matrix, scalar_mass_matrix, stiffness_matri
 from sidprep.fe.linalg import clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes
 from sidprep.fe.material import Material, material_from_options
 from sidprep.fe.mesh import FEMesh, read_mesh, surface_node_indices
+from sidprep.solver.integrators.base import lu_factor, lu_solve
 from sidprep.solver.integrators.settings import METHODS
 from sidprep.solver.run import simulate
 
@@ -964,3 +965,16 @@ def test_suite_rotor_above_its_critical_speed(method, clamped_bar):
     assert zero_crossing_frequency(r.t, x) == pytest.approx(f0, rel=ROTOR_PLAIN_RTOL)
     assert southwell / f0 - 1 > 3 * ROTOR_FREQUENCY_RTOL       # the two are told apart
     assert any("centrifugal_stiffening" in w for w in r.effects.warnings)
+
+
+def test_a_singular_system_gives_nan_not_an_internal_error():
+    """rk4 on the flexible engine at its 0.2 ms step reached an exactly singular KKT matrix and
+    ended in an internal ZeroDivisionError; a zero pivot now gives NaN, which the steppers'
+    non-finite checks report with the cause and the fix."""
+    a = np.array([[1.0, 2.0], [2.0, 4.0]])
+    lu, piv = lu_factor(a)
+    assert np.isnan(lu_solve(lu, piv, np.array([1.0, 1.0]))).any()
+    regular = np.array([[4.0, 1.0], [2.0, 3.0]])
+    lu, piv = lu_factor(regular)
+    np.testing.assert_allclose(lu_solve(lu, piv, np.array([1.0, 2.0])), np.linalg.solve(regular, [1.0, 2.0]),
+                               rtol=1e-14)

@@ -204,14 +204,16 @@ def lu_factor(a):  # pragma: no cover - compiled
 
 @jit
 def lu_solve(lu, piv, b):  # pragma: no cover - compiled
-    """x with a x = b from lu_factor(a): a = U^T L^T P^T, so U^T L^T w = b and x = P w."""
+    """x with a x = b from lu_factor(a): a = U^T L^T P^T, so U^T L^T w = b and x = P w (NaN
+    where a is singular)."""
     k = b.shape[0]
     x = np.empty(k)
     for i in range(k):  # U^T (lower; U(j, i) is lu[i, j])
         acc = b[i]
         for c in range(i):
             acc -= lu[i, c] * x[c]
-        x[i] = acc / lu[i, i]
+        pivot = lu[i, i]  # exactly 0 for a singular a: NaN, not an exception, so the callers'
+        x[i] = acc / pivot if pivot != 0.0 else np.nan  # non-finite checks name the cause
     for i in range(k - 1, -1, -1):  # L^T (unit upper; L(j, i) is lu[i, j])
         acc = x[i]
         for c in range(i + 1, k):
