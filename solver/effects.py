@@ -381,7 +381,7 @@ class LeftOutTerms:
     def __init__(self, body, chosen: set, modes: np.ndarray):
         w, a, wdot, g = probe_states()
         nq = modes.shape[0]
-        self.body, self.chosen, self.modes = body, set(chosen), modes
+        self.body, self.chosen, self.modes, self.avail = body, set(chosen), modes, body.available()
         self.probes = (w, g, np.concatenate([a, wdot, np.zeros((N_SIGNALS, nq))], axis=1), modes)
         generic = np.random.default_rng(0).uniform(0.5, 1.5, 12 + 2 * nq)  # no cancellation (e.g. a = g)
         self.generic = (generic[None, :3], generic[None, 3:6], generic[None, 6:12 + nq], generic[12 + nq:, None])
@@ -392,7 +392,7 @@ class LeftOutTerms:
     def coefficients(self, effect: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Modal force (19, nq), stiffness and damping (19, nq, nq) per signal that ``effect``
         adds to the elastic rows; None when it adds nothing there (rigid-body rows only)."""
-        pack = packed(self.body, assembled(self.chosen | {effect}, self.body.available()))[0]
+        pack = packed(self.body, assembled(self.chosen | {effect}, self.avail))[0]
         if not np.any(elastic_rows(pack, *self.generic) - self.base_generic):
             return None
         return signal_coefficients(elastic_rows(pack, *self.probes) - self.base, self.probe_signals, self.modes)
@@ -440,8 +440,8 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
                 out[effect] = (0.0, MEASURE)
                 continue
             f, k, c = coefficients
-            stiffness, damping = np.einsum("ti,ikj->tkj", x, k), np.einsum("ti,ikj->tkj", x, c)
-            force = x @ f + np.einsum("tkj,tj->tk", stiffness, eta) + np.einsum("tkj,tj->tk", damping, eta_dot)
+            stiffness, damping = ((x @ m.reshape(N_SIGNALS, -1)).reshape(-1, *m.shape[1:]) for m in (k, c))
+            force = x @ f + (stiffness @ eta[:, :, None] + damping @ eta_dot[:, :, None])[:, :, 0]
         change = modal_change(samples["t"][idx], amplitude, force, stiffness, damping, omega, response)
         out[effect] = (_relative(float(np.max(change)), ref), MEASURE)
     return out
