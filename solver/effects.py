@@ -61,8 +61,9 @@ class EffectsReport:
     @property
     def warnings(self) -> list[str]:
         out = [
-            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but it would change the "
-            f"modal coordinates by an estimated {e.measure} = {e.estimate:.3g}, above {WARN_LEVEL:.0%}"
+            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but it would "
+            + (f"change the modal coordinates by an estimated {e.measure} = {e.estimate:.3g}, above {WARN_LEVEL:.0%}"
+               if np.isfinite(e.estimate) else "deform the body, which the run leaves undeformed")
             for b, entries in self.bodies.items()
             for e in entries
             if e.warning
@@ -105,7 +106,8 @@ class EffectsReport:
         }
 
     def estimates(self) -> dict:
-        """{body: {left-out effect: {"value": estimate (None if infinite), "measure": MEASURE}}}."""
+        """{body: {left-out effect: {"value": estimate, "measure": MEASURE}}}; value None: infinite
+        (the run leaves the body undeformed, the effect would deform it)."""
         return {b: {e.effect: {"value": float(e.estimate) if np.isfinite(e.estimate) else None, "measure": e.measure}
                     for e in entries if not np.isnan(e.estimate)}
                 for b, entries in self.bodies.items()}

@@ -451,3 +451,21 @@ def test_frequency_shifts_against_the_exact_eigenvalues():
     approx = np.sort(np.sqrt(omega**2 + shift[0]))
     assert np.max(np.abs(approx - exact) / np.abs(exact - omega)) < SHIFT_RTOL
     assert np.max(np.abs(decay)) < 1e-12  # gyroscopic coupling conserves energy
+
+
+def test_an_effect_that_would_deform_an_undeformed_body_warns():
+    """Gravity left out of a clamped bar at rest: the run leaves q = 0, gravity would bend it
+    (an infinite relative change): the report says so and the JSON value is null."""
+    from sidprep.cli.simulate import effects_summary
+    from sidprep.solver.model.joints import Fixed
+
+    s = System(gravity=(0.0, 0.0, -9.81), effects=["coupling"])
+    bar = s.add(FlexibleBody(bar_sid(freqs=FREQS), name="rotor"))
+    s.add(Fixed(s.ground.marker(), bar.node_marker(0)))
+    r = simulate(s, 0.05, h=1e-3)
+    assert np.max(np.abs(r.bodies["rotor"].q)) == 0.0
+    e = entry(r.effects, "gravity")
+    assert e.estimate == np.inf and e.warning
+    assert any("gravity" in w and "leaves undeformed" in w for w in r.effects.warnings)
+    assert effects_summary(r.effects)["estimates"]["rotor"]["gravity"] == {"value": None, "measure": MEASURE}
+    assert entry(r.effects, "centrifugal").estimate == 0.0 and not entry(r.effects, "centrifugal").warning
