@@ -356,13 +356,12 @@ def free_vibration(eta_dot, eta_ddot, omega) -> np.ndarray:
     return np.hypot(eta_dot / w, eta_ddot / w**2)
 
 
-def load_stiffening(node_loads, modes) -> np.ndarray:
+def load_stiffening(node_loads, modes, nt: int) -> np.ndarray:
     """Modal geometric stiffness of the node loads Phi^T dK Phi, (nt, nq, nq): the node force
     phi(q)^T F (sid-spec 5.2) with phi(q) = phi0 + K0F q gives dK = -sum_a (F_a K0F_a^T +
     T_a K0M_a^T) (sid-spec 6.2: a tension stiffens); F, T (nt, 3) in K at the node markers,
-    joint reactions included."""
-    nt, nq = (len(node_loads[0][1]) if node_loads else 0), modes.shape[0]
-    dk = np.zeros((nt, nq, nq))
+    joint reactions included (none: zero)."""
+    dk = np.zeros((nt, *modes.shape))
     for marker, force, torque in node_loads:
         for k0, load in ((marker.k0f, force), (marker.k0m, torque)):
             if k0 is not None:
@@ -415,7 +414,7 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     """
     avail = body.available()
     left_out = [e for e in EFFECTS if avail[e] and e not in chosen]
-    if not left_out or len(samples["q"]) == 0:
+    if not left_out or samples["q"].size == 0:  # no samples or no modes: nothing to change
         return {}
     idx = np.unique(np.linspace(0, len(samples["q"]) - 1, min(len(samples["q"]), ESTIMATE_SAMPLES)).astype(int))
     rot, acc = samples["rotation"][idx], samples["acceleration"][idx]  # A: K -> inertial
@@ -434,7 +433,8 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     out = {}
     for effect in left_out:
         if effect == "load_stiffening":
-            stiffness = load_stiffening([(m, f[idx], tq[idx]) for m, f, tq in samples.get("node_loads", [])], modes)
+            stiffness = load_stiffening([(m, f[idx], tq[idx]) for m, f, tq in samples.get("node_loads", [])], modes,
+                                        len(idx))
             damping, force = np.zeros_like(stiffness), np.einsum("tkj,tj->tk", stiffness, eta)
         else:
             coefficients = terms_left_out.coefficients(effect)

@@ -469,3 +469,19 @@ def test_an_effect_that_would_deform_an_undeformed_body_warns():
     assert any("gravity" in w and "leaves undeformed" in w for w in r.effects.warnings)
     assert effects_summary(r.effects)["estimates"]["rotor"]["gravity"] == {"value": None, "measure": MEASURE}
     assert entry(r.effects, "centrifugal").estimate == 0.0 and not entry(r.effects, "centrifugal").warning
+
+
+def test_load_stiffening_left_out_without_node_loads_is_zero():
+    """K0F at the tip node, but the bar is held by a marker on its frame and has no node marker:
+    auto leaves load stiffening out, and with no node loads in the run its estimate is 0 (it
+    used to fail on the empty load list: the moving-mass example)."""
+    from sidprep.solver.model.joints import Fixed
+
+    k0f = np.zeros((3, 4, 4))
+    k0f[0] = -np.eye(4)
+    s = System(gravity=(0.0, 0.0, -9.81))
+    bar = s.add(FlexibleBody(bar_sid(freqs=FREQS, stiffening={"K0F/1": k0f}), name="rotor"))
+    s.add(Fixed(s.ground.marker(), bar.marker()))
+    r = simulate(s, 0.05, h=2e-3)
+    e = entry(r.effects, "load_stiffening")
+    assert e.available and not e.included and e.estimate == 0.0 and not e.warning
