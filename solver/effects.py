@@ -61,8 +61,9 @@ class EffectsReport:
     @property
     def warnings(self) -> list[str]:
         out = [
-            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but it would change the "
-            f"modal coordinates by an estimated {e.measure} = {e.estimate:.3g}, above {WARN_LEVEL:.0%}"
+            f"WARNING: body '{b}': left out {e.effect} ({DESCRIPTIONS[e.effect]}) but it would "
+            + (f"change the modal coordinates by an estimated {e.measure} = {e.estimate:.3g}, above {WARN_LEVEL:.0%}"
+               if np.isfinite(e.estimate) else "deform the body, which the run leaves undeformed")
             for b, entries in self.bodies.items()
             for e in entries
             if e.warning
@@ -105,7 +106,8 @@ class EffectsReport:
         }
 
     def estimates(self) -> dict:
-        """{body: {left-out effect: {"value": estimate (None if infinite), "measure": MEASURE}}}."""
+        """{body: {left-out effect: {"value": estimate, "measure": MEASURE}}}; value None: infinite
+        (the run leaves the body undeformed, the effect would deform it)."""
         return {b: {e.effect: {"value": float(e.estimate) if np.isfinite(e.estimate) else None, "measure": e.measure}
                     for e in entries if not np.isnan(e.estimate)}
                 for b, entries in self.bodies.items()}
@@ -354,13 +356,12 @@ def free_vibration(eta_dot, eta_ddot, omega) -> np.ndarray:
     return np.hypot(eta_dot / w, eta_ddot / w**2)
 
 
-def load_stiffening(node_loads, modes) -> np.ndarray:
+def load_stiffening(node_loads, modes, nt: int) -> np.ndarray:
     """Modal geometric stiffness of the node loads Phi^T dK Phi, (nt, nq, nq): the node force
     phi(q)^T F (sid-spec 5.2) with phi(q) = phi0 + K0F q gives dK = -sum_a (F_a K0F_a^T +
     T_a K0M_a^T) (sid-spec 6.2: a tension stiffens); F, T (nt, 3) in K at the node markers,
-    joint reactions included."""
-    nt, nq = (len(node_loads[0][1]) if node_loads else 0), modes.shape[0]
-    dk = np.zeros((nt, nq, nq))
+    joint reactions included (none: zero)."""
+    dk = np.zeros((nt, *modes.shape))
     for marker, force, torque in node_loads:
         for k0, load in ((marker.k0f, force), (marker.k0m, torque)):
             if k0 is not None:
@@ -381,7 +382,7 @@ class LeftOutTerms:
     def __init__(self, body, chosen: set, modes: np.ndarray):
         w, a, wdot, g = probe_states()
         nq = modes.shape[0]
-        self.body, self.chosen, self.modes = body, set(chosen), modes
+        self.body, self.chosen, self.modes, self.avail = body, set(chosen), modes, body.available()
         self.probes = (w, g, np.concatenate([a, wdot, np.zeros((N_SIGNALS, nq))], axis=1), modes)
         generic = np.random.default_rng(0).uniform(0.5, 1.5, 12 + 2 * nq)  # no cancellation (e.g. a = g)
         self.generic = (generic[None, :3], generic[None, 3:6], generic[None, 6:12 + nq], generic[12 + nq:, None])
@@ -392,7 +393,7 @@ class LeftOutTerms:
     def coefficients(self, effect: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Modal force (19, nq), stiffness and damping (19, nq, nq) per signal that ``effect``
         adds to the elastic rows; None when it adds nothing there (rigid-body rows only)."""
-        pack = packed(self.body, assembled(self.chosen | {effect}, self.body.available()))[0]
+        pack = packed(self.body, assembled(self.chosen | {effect}, self.avail))[0]
         if not np.any(elastic_rows(pack, *self.generic) - self.base_generic):
             return None
         return signal_coefficients(elastic_rows(pack, *self.probes) - self.base, self.probe_signals, self.modes)
@@ -413,7 +414,7 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     """
     avail = body.available()
     left_out = [e for e in EFFECTS if avail[e] and e not in chosen]
-    if not left_out or len(samples["q"]) == 0:
+    if not left_out or samples["q"].size == 0:  # no samples or no modes: nothing to change
         return {}
     idx = np.unique(np.linspace(0, len(samples["q"]) - 1, min(len(samples["q"]), ESTIMATE_SAMPLES)).astype(int))
     rot, acc = samples["rotation"][idx], samples["acceleration"][idx]  # A: K -> inertial
@@ -432,7 +433,8 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
     out = {}
     for effect in left_out:
         if effect == "load_stiffening":
-            stiffness = load_stiffening([(m, f[idx], tq[idx]) for m, f, tq in samples.get("node_loads", [])], modes)
+            stiffness = load_stiffening([(m, f[idx], tq[idx]) for m, f, tq in samples.get("node_loads", [])], modes,
+                                        len(idx))
             damping, force = np.zeros_like(stiffness), np.einsum("tkj,tj->tk", stiffness, eta)
         else:
             coefficients = terms_left_out.coefficients(effect)
@@ -440,8 +442,8 @@ def estimate_changes(body, chosen: set, samples: dict) -> dict[str, tuple[float,
                 out[effect] = (0.0, MEASURE)
                 continue
             f, k, c = coefficients
-            stiffness, damping = np.einsum("ti,ikj->tkj", x, k), np.einsum("ti,ikj->tkj", x, c)
-            force = x @ f + np.einsum("tkj,tj->tk", stiffness, eta) + np.einsum("tkj,tj->tk", damping, eta_dot)
+            stiffness, damping = ((x @ m.reshape(N_SIGNALS, -1)).reshape(-1, *m.shape[1:]) for m in (k, c))
+            force = x @ f + (stiffness @ eta[:, :, None] + damping @ eta_dot[:, :, None])[:, :, 0]
         change = modal_change(samples["t"][idx], amplitude, force, stiffness, damping, omega, response)
         out[effect] = (_relative(float(np.max(change)), ref), MEASURE)
     return out

@@ -451,3 +451,37 @@ def test_frequency_shifts_against_the_exact_eigenvalues():
     approx = np.sort(np.sqrt(omega**2 + shift[0]))
     assert np.max(np.abs(approx - exact) / np.abs(exact - omega)) < SHIFT_RTOL
     assert np.max(np.abs(decay)) < 1e-12  # gyroscopic coupling conserves energy
+
+
+def test_an_effect_that_would_deform_an_undeformed_body_warns():
+    """Gravity left out of a clamped bar at rest: the run leaves q = 0, gravity would bend it
+    (an infinite relative change): the report says so and the JSON value is null."""
+    from sidprep.cli.simulate import effects_summary
+    from sidprep.solver.model.joints import Fixed
+
+    s = System(gravity=(0.0, 0.0, -9.81), effects=["coupling"])
+    bar = s.add(FlexibleBody(bar_sid(freqs=FREQS), name="rotor"))
+    s.add(Fixed(s.ground.marker(), bar.node_marker(0)))
+    r = simulate(s, 0.05, h=1e-3)
+    assert np.max(np.abs(r.bodies["rotor"].q)) == 0.0
+    e = entry(r.effects, "gravity")
+    assert e.estimate == np.inf and e.warning
+    assert any("gravity" in w and "leaves undeformed" in w for w in r.effects.warnings)
+    assert effects_summary(r.effects)["estimates"]["rotor"]["gravity"] == {"value": None, "measure": MEASURE}
+    assert entry(r.effects, "centrifugal").estimate == 0.0 and not entry(r.effects, "centrifugal").warning
+
+
+def test_load_stiffening_left_out_without_node_loads_is_zero():
+    """K0F at the tip node, but the bar is held by a marker on its frame and has no node marker:
+    auto leaves load stiffening out, and with no node loads in the run its estimate is 0 (it
+    used to fail on the empty load list: the moving-mass example)."""
+    from sidprep.solver.model.joints import Fixed
+
+    k0f = np.zeros((3, 4, 4))
+    k0f[0] = -np.eye(4)
+    s = System(gravity=(0.0, 0.0, -9.81))
+    bar = s.add(FlexibleBody(bar_sid(freqs=FREQS, stiffening={"K0F/1": k0f}), name="rotor"))
+    s.add(Fixed(s.ground.marker(), bar.marker()))
+    r = simulate(s, 0.05, h=2e-3)
+    e = entry(r.effects, "load_stiffening")
+    assert e.available and not e.included and e.estimate == 0.0 and not e.warning
