@@ -9,9 +9,9 @@ Every child process runs the scene twice: the second run has every kernel loaded
 run's excess over it is the kernel cache loading (and first-call overheads) of that stage.
 
     python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --repeat 5
-    python benchmarks/process_cost.py examples/engine/scene.toml --before /work/main --output-dt 2e-4
+    python benchmarks/process_cost.py examples/engine/scene_rigid.toml --before /work/main --h 1e-4
 
-The kernel cache must be warm (run the scene once first); the load average is printed.
+One process per checkout first fills the kernel cache (not counted); the load average is printed.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import json, sys, time
 t0 = time.process_time()
 from sidprep.solver.scene import load_scene, simulate
 t_import = time.process_time() - t0
-kwargs = {} if sys.argv[2] == "-" else {"output_dt": float(sys.argv[2])}
+kwargs = {key: float(value) for key, value in zip(("output_dt", "h"), sys.argv[2:4]) if value != "-"}
 runs = []
 for _ in range(2):
     t1 = time.process_time()
@@ -58,10 +58,10 @@ STAGES = ("imports", "scene", "start", "kernel loading", "integration", "post", 
           "process (one run)")
 
 
-def child_run(root: Path, scene: Path, output_dt: str) -> dict:
+def child_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:
     """The stage costs of one fresh process importing sidprep from ``root``."""
     env = {**os.environ, "PYTHONPATH": str(root)}
-    out = subprocess.run([sys.executable, "-c", CHILD, str(scene), output_dt], env=env, cwd=scene.parent,
+    out = subprocess.run([sys.executable, "-c", CHILD, str(scene), output_dt, h], env=env, cwd=scene.parent,
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -72,17 +72,20 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--before", type=Path, help="another checkout to run side by side (e.g. /work/main)")
     parser.add_argument("--output-dt", default="-", help="output interval, s (default: the scene's)")
+    parser.add_argument("--h", default="-", help="step, s (default: the scene's)")
     args = parser.parse_args()
     scene = args.scene.resolve()
     roots = {"this": ROOT} | ({"before": args.before.resolve()} if args.before else {})
     rows: dict[str, list[dict]] = {name: [] for name in roots}
+    for root in roots.values():  # warm-up: the kernel cache filled
+        child_run(root, scene, args.output_dt, args.h)
     loads = [os.getloadavg()[0]]
     for _ in range(args.repeat):
         for name, root in roots.items():
-            rows[name].append(child_run(root, scene, args.output_dt))
+            rows[name].append(child_run(root, scene, args.output_dt, args.h))
         loads.append(os.getloadavg()[0])
     print(f"{scene.relative_to(ROOT) if scene.is_relative_to(ROOT) else scene}, output_dt {args.output_dt}, "
-          f"medians of {args.repeat} processes, load average {min(loads):.1f}-{max(loads):.1f}, CPU s")
+          f"h {args.h}, medians of {args.repeat} processes, load average {min(loads):.1f}-{max(loads):.1f}, CPU s")
     names = list(roots)
     print("| stage | " + " | ".join(names) + (" | ratio |" if len(names) == 2 else " |"))
     print("|---" * (len(names) + 1 + (len(names) == 2)) + "|")

@@ -19,7 +19,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from sidprep.solver.integrators.base import advance_pose, evaluation_at
+from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.integrators.base import advance_pose
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.run import Run
 
@@ -60,8 +61,8 @@ def tangent_stiffness(L, R, A, Q, refs, weights, length) -> np.ndarray:
         e = FD_STEP * length / weights[j]
         dx = np.zeros(n)
         dx[j] = e
-        fp = evaluation_at(L, *advance_pose(L, R, A, Q, dx), zero_u, 0.0, lam, refs).f
-        fm = evaluation_at(L, *advance_pose(L, R, A, Q, -dx), zero_u, 0.0, lam, refs).f
+        fp = evaluate(L, *advance_pose(L, R, A, Q, dx), zero_u, 0.0, lam, refs).f
+        fm = evaluate(L, *advance_pose(L, R, A, Q, -dx), zero_u, 0.0, lam, refs).f
         K[:, j] = -(fp - fm) / (2 * e)
     return K
 
@@ -75,7 +76,7 @@ def mechanism_modes(system, settings=None, **overrides) -> MechanismModes:
     state = run.consistent_start()
     L, free, kept = run.L, run.free, run.kept
     lam = np.zeros(len(run.names))
-    e = evaluation_at(L, state.R, state.A, state.Q, np.zeros_like(state.u), 0.0, lam, run.refs)
+    e = evaluate(L, state.R, state.A, state.Q, np.zeros_like(state.u), 0.0, lam, run.refs)
     M, B = e.M, e.B
     K = tangent_stiffness(L, state.R, state.A, state.Q, run.refs, run.weights, run.length)
     N = scipy.linalg.null_space(B[np.ix_(kept, free)]) if kept.size else np.eye(free.size)

@@ -24,9 +24,9 @@ from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import path_marker_problems
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_warning, energy_balance
-from sidprep.solver.equations.assemble import every_marker
+from sidprep.solver.equations.assemble import evaluate, every_marker, markers
 from sidprep.solver.equations.forces import FE_SPRING
-from sidprep.solver.integrators.base import Problem, Samples, State, evaluation_at
+from sidprep.solver.integrators.base import Problem, Samples, State
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
@@ -166,8 +166,7 @@ class Run:
         run's layout; the System is not changed)."""
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = evaluation_at(every_marker(self.L), R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0,
-                              np.zeros(len(self.names)), self.refs).kin.P
+            P = markers(every_marker(self.L), R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0).P
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 
@@ -176,11 +175,11 @@ class Run:
         L, w, st = self.L, self.weights, self.settings
         R, A, Q, u = self.initial_positions()
         R, A, Q = assemble_positions(L, R, A, Q, 0.0, self.refs, self.kept, w, self.names, self.length)
-        self.refs[:] = evaluation_at(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
+        self.refs[:] = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
         R, A, Q, u = self.start_from_joints(R, A, Q, u)
         self.note_moved_bodies(R, A)
         self.resolve_spring_lengths(R, A, Q)
-        e = evaluation_at(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)
+        e = evaluate(L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs)
         g, B = e.g, e.B
         self.kept = self.kept_3d = np.flatnonzero(independent_rows(B))
         self.note_inconsistent_rows(g)
@@ -196,7 +195,7 @@ class Run:
             if note:
                 self.notes.append(note)
             if free is not None:
-                B = evaluation_at(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs).B
+                B = evaluate(L, R, A, Q, u, 0.0, np.zeros(B.shape[0]), self.refs).B
                 self.free = free
                 self.kept = rows[independent_rows(B[rows][:, free])]
             elif self.system.planar:
@@ -253,12 +252,11 @@ class Run:
         if layout is not None:
             R, A, Q = assemble_positions(layout[0], R, A, Q, 0.0, self.refs, layout[1], self.weights, layout[2],
                                          self.length)
-            self.refs[:] = evaluation_at(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)),
-                                         self.refs).coords[:, 0]
+            self.refs[:] = evaluate(self.L, R, A, Q, u, 0.0, np.zeros(len(self.names)), self.refs).coords[:, 0]
         layout = self.start_layout("initial_rate")
         if layout is not None:
             L0, rows, _ = layout
-            B = evaluation_at(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs).B
+            B = evaluate(L0, R, A, Q, u, 0.0, np.zeros(rows.size), self.refs).B
             u = project_velocities(L0, R, A, Q, u, 0.0, self.refs, rows[independent_rows(B)], self.weights)
         return R, A, Q, u
 

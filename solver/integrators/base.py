@@ -260,49 +260,53 @@ def kkt_solve(M, f, B, BF, rhs):  # pragma: no cover - compiled
 
 
 @jit
-def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess, iterations):  # pragma: no cover
-    """Accelerations ud (n,; zero outside ``free``), kept multipliers and the Evaluation of the
-    last solve (at the multipliers before it) of the index-1 form
+def constraint_convection(e_plus, e_minus, u, kept):  # pragma: no cover - compiled
+    """gamma (kept,) = d/dt (B u + b_t) at constant u: the central difference of B u + b_t
+    between the Evaluations at the poses moved by +-GAMMA_STEP u (at t +- GAMMA_STEP), exact to
+    O(1e-12) relative for the smooth constraint functions."""
+    plus, minus = matvec(e_plus.B, u) + e_plus.bt, matvec(e_minus.B, u) + e_minus.bt
+    gam = np.empty(kept.shape[0])
+    for k in range(kept.shape[0]):
+        gam[k] = (plus[kept[k]] - minus[kept[k]]) / (2 * GAMMA_STEP)
+    return gam
+
+
+@jit
+def index1_solve(e, gam, u, free, kept, baumgarte):  # pragma: no cover - compiled
+    """Accelerations ud (n,; zero outside ``free``) and kept multipliers of the index-1 form
 
         M ud + B_F^T lambda = f,   B ud = -gamma - 2 a g_dot - a^2 g   (a = baumgarte, 1/s)
 
-    iterated ``iterations`` times when forces depend on lambda (friction); with iterations = 0
-    only the Evaluation at lam_guess (``evaluation_at``).  gamma = d/dt (B u + b_t) at constant
-    u is a central difference along the motion (step GAMMA_STEP s), exact to O(1e-12) relative
-    for the smooth constraint functions.  (evaluate is called directly, not through helpers:
-    every compiled function that calls it costs seconds of compilation.)"""
-    n = u.shape[0]
+    at the Evaluation e (u (n,) its velocities, gam (kept,) from constraint_convection)."""
+    Mf, ff, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
+    rhs = -gam
+    if baumgarte > 0.0 and kept.shape[0]:
+        gd = (matvec(e.B, u) + e.bt)[kept]
+        rhs = rhs - 2.0 * baumgarte * gd - baumgarte * baumgarte * e.g[kept]
+    x, lam = kkt_solve(Mf, ff, Bk, BFk, rhs)
+    ud = np.zeros(u.shape[0])
+    for i in range(free.shape[0]):
+        ud[free[i]] = x[i]
+    return ud, lam
+
+
+@jit
+def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess, iterations):  # pragma: no cover
+    """Accelerations ud (n,) and kept multipliers of the index-1 form (index1_solve), iterated
+    ``iterations`` times when forces depend on lambda (friction), for the compiled explicit
+    loops.  (The start takes the same steps from Python, initial.accelerations: evaluate is
+    compiled anyway, while every compiled function that calls it compiles its whole call tree
+    once more; docs/performance.md.)"""
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    lam = lam_guess.copy()
-    ud = np.zeros(n)
     gam = np.zeros(kept.shape[0])
-    if kept.shape[0] and iterations > 0:
-        for sign in (1.0, -1.0):
-            Rs, As, Qs = advance_pose(L, R, A, Q, sign * GAMMA_STEP * u)
-            e = evaluate(L, Rs, As, Qs, u, t + sign * GAMMA_STEP, np.zeros(m_all), refs)
-            gd = matvec(e.B, u) + e.bt
-            for k in range(kept.shape[0]):
-                gam[k] += sign * gd[kept[k]] / (2 * GAMMA_STEP)
-    e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
-    for it in range(iterations):
-        if it > 0:
-            e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
-        Mf, ff, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
-        rhs = -gam
-        if baumgarte > 0.0 and kept.shape[0]:
-            gd = (matvec(e.B, u) + e.bt)[kept]
-            rhs = rhs - 2.0 * baumgarte * gd - baumgarte * baumgarte * e.g[kept]
-        x, lam = kkt_solve(Mf, ff, Bk, BFk, rhs)
-        for i in range(free.shape[0]):
-            ud[free[i]] = x[i]
-    return ud, lam, e
-
-
-def evaluation_at(L, R, A, Q, u, t, lam, refs):
-    """``evaluate`` (equations/assemble.py) for the Python side of a run (the start, the
-    linearisation): through index1_accelerations without a solve, the start's one compiled
-    entry, because every compiled function that reaches evaluate compiles its whole call tree
-    once more on a first run (docs/performance.md, "First run").  lam (m_all,) multipliers of
-    all rows."""
-    rows = np.arange(lam.shape[0])
-    return index1_accelerations(L, R, A, Q, u, t, refs, np.arange(u.shape[0]), rows, 0.0, lam, 0)[2]
+    if kept.shape[0]:
+        Rp, Ap, Qp = advance_pose(L, R, A, Q, GAMMA_STEP * u)
+        Rm, Am, Qm = advance_pose(L, R, A, Q, -GAMMA_STEP * u)
+        gam = constraint_convection(evaluate(L, Rp, Ap, Qp, u, t + GAMMA_STEP, np.zeros(m_all), refs),
+                                    evaluate(L, Rm, Am, Qm, u, t - GAMMA_STEP, np.zeros(m_all), refs), u, kept)
+    lam = lam_guess.copy()
+    ud = np.zeros(u.shape[0])
+    for _ in range(iterations):
+        e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
+        ud, lam = index1_solve(e, gam, u, free, kept, baumgarte)
+    return ud, lam

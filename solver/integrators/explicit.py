@@ -55,8 +55,8 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
     """dy/dt of the explicit state; params = (L, free, kept, refs, baumgarte, lam guess (kept))."""
     L, free, kept, refs, baumgarte, lam_guess = params
     R, A, Q, u = unpack(L, y)
-    ud, lam, _ = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
-                                      MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
+    ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
+                                   MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
     put(lam_guess, 0, lam)
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     lam_all = expand(lam, kept, m_all)
@@ -85,8 +85,8 @@ def sample(L, t, y, params, refs):  # pragma: no cover - compiled
     """(R, A, Q, u, ud, lam, work) at an accepted state, refs updated to its joint angles."""
     L_, free, kept, _, baumgarte, lam_guess = params
     R, A, Q, u = unpack(L, y)
-    ud, lam, _ = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
-                                      MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
+    ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
+                                   MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     coords = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs).coords
     for j in range(refs.shape[0]):

@@ -13,7 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.integrators.base import advance_pose, evaluation_at, index1_accelerations, kkt_solve, restrict
+from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.integrators.base import (GAMMA_STEP, advance_pose, constraint_convection, expand, index1_solve,
+                                             kkt_solve, restrict)
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -78,8 +80,7 @@ def rigid_columns(L) -> np.ndarray:
 
 def constraints_at(L, R, A, Q, t, refs):
     """(g, B) of all rows at a pose (zero velocities)."""
-    e = evaluation_at(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)),
-                      refs)
+    e = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), refs)
     return e.g, e.B
 
 
@@ -169,7 +170,7 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     m_all = int(L.joint_off[-1] + L.drv_joint.size)
 
     def error(v):
-        e = evaluation_at(L, R, A, Q, v, t, np.zeros(m_all), refs)
+        e = evaluate(L, R, A, Q, v, t, np.zeros(m_all), refs)
         return (e.B @ v + e.bt)[kept], e
 
     err, e = error(u)
@@ -186,9 +187,20 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
 
 
 def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
-    """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte)."""
-    guess = np.zeros(kept.size) if lam is None else lam
-    return index1_accelerations(L, R, A, Q, u, t, refs, free, kept, 0.0, guess, 3 if kept.size else 1)[:2]
+    """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte):
+    base.index1_accelerations's steps taken from Python, because evaluate is compiled anyway
+    while every compiled function that calls it compiles its whole call tree once more on a
+    first run (docs/performance.md, "First run")."""
+    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+    gam = np.zeros(kept.size)
+    if kept.size:
+        plus, minus = (evaluate(L, *advance_pose(L, R, A, Q, sign * GAMMA_STEP * u), u, t + sign * GAMMA_STEP,
+                                np.zeros(m_all), refs) for sign in (1.0, -1.0))
+        gam = constraint_convection(plus, minus, u, kept)
+    lam = np.zeros(kept.size) if lam is None else lam
+    for _ in range(3 if kept.size else 1):
+        ud, lam = index1_solve(evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs), gam, u, free, kept, 0.0)
+    return ud, lam
 
 
 def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):

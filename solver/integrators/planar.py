@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import every_marker
+from sidprep.solver.equations.assemble import evaluate, every_marker, markers
 from sidprep.solver.equations.rotations import jit
-from sidprep.solver.integrators.base import advance_pose, evaluation_at
+from sidprep.solver.integrators.base import advance_pose
 
 #: relative size below which an out-of-plane coupling counts as zero
 PLANAR_TOL = 1e-9
@@ -38,9 +38,7 @@ AXES = "xyz"
 def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
-    m_all = int(L.joint_off[-1] + L.drv_joint.size)
-    AM = evaluation_at(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, np.zeros(m_all),
-                       np.zeros(L.joint_mk.shape[0])).kin.AM
+    AM = markers(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0).AM
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):
@@ -92,7 +90,7 @@ def planar_coordinates(system, L, state, refs, kept, weights, length, t_end):
         Rt, At, Qt = advance_pose(L, R, A, Q, np.where(free, PLANAR_MOTION * length * rng.standard_normal(n)
                                                        / weights, 0.0))
         vel = np.where(free, u + rng.standard_normal(n) / weights, 0.0)
-        e = evaluation_at(L, Rt, At, Qt, vel, t, np.zeros(m_all), refs)
+        e = evaluate(L, Rt, At, Qt, vel, t, np.zeros(m_all), refs)
         M, f, B = e.M, e.f, e.B[kept]
         inplane = np.linalg.norm(B[:, free], axis=1) > PLANAR_TOL * np.linalg.norm(B, axis=1)
         if rows is not None and np.any(rows != inplane):
