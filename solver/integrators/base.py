@@ -18,12 +18,17 @@ from numba import types
 from numba.np.linalg import _LAPACK
 
 from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.forces import FE_FRICTION
 from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
 #: time step of the central difference giving gamma = d/dt (B u + b_t), s
 GAMMA_STEP = 1e-6
+#: friction reads the multipliers: the index-1 solve is repeated until they change by less than
+#: this, relative to the largest (a fixed count left an error of the order of the previous call's
+#: change, and RK4 fell to order 1.2-1.4 on the seed slider crank; docs/accuracy-cost.md)
+MULTIPLIER_RTOL = 1e-10
 
 #: the output samples of one call of a compiled loop: t (k,), R (k, nb, 3), A (k, nb, 3, 3),
 #: Q (k, nq), u, ud (k, n), lam (k, m), refs (k, nj), work (k, 3); ``sample_buffers`` makes them
@@ -263,7 +268,8 @@ def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_gues
 
         M ud + B_F^T lambda = f,   B ud = -gamma - 2 a g_dot - a^2 g   (a = baumgarte, 1/s)
 
-    iterated ``iterations`` times when forces depend on lambda (friction).  gamma = d/dt (B u +
+    iterated when forces depend on lambda (friction) until lambda changes by less than
+    MULTIPLIER_RTOL of its largest entry, at most ``iterations`` times.  gamma = d/dt (B u +
     b_t) at constant u is a central difference along the motion (step GAMMA_STEP s), exact to
     O(1e-12) relative for the smooth constraint functions.  (evaluate is called directly, not
     through helpers: every compiled function that calls it costs seconds of compilation.)"""
@@ -279,14 +285,21 @@ def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_gues
             gd = matvec(e.B, u) + e.bt
             for k in range(kept.shape[0]):
                 gam[k] += sign * gd[kept[k]] / (2 * GAMMA_STEP)
-    for _ in range(iterations):
+    friction = False
+    for i in range(L.fe_int.shape[0]):
+        friction = friction or L.fe_int[i, 0] == FE_FRICTION
+    for _ in range(iterations if friction else 1):
         e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
         Mf, ff, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
         rhs = -gam
         if baumgarte > 0.0 and kept.shape[0]:
             gd = (matvec(e.B, u) + e.bt)[kept]
             rhs = rhs - 2.0 * baumgarte * gd - baumgarte * baumgarte * e.g[kept]
-        x, lam = kkt_solve(Mf, ff, Bk, BFk, rhs)
+        x, lam_new = kkt_solve(Mf, ff, Bk, BFk, rhs)
         for i in range(free.shape[0]):
             ud[free[i]] = x[i]
+        settled = lam.shape[0] == 0 or np.max(np.abs(lam_new - lam)) <= MULTIPLIER_RTOL * np.max(np.abs(lam_new))
+        lam = lam_new
+        if settled:
+            break
     return ud, lam

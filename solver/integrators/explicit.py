@@ -20,8 +20,9 @@ from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, expand, fi
                                              sample_buffers, store_sample)
 from sidprep.solver.integrators.runge_kutta import hermite, rk4_combine, rk4_stage
 
-#: friction couples the forces to the multipliers: fixed-point iterations per evaluation
-MULTIPLIER_ITERATIONS = 2
+#: friction couples the forces to the multipliers: most fixed-point iterations per evaluation
+#: (base.index1_accelerations stops once the multipliers settle to MULTIPLIER_RTOL)
+MULTIPLIER_ITERATIONS = 30
 
 
 @jit
