@@ -431,13 +431,18 @@ def timed_runs(run, kw: dict, repeat: int):
 
 def fixed_step_cpu(rows: list[dict], error: float, key: str = "error") -> tuple[float, bool]:
     """CPU of the fixed-step generalised-alpha curve of the same scene at ``error`` (``key``: all
-    signals or "joints"; log-log interpolation, beyond its ends the end segment's slope, flagged
-    True)."""
-    pts = sorted((r[key], r["integ"]) for r in rows if r["method"] == GA_FIXED and np.isfinite(r[key]))
-    e, c = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    signals or "joints"): its Pareto front (the runs more accurate than every cheaper one),
+    interpolated log-log; beyond its ends the end segment's slope, flagged True."""
+    front = []
+    for cpu, err in sorted((r["integ"], r[key]) for r in rows if r["method"] == GA_FIXED and np.isfinite(r[key])):
+        if not front or err < front[-1][1]:
+            front.append((cpu, err))
+    c, e = np.log([p[0] for p in front])[::-1], np.log([p[1] for p in front])[::-1]
     x = np.log(error)
-    if e[0] <= x <= e[-1]:
+    if len(front) > 1 and e[0] <= x <= e[-1]:
         return float(np.exp(np.interp(x, e, c))), False
+    if len(front) == 1:
+        return float(np.exp(c[0])), True
     i = (0, 1) if x < e[0] else (-2, -1)
     slope = (c[i[1]] - c[i[0]]) / (e[i[1]] - e[i[0]])
     return float(np.exp(c[i[0]] + slope * (x - e[i[0]]))), True
