@@ -18,12 +18,20 @@ from numba import types
 from numba.np.linalg import _LAPACK
 
 from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.forces import FE_FRICTION
 from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
 #: time step of the central difference giving gamma = d/dt (B u + b_t), s
 GAMMA_STEP = 1e-6
+#: friction reads the multipliers: the index-1 solve is repeated until they change by less than
+#: this, relative to the largest (a fixed count left an error of the order of the previous call's
+#: change, and RK4 fell to order 1.2-1.4 on the seed slider crank; docs/accuracy-cost.md)
+MULTIPLIER_RTOL = 1e-10
+#: friction couples the forces to the multipliers: most fixed-point iterations per evaluation
+#: (base.index1_accelerations stops once the multipliers settle to MULTIPLIER_RTOL)
+MULTIPLIER_ITERATIONS = 30
 
 #: the output samples of one call of a compiled loop: t (k,), R (k, nb, 3), A (k, nb, 3, 3),
 #: Q (k, nq), u, ud (k, n), lam (k, m), refs (k, nj), work (k, 3); ``sample_buffers`` makes them
@@ -272,6 +280,22 @@ def constraint_convection(e_plus, e_minus, u, kept):  # pragma: no cover - compi
 
 
 @jit
+def has_friction(L):  # pragma: no cover - compiled
+    """Whether a force element depends on the multipliers (friction): the index-1 solve then
+    iterates on lambda."""
+    for i in range(L.fe_int.shape[0]):
+        if L.fe_int[i, 0] == FE_FRICTION:
+            return True
+    return False
+
+
+@jit
+def multipliers_settled(lam, lam_new):  # pragma: no cover - compiled
+    """|lam_new - lam| <= MULTIPLIER_RTOL max |lam_new| (or no multipliers)."""
+    return lam.shape[0] == 0 or np.max(np.abs(lam_new - lam)) <= MULTIPLIER_RTOL * np.max(np.abs(lam_new))
+
+
+@jit
 def index1_solve(e, gam, u, free, kept, baumgarte):  # pragma: no cover - compiled
     """Accelerations ud (n,; zero outside ``free``) and kept multipliers of the index-1 form
 
@@ -292,11 +316,12 @@ def index1_solve(e, gam, u, free, kept, baumgarte):  # pragma: no cover - compil
 
 @jit
 def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess, iterations):  # pragma: no cover
-    """Accelerations ud (n,) and kept multipliers of the index-1 form (index1_solve), iterated
-    ``iterations`` times when forces depend on lambda (friction), for the compiled explicit
-    loops.  (The start takes the same steps from Python, initial.accelerations: evaluate is
-    compiled anyway, while every compiled function that calls it compiles its whole call tree
-    once more; docs/performance.md.)"""
+    """Accelerations ud (n,) and kept multipliers of the index-1 form (index1_solve), for the
+    compiled explicit loops; iterated when forces depend on lambda (friction) until lambda
+    changes by less than MULTIPLIER_RTOL of its largest entry, at most ``iterations`` times.
+    (The start takes the same steps from Python, initial.accelerations: evaluate is compiled
+    anyway, while every compiled function that calls it compiles its whole call tree once more;
+    docs/performance.md.)"""
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     gam = np.zeros(kept.shape[0])
     if kept.shape[0]:
@@ -306,7 +331,12 @@ def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_gues
                                     evaluate(L, Rm, Am, Qm, u, t - GAMMA_STEP, np.zeros(m_all), refs), u, kept)
     lam = lam_guess.copy()
     ud = np.zeros(u.shape[0])
-    for _ in range(iterations):
+    for _ in range(iterations if has_friction(L) else 1):
         e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
-        ud, lam = index1_solve(e, gam, u, free, kept, baumgarte)
+        ud, lam_new = index1_solve(e, gam, u, free, kept, baumgarte)
+        settled = multipliers_settled(lam, lam_new)
+        lam = lam_new
+        if settled:
+            break
+    return ud, lam
     return ud, lam

@@ -16,12 +16,9 @@ import numpy as np
 
 from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
-from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, expand, first_samples, index1_accelerations,
-                                             sample_buffers, store_sample)
+from sidprep.solver.integrators.base import (CHUNK, MULTIPLIER_ITERATIONS, Samples, Stepper, expand, first_samples,
+                                             index1_accelerations, sample_buffers, store_sample)
 from sidprep.solver.integrators.runge_kutta import hermite, rk4_combine, rk4_stage
-
-#: friction couples the forces to the multipliers: fixed-point iterations per evaluation
-MULTIPLIER_ITERATIONS = 2
 
 
 @jit

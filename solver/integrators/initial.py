@@ -14,8 +14,9 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.integrators.base import (GAMMA_STEP, advance_pose, constraint_convection, expand, index1_solve,
-                                             kkt_solve, restrict)
+from sidprep.solver.integrators.base import (GAMMA_STEP, MULTIPLIER_ITERATIONS, advance_pose, constraint_convection,
+                                             expand, has_friction, index1_solve, kkt_solve, multipliers_settled,
+                                             restrict)
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -198,8 +199,13 @@ def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
                                 np.zeros(m_all), refs) for sign in (1.0, -1.0))
         gam = constraint_convection(plus, minus, u, kept)
     lam = np.zeros(kept.size) if lam is None else lam
-    for _ in range(3 if kept.size else 1):
-        ud, lam = index1_solve(evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs), gam, u, free, kept, 0.0)
+    for _ in range(MULTIPLIER_ITERATIONS if has_friction(L) else 1):
+        ud, lam_new = index1_solve(evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs), gam, u, free, kept,
+                                   0.0)
+        settled = multipliers_settled(lam, lam_new)
+        lam = lam_new
+        if settled:
+            break
     return ud, lam
 
 
