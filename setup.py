@@ -28,7 +28,10 @@ class BuildWithKernels(build_py):
         kernels = lib / "sidprep" / "solver" / "_kernels"
         shutil.rmtree(kernels, ignore_errors=True)  # an earlier build's kernels, of other sources
         scenes = sorted(glob.glob("examples/*/scene*.toml"))
-        env = {**os.environ, "PYTHONPATH": str(lib), "NUMBA_CACHE_DIR": str(kernels)}
+        # the built package first, then this process's path: pip's isolated build environment
+        # (numpy, numba, scipy, h5py of [build-system] requires) reaches the child through it
+        path = os.pathsep.join([str(lib), *filter(None, [os.environ.get("PYTHONPATH")]), *sys.path])
+        env = {**os.environ, "PYTHONPATH": path, "NUMBA_CACHE_DIR": str(kernels)}
         print(f"compiling the solver kernels on {len(scenes)} example scenes (SIDPREP_PREBUILD=0 skips) ...",
               flush=True)
         done = subprocess.run([sys.executable, "-m", "sidprep.solver.prebuild", *scenes], env=env)
