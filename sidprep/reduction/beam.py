@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -564,9 +564,3 @@ def beam_options_from_table(table: dict, source: str) -> BeamOptions:
         return o
     except (InputError, ValueError, TypeError, KeyError) as exc:
         raise InputError(f"{source}: {exc}") from None
-
-
-def options_dict(o: BeamOptions) -> dict:
-    """JSON-ready options."""
-    return asdict(o)
-
