@@ -41,9 +41,9 @@ from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
 from sidprep.fe.linalg import factorize, single_threaded_blas
 from sidprep.fe.mesh import _face_table
+from sidprep.fe.pardiso import ldlt_inertia
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
-from sidprep.reduction.fe_checks import dynamic_schur
 
 
 #: the parts' fixed-interface modes reach this multiple of the highest fixed-interface frequency of
@@ -242,13 +242,8 @@ def assemble_parts(parts: list[PartModel], reductions: list[PartReduction], coar
     local = tuple(np.searchsorted(coarse, part.dofs[part.boundary]) for part in parts)
     index = [np.r_[pos, np.arange(offsets[p], offsets[p + 1])] for p, pos in enumerate(local)]
     n = int(offsets[-1])
-
-    def summed(blocks):
-        rows = np.concatenate([np.repeat(i, len(i)) for i in index])
-        cols = np.concatenate([np.tile(i, len(i)) for i in index])
-        return sp.csr_matrix((np.concatenate([B.ravel() for B in blocks]), (rows, cols)), shape=(n, n))
-
-    return Assembly(summed([r.K for r in reductions]), summed([r.M for r in reductions]), coarse, local, offsets)
+    return Assembly(summed_blocks(index, [r.K for r in reductions], n), summed_blocks(index, [r.M for r in reductions], n),
+                    coarse, local, offsets)
 
 
 class SubstructuredSolver:
@@ -316,37 +311,46 @@ class SubstructuredSolver:
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
         """Eigenvalues of the whole model below ``sigma`` (held DOFs removed): Sylvester's law of inertia
-        with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the parts'
-        fixed-interface eigenvalues below sigma plus the negative eigenvalues of the sum of their exact
-        dynamic Schur complements on G (``part_dynamic_schur``: on ``tasks`` when given, a function
-        fn, [args per part] -> [results], else here).  None when sigma is above a part's computed modes."""
+        with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative pivots of
+        every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur complements on G
+        (``part_dynamic_schur``: on ``tasks`` when given, a function fn, [args per part] -> [results], else
+        here), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a pivot had to be perturbed."""
         a = self.assembly
-        args = [(part, r, sigma) for part, r in zip(self.parts, self.reductions)]
+        args = [(part, sigma) for part in self.parts]
         schurs = self.tasks(part_dynamic_schur, args) if self.tasks is not None \
-            else [part_dynamic_schur(*x, factor) for x, factor in zip(args, self.factors)]
+            else [part_dynamic_schur(*x) for x in args]
         if any(schur is None for schur in schurs):
             return None
-        S = np.zeros((len(a.coarse), len(a.coarse)))
-        for pos, schur in zip(a.local, schurs):
-            S[np.ix_(pos, pos)] += schur[1]
-        below = sum(schur[0] for schur in schurs)
         keep = ~np.isin(a.coarse, [] if red.held is None else red.held)
-        S = S[np.ix_(keep, keep)]
-        return int(below + np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) < 0))
+        coarse = coarse_inertia(summed_blocks(a.local, [schur[1] for schur in schurs], len(a.coarse))[keep][:, keep])
+        if coarse is None:
+            return None
+        return int(sum(schur[0] for schur in schurs) + coarse)
 
 
-def part_dynamic_schur(part: PartModel, reduction: PartReduction, sigma: float, factor=None):
-    """(#{part fixed-interface eigenvalues < sigma}, the part's exact dynamic Schur complement on its
-    coarse DOFs (nb_p, nb_p)) or None (sidprep.reduction.fe_checks.dynamic_schur); a task: without
-    ``factor`` the part's interior is factorised here."""
+def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
+    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``."""
+    rows = np.concatenate([np.repeat(pos, len(pos)) for pos in positions])
+    cols = np.concatenate([np.tile(pos, len(pos)) for pos in positions])
+    return sp.csr_matrix((np.concatenate([B.ravel() for B in blocks]), (rows, cols)), shape=(n, n))
 
-    own = part.interior
-    modes = np.zeros((len(part.dofs), reduction.modes.shape[1]))
-    modes[own] = reduction.modes
+
+def coarse_inertia(S: sp.csr_matrix) -> int | None:
+    """Negative eigenvalues of the symmetric sparse coarse matrix S by LDL^T, or None (a perturbed pivot)."""
+    if S.shape[0] == 0:
+        return 0
+    inertia = ldlt_inertia(0.5 * (S + S.T))
+    return None if inertia.n_perturbed else inertia.n_negative
+
+
+def part_dynamic_schur(part: PartModel, sigma: float):
+    """(#{eigenvalues of the part's (K, M)_II below sigma}, the part's exact dynamic Schur complement
+    (K - sigma M)_BB - (K - sigma M)_BI (K - sigma M)_II^-1 (K - sigma M)_IB (nb_p, nb_p) on its coarse
+    DOFs), both from one sparse LDL^T of the part's K - sigma M; None when a pivot was perturbed.  A task."""
+
     with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
-        factor = factor if factor is not None else factorize(part.K[own][:, own])
-        return dynamic_schur(part.K, part.M, factor, modes, (2 * np.pi * reduction.frequencies_hz) ** 2,
-                             part.boundary, part.boundary, sigma)
+        inertia = ldlt_inertia((part.K - sigma * part.M).tocsr(), part.boundary)
+    return None if inertia.n_perturbed else (inertia.n_negative, inertia.schur)
 
 
 def second_level(assembly: Assembly, boundary, n_modes=None, fmax=None):
