@@ -93,14 +93,19 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     b = im.master_dofs.ravel()
     labels = rp.partition_cells(mesh.cells, 8)
     parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    reductions = [rp.reduce_part(p, n_modes=40) for p in parts]
-    assembly = rp.assemble_parts(parts, reductions, coarse)
+    space = rp.coarse_space(parts, coarse, b, [rp.part_static_schur(p) for p in parts], M, n_interface=24)
+    reductions = [rp.reduce_part(p, space.part_map(k), n_modes=40) for k, p in enumerate(parts)]
+    assembly = rp.assemble_parts(reductions, space)
     solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0])
     interior = np.ones(K.shape[0], bool)
     interior[b] = False
     r = np.random.default_rng(1).standard_normal((interior.sum(), 3))
     x_ref = spla.spsolve(K[interior][:, interior].tocsc(), r)
     assert np.abs(solver.solve(r) - x_ref).max() < SOLVE_RTOL * np.abs(x_ref).max()
+    # the cuts are reduced (24 interface modes each), the constraint modes of b stay exact
+    assert space.R.shape[1] < len(coarse)
+    psi_ref = -spla.spsolve(K[interior][:, interior].tocsc(), K[interior][:, b].toarray())
+    assert np.abs(solver.constraint_modes(K) - psi_ref).max() < SOLVE_RTOL * np.abs(psi_ref).max()
     # the count over the parts against a full-model eigen solve (free body: 6 rigid modes first)
     f = eigen_modes(K, M, count=12, backend="cholmod").frequencies_hz
     held = type("Red", (), {"held": None})()
@@ -117,16 +122,30 @@ def test_piston_rod_in_4_parts_on_the_local_pool_matches_the_monolithic_reductio
     f_full = eigen_modes(K, M, count=8, backend="cholmod").frequencies_hz[6:]
     bounds = np.array(parts.checks["frequencies_full_hz_bounds"])
     assert np.all((bounds[:, 0] <= f_full * (1 + 1e-9)) & (f_full <= bounds[:, 1] * (1 + 1e-9)))
-    assert any("reduced in 4 parts" in n for n in parts.notes)
+    coarse, coordinates = coarse_note(parts, 4)
+    assert coordinates < coarse                             # the cuts were reduced to interface modes
 
 
-def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction():
+def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction(monkeypatch):
+    import sidprep.jobs.parts as jobs_parts
+
     distributed = pytest.importorskip("distributed")
+    monkeypatch.setattr(jobs_parts, "INTERFACE_PER_MODE", 1.0)     # few interface modes: the cuts are reduced
+    monkeypatch.setattr(jobs_parts, "INTERFACE_MIN_MODES", 12)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         mono, parts = monolithic_and_parts(BAR, 8, scheduler=client)
     assert_same_body(mono, parts, BAR)
     assert parts.checks["frequency_check"].startswith("certified")
+    coarse, coordinates = coarse_note(parts, 8)
+    assert coordinates < 0.5 * coarse
+
+
+def coarse_note(result, n_parts: int) -> tuple[int, int]:
+    """(coarse DOF, coarse coordinates) from the parts note."""
+    note = next(n for n in result.notes if f"reduced in {n_parts} parts" in n)
+    words = note.split(" coarse DOF in ")
+    return int(words[0].split()[-1]), int(words[1].split()[0])
 
 
 def test_parts_short_of_modes_run_a_second_round_and_match_the_monolithic_reduction(monkeypatch):

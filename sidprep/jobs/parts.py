@@ -22,8 +22,8 @@ from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
-from sidprep.reduction.parts import (PART_CUTOFF, assemble_parts, part_models, partition_cells,
-    parts_reduced_model, reduce_part, second_level, short_parts)
+from sidprep.reduction.parts import (PART_CUTOFF, assemble_parts, coarse_space, count_below, part_models,
+    part_positions, part_static_schur, partition_cells, parts_reduced_model, reduce_part, second_level, short_parts)
 
 
 #: times a part is run again after its worker was lost
@@ -35,6 +35,11 @@ PART_RETRIES = 2
 #: round costs a whole part reduction, the margin less)
 PART_MIN_MODES = 12
 PART_FIRST_ROUND = 1.25
+#: interface modes kept on every cut: INTERFACE_PER_MODE x the second level's fixed-interface modes
+#: (n_modes, or the whole model's count below fmax), at least INTERFACE_MIN_MODES (tests/test_parts.py:
+#: 1e-4 agreement with the monolithic reduction on the piston rod and the bar)
+INTERFACE_PER_MODE = 4.0
+INTERFACE_MIN_MODES = 48
 #: most parts suggested when a part does not fit a worker
 MAX_SUGGESTED_PARTS = 4096
 
@@ -126,44 +131,67 @@ def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: di
             pools[0] = task_pool(settings.scheduler, settings.workers)
 
 
-def reduce_parts(pools, settings, parts, coarse, boundary, memory, n_modes=None, fmax=None):
-    """Rounds of part tasks until every part's modes reach PART_CUTOFF x the second level's highest
+def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None):
+    """The coarse space from the parts' exact static Schur complements (one round of tasks), then rounds
+    of part reductions until every part's modes reach PART_CUTOFF x the second level's highest
     fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel)."""
 
+    tasks = on_pools(pools, settings, parts)
+    schurs = tasks(part_static_schur, [(part,) for part in parts])
+    wanted = n_modes
+    if fmax is not None:                                # the whole model's fixed-interface modes below fmax
+        wanted = count_below(parts, part_positions(parts, coarse), coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
+    space = coarse_space(parts, coarse, boundary, schurs, M_model,
+                         max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
+    del schurs
+
+    reductions: dict = {}
+
+    def run_round(requests: dict) -> None:
+        run_part_tasks(pools, settings, parts, reduce_part,
+                       {p: (parts[p], space.part_map(p), *request, memory) for p, request in requests.items()}, reductions)
+
     if fmax is not None:
-        first = {p: (part, None, PART_CUTOFF * fmax, memory) for p, part in enumerate(parts)}
+        first = {p: (None, PART_CUTOFF * fmax) for p in range(len(parts))}
     else:
         count = max(PART_MIN_MODES, int(np.ceil(PART_FIRST_ROUND * PART_CUTOFF ** 2 * n_modes / len(parts))))
-        first = {p: (part, count, None, memory) for p, part in enumerate(parts)}
-    reductions: dict = {}
-    run_part_tasks(pools, settings, parts, reduce_part, first, reductions)
-    asked = {p: f for p, (_, _, f, _) in first.items() if f is not None}
+        first = dict.fromkeys(range(len(parts)), (count, None))
+    run_round(first)
+    asked = {p: f for p, (_, f) in first.items() if f is not None}
     while True:
         ordered = [reductions[p] for p in range(len(parts))]
-        assembly = assemble_parts(parts, ordered, coarse)
-        level2 = second_level(assembly, boundary, n_modes=n_modes, fmax=fmax)
+        assembly = assemble_parts(ordered, space)
+        level2 = second_level(assembly, n_modes=n_modes, fmax=fmax)
         needed = PART_CUTOFF * float(level2.fixed_interface_hz.max(initial=0.0))
         short = [p for p in short_parts(ordered, parts, needed) if asked.get(p, 0.0) < needed]
         if not short:
             break
         asked.update(dict.fromkeys(short, needed))
-        run_part_tasks(pools, settings, parts, reduce_part, {p: (parts[p], None, needed, memory) for p in short},
-                       reductions)
+        run_round(dict.fromkeys(short, (None, needed)))
     return ordered, assembly, level2
 
 
+def on_pools(pools: list, settings: PartsSettings, parts):
+    """fn, [args per part] -> [fn(*args) per part], as tasks on ``pools[0]`` (lost workers: run again)."""
+
+    def run(fn, args: list) -> list:
+        results: dict = {}
+        run_part_tasks(pools, settings, parts, fn, dict(enumerate(args)), results)
+        return [results[p] for p in range(len(args))]
+
+    return run
+
+
 def part_tasks(settings: PartsSettings, parts):
-    """fn, [args per part] -> [fn(*args) per part], as tasks on a fresh pool (lost workers: run again):
-    the per-part work of the checks (sidprep.reduction.parts.SubstructuredSolver.eigenvalue_count)."""
+    """As ``on_pools``, on a fresh pool per call: the per-part work of the checks
+    (sidprep.reduction.parts.SubstructuredSolver.eigenvalue_count)."""
 
     def run(fn, args: list) -> list:
         pools = [task_pool(settings.scheduler, settings.workers)]
-        results: dict = {}
         try:
-            run_part_tasks(pools, settings, parts, fn, dict(enumerate(args)), results)
+            return on_pools(pools, settings, parts)(fn, args)
         finally:
             pools[0].close()
-        return [results[p] for p in range(len(args))]
 
     return run
 
@@ -191,14 +219,15 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
         try:
             memory = worker_memory_bytes(pools[0])
             check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
-            ordered, assembly, level2 = reduce_parts(pools, settings, parts, coarse, boundary, memory,
+            ordered, assembly, level2 = reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory,
                                                      n_modes, fmax)
         finally:
             pools[0].close()
         if notes is not None:
             notes.append(f"reduced in {len(parts)} {'components' if names else 'parts'} of "
                          f"{min(len(p.dofs) for p in parts)}-"
-                         f"{max(len(p.dofs) for p in parts)} DOF, {len(coarse)} coarse DOF, "
+                         f"{max(len(p.dofs) for p in parts)} DOF, {len(coarse)} coarse DOF in {assembly.space.R.shape[1]} "
+                         f"coordinates, "
                          f"{sum(len(r.frequencies_hz) for r in ordered)} part modes up to "
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
                          f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "

@@ -7,24 +7,30 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
 
     K = sum_p T_p^T K_p T_p,     K_p = [[K_II, K_IB], [K_BI, K_BB]]  (B_p = part p's DOFs in G)
 
-1. each part: Craig-Bampton on B_p (a task: sidprep.jobs.parts), u_I = Psi_p u_B + Phi_p q_p,
-   Psi_p = -K_II^-1 K_IB, Phi_p its fixed-interface modes up to a cut-off;
-2. the reduced parts assembled on [u_G, q_1 .. q_N] (``assemble_parts``): the G block of K is the
-   exact Schur complement of the whole model onto G, and K_Gq = 0 (constraint modes are
-   K-orthogonal to fixed-interface modes);
-3. a second Craig-Bampton of that assembly on b: its constraint modes are EXACT constraint modes of
-   the whole model (static condensation keeps q = 0), its fixed-interface modes approximate the
-   monolithic ones as the parts' cut-off rises (``PART_CUTOFF``);
-4. every model DOF recovered from the parts (``SubstructuredSolver.recover``), which gives the
+1. each part's exact static Schur complement S_p = K_BB - K_BI K_II^-1 K_IB on B_p (a task: one sparse
+   partial LDL^T, sidprep.fe.pardiso); their sum S on G is the whole model's exact Schur complement;
+2. the coarse space (``coarse_space``): b kept; every cut (the coarse DOFs shared by one set of parts)
+   reduced to its lowest interface modes, eigenvectors of S and M on the cut (characteristic
+   constraint modes; Castanier, Tan & Pierre 2001): u_G = R c;
+3. each part: Craig-Bampton on its coarse coordinates c_p (a task), u_I = Psi_p R_p c_p + Phi_p q_p,
+   Psi_p = -K_II^-1 K_IB: one constraint mode per coordinate (not per coarse DOF), Phi_p its
+   fixed-interface modes up to a cut-off (``PART_CUTOFF``);
+4. the reduced parts assembled on [c, q_1 .. q_N] (``assemble_parts``) and a second Craig-Bampton of
+   that assembly on b: its fixed-interface modes approximate the monolithic ones as the parts'
+   cut-off and the interface modes rise;
+5. every model DOF recovered from the parts (``SubstructuredSolver.recover``), which gives the
    same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
-   substructuring and a certified eigenvalue count (Wittrick-Williams over the parts), so the
-   checks of sidprep.reduction.fe_checks hold against the full model unchanged;
-5. the fixed-interface modes X refined by one block inverse iteration with that exact K_ii^-1:
+   substructuring (the parts' factors and the factor of the exact S) - the static columns are the
+   whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a certified eigenvalue count
+   (Wittrick-Williams over the parts, each part's inertia and dynamic Schur complement from one
+   sparse LDL^T, the coarse sum's inertia from another), so the checks of
+   sidprep.reduction.fe_checks hold against the full model unchanged;
+6. the fixed-interface modes X refined by one block inverse iteration with that exact K_ii^-1:
    Rayleigh-Ritz of K_ii, M_ii on span[X, K_ii^-1 M_ii X] (``refined_modes``; a subspace-iteration
    step divides each mode's error by about the square of (its frequency / the parts' cut-off)).
 
 Craig & Bampton 1968; Hurty 1965 (component modes); Wittrick & Williams 1971 (eigenvalue count);
-Bathe & Wilson 1972 (subspace iteration).
+Bathe & Wilson 1972 (subspace iteration); Castanier, Tan & Pierre 2001 (characteristic constraint modes).
 """
 
 from __future__ import annotations
@@ -173,6 +179,92 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
 
 
 # ---------------------------------------------------------------------------------------------
+# the coarse space: exact static Schur complements, interface modes of the cuts
+# ---------------------------------------------------------------------------------------------
+
+def part_static_schur(part: PartModel) -> np.ndarray:
+    """The part's exact static Schur complement K_BB - K_BI K_II^-1 K_IB (nb_p, nb_p) on its coarse DOFs,
+    from one sparse partial LDL^T (sidprep.fe.pardiso; no constraint mode is formed).  A task."""
+    with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
+        return ldlt_inertia(part.K, part.boundary).schur
+
+
+def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
+    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``."""
+    rows = np.concatenate([np.repeat(pos, len(pos)) for pos in positions])
+    cols = np.concatenate([np.tile(pos, len(pos)) for pos in positions])
+    return sp.csr_matrix((np.concatenate([B.ravel() for B in blocks]), (rows, cols)), shape=(n, n))
+
+
+def cut_groups(local, n_coarse: int, fixed: np.ndarray) -> list[np.ndarray]:
+    """The cuts: the coarse DOFs (positions in G) not in ``fixed``, grouped by the set of parts that
+    share them (an interface between two parts, or the edge where three meet)."""
+    owners = sp.csr_matrix((np.ones(sum(len(pos) for pos in local)),
+                            (np.concatenate(local), np.repeat(np.arange(len(local)), [len(pos) for pos in local]))),
+                           shape=(n_coarse, len(local)))
+    free = np.setdiff1d(np.arange(n_coarse), fixed)
+    keys = [owners.indices[owners.indptr[g]:owners.indptr[g + 1]].tobytes() for g in free]
+    _, group = np.unique(np.array(keys, dtype=object), return_inverse=True)
+    return [free[group == k] for k in range(int(group.max(initial=-1)) + 1)]
+
+
+def interface_modes(S: np.ndarray, M: np.ndarray, count: int) -> np.ndarray:
+    """(ng, min(count, ng)) the lowest eigenvectors of S phi = lambda M phi on one cut, M-normalised:
+    S the exact static Schur complement of the whole model on the cut (the other coarse DOFs held),
+    M the model's mass on it - the cut's smoothest displacement fields first (characteristic
+    constraint modes of the cut; Castanier, Tan & Pierre 2001, with the cut's own mass)."""
+    n = S.shape[0]
+    if count >= n:
+        return np.eye(n)
+    _, phi = sla.eigh(0.5 * (S + S.T), 0.5 * (M + M.T), subset_by_index=(0, count - 1))
+    return phi
+
+
+def part_positions(parts, coarse: np.ndarray) -> tuple:
+    """Per part, the positions in G (``coarse``) of its coarse DOFs B_p."""
+    return tuple(np.searchsorted(coarse, part.dofs[part.boundary]) for part in parts)
+
+
+@dataclass(frozen=True)
+class CoarseSpace:
+    """The coarse DOFs G and the coordinates c = [u_b, eta_1, ..., eta_k] of the second level: u_G = R c.
+
+    coarse : (nG,) model DOFs, ascending; local : per part, positions of its B_p in G; n_boundary :
+    len(b) (c starts with u_b in b's order); R : (nG, nc) csr, identity on b, a cut's interface modes
+    on its DOFs; S : (nG, nG) csr, the exact static Schur complement of the whole model onto G.
+    """
+
+    coarse: np.ndarray
+    local: tuple
+    n_boundary: int
+    R: sp.csr_matrix
+    S: sp.csr_matrix
+
+    def columns(self, p: int) -> np.ndarray:
+        """Positions in c of the coordinates that move part p's coarse DOFs."""
+        return np.unique(self.R[self.local[p]].indices)
+
+    def part_map(self, p: int) -> sp.csr_matrix:
+        """(nb_p, len(columns(p))) csr: part p's coarse DOFs from its coordinates."""
+        return self.R[self.local[p]][:, self.columns(p)].tocsr()
+
+
+def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interface: int) -> CoarseSpace:
+    """The coarse space of ``parts`` from their exact static Schur complements ``schurs``
+    (``part_static_schur``): b kept, every cut reduced to its ``n_interface`` lowest interface modes."""
+
+    b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
+    local = part_positions(parts, coarse)
+    S = summed_blocks(local, schurs, len(coarse))
+    blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
+    for g in cut_groups(local, len(coarse), b):
+        phi = interface_modes(S[g][:, g].toarray(), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
+        rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
+        blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
+    return CoarseSpace(coarse, local, len(b), sp.hstack(blocks, format="csr"), S)
+
+
+# ---------------------------------------------------------------------------------------------
 # level 1: one part (a task)
 # ---------------------------------------------------------------------------------------------
 
@@ -180,8 +272,9 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
 class PartReduction:
     """A part's Craig-Bampton reduction as a task returns it (no factor: it does not travel).
 
-    K, M : (nb_p + nm_p,) square dense, on [u_B, q_p]; modes : (ni_p, nm_p) fixed-interface modes on
-    the part's own DOFs, M_II-normalised; frequencies_hz : (nm_p,); peak_memory_mb : the worker's peak.
+    K, M : (nc_p + nm_p,) square dense, on [c_p, q_p] (its coarse coordinates, its modal ones);
+    modes : (ni_p, nm_p) fixed-interface modes on the part's own DOFs, M_II-normalised;
+    frequencies_hz : (nm_p,); peak_memory_mb : the worker's peak.
     """
 
     K: np.ndarray
@@ -195,22 +288,33 @@ class PartReduction:
         return float(self.frequencies_hz[-1]) if len(self.frequencies_hz) else 0.0
 
 
-def reduce_part(part: PartModel, n_modes: int | None = None, fmax: float | None = None,
-                memory_limit: float | None = None) -> PartReduction:
-    """Craig-Bampton of one part on its coarse DOFs: n_modes fixed-interface modes or all below fmax
-    (Hz); ``memory_limit`` : bytes the worker may use (the reduction refuses to start beyond it)."""
+def with_coarse_coordinates(part: PartModel, R: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """T^T K T, T^T M T of the part on [its own DOFs, its coarse coordinates c_p]: T = diag(I, R),
+    R (nb_p, nc_p) its coarse DOFs from c_p (CoarseSpace.part_map)."""
+    own = part.interior
+    n_i, n_c = len(own), R.shape[1]
+    R = R.tocoo()
+    T = sp.csr_matrix((np.r_[np.ones(n_i), R.data], (np.r_[own, part.boundary[R.row]], np.r_[np.arange(n_i), n_i + R.col])),
+                      shape=(len(part.dofs), n_i + n_c))
+    return (T.T @ (part.K @ T)).tocsr(), (T.T @ (part.M @ T)).tocsr()
 
-    n_modes = None if n_modes is None else min(n_modes, len(part.dofs) - len(part.boundary) - 1)
+
+def reduce_part(part: PartModel, R: sp.csr_matrix, n_modes: int | None = None, fmax: float | None = None,
+                memory_limit: float | None = None) -> PartReduction:
+    """Craig-Bampton of one part on its coarse coordinates (``with_coarse_coordinates``): n_modes
+    fixed-interface modes or all below fmax (Hz); ``memory_limit`` : bytes the worker may use (the
+    reduction refuses to start beyond it).  One constraint mode per coarse coordinate."""
+
+    n_i = len(part.dofs) - len(part.boundary)
+    n_modes = None if n_modes is None else min(n_modes, n_i - 1)
+    K, M = with_coarse_coordinates(part, R)
     try:
         with single_threaded_blas():                      # one BLAS thread per task (a worker per core)
-            cb = craig_bampton(part.K, part.M, part.boundary, n_modes=n_modes, fmax=fmax,
+            cb = craig_bampton(K, M, np.arange(n_i, K.shape[0]), n_modes=n_modes, fmax=fmax,
                                memory_limit=memory_limit, extent=part.extent)
     except InputError as exc:
         raise InputError(f"{part.name}: {exc}") from None
-    interior = np.ones(len(part.dofs), bool)
-    interior[part.boundary] = False
-    return PartReduction(cb.K, cb.M, cb.basis[interior, cb.n_boundary:].copy(), cb.fixed_interface_hz,
-                         peak_memory_mb())
+    return PartReduction(cb.K, cb.M, cb.basis[:n_i, cb.n_boundary:].copy(), cb.fixed_interface_hz, peak_memory_mb())
 
 
 def short_parts(reductions: list[PartReduction], parts: list[PartModel], f_needed: float) -> list[int]:
@@ -225,114 +329,40 @@ def short_parts(reductions: list[PartReduction], parts: list[PartModel], f_neede
 
 @dataclass(frozen=True)
 class Assembly:
-    """The reduced parts on [u_G, q_1, ..., q_N]: K, M (n_asm, n_asm) csr; coarse : (nG,) model DOFs
-    of u_G; local : per part, positions of its B_p in u_G; offsets : (N + 1,) start of each q_p."""
+    """The reduced parts on [c, q_1, ..., q_N]: K, M (n_asm, n_asm) csr; space : the CoarseSpace of c;
+    offsets : (N + 1,) start of each q_p."""
 
     K: sp.csr_matrix
     M: sp.csr_matrix
-    coarse: np.ndarray
-    local: tuple
+    space: CoarseSpace
     offsets: np.ndarray
 
 
-def assemble_parts(parts: list[PartModel], reductions: list[PartReduction], coarse: np.ndarray) -> Assembly:
-    """Sum every part's reduced K, M into the coarse DOFs and its own modal coordinates (step 2)."""
-    nG = len(coarse)
-    offsets = nG + np.cumsum([0] + [r.modes.shape[1] for r in reductions])
-    local = tuple(np.searchsorted(coarse, part.dofs[part.boundary]) for part in parts)
-    index = [np.r_[pos, np.arange(offsets[p], offsets[p + 1])] for p, pos in enumerate(local)]
+def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assembly:
+    """Sum every part's reduced K, M into the coarse coordinates and its own modal ones (step 2)."""
+    offsets = space.R.shape[1] + np.cumsum([0] + [r.modes.shape[1] for r in reductions])
+    index = [np.r_[space.columns(p), np.arange(offsets[p], offsets[p + 1])] for p in range(len(reductions))]
     n = int(offsets[-1])
     return Assembly(summed_blocks(index, [r.K for r in reductions], n), summed_blocks(index, [r.M for r in reductions], n),
-                    coarse, local, offsets)
+                    space, offsets)
 
 
-class SubstructuredSolver:
-    """Exact solves with K_ii of the whole model (i = every model DOF but the boundary b) from the
-    parts' interior factors and the factor of the Schur complement S on the coarse DOFs G \\ b
-    (the assembly's G block, step 2):
+def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
+    """Eigenvalues below ``sigma`` of the whole model with the DOFs ``held`` removed: Sylvester's law of
+    inertia with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative
+    pivots of every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur
+    complements on G (``part_dynamic_schur``: on ``tasks`` when given, a function fn, [args per part] ->
+    [results], else here), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a pivot was perturbed."""
 
-        y_p = K_II^-1 r_p,   S x_G = r_G - sum_p K_GI y_p,   x_p = y_p - K_II^-1 K_IG x_G
-
-    It is the ``interior_factor`` of the parts' ReducedModel (``solve``), recovers every model DOF
-    from coarse displacements and modal coordinates (``recover``) and counts eigenvalues over the
-    parts (``eigenvalue_count``).
-    """
-
-    def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, tasks=None):
-
-        self.parts, self.reductions, self.assembly, self.tasks = parts, reductions, assembly, tasks
-        self.boundary = np.asarray(boundary, dtype=np.int64)
-        interior = np.ones(n_model, bool)
-        interior[self.boundary] = False
-        self.row = np.cumsum(interior) - 1                 # model DOF -> row of K_ii
-        self.free_coarse = np.flatnonzero(~np.isin(assembly.coarse, self.boundary))   # G \ b in u_G
-        self.factors, self.K_IB = [], []
-        for part in parts:
-            own = part.interior
-            self.factors.append(factorize(part.K[own][:, own]))
-            self.K_IB.append(part.K[own][:, part.boundary].tocsc())
-        S = assembly.K[self.free_coarse][:, self.free_coarse]
-        self.schur = factorize(S) if S.shape[0] else None
-
-    def _part_solve(self, p: int, rhs: np.ndarray) -> np.ndarray:
-        return np.asarray(self.factors[p].solve(rhs)).reshape(rhs.shape)
-
-    def solve(self, r: np.ndarray) -> np.ndarray:
-        """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending)."""
-        shape = np.shape(r)
-        r = np.asarray(r, dtype=float).reshape(shape[0], -1)
-        slot = np.full(len(self.assembly.coarse), -1)
-        slot[self.free_coarse] = np.arange(len(self.free_coarse))
-        g = r[self.row[self.assembly.coarse[self.free_coarse]]].copy()
-        y, cols = [], []
-        for p, part in enumerate(self.parts):
-            y.append(self._part_solve(p, r[self.row[part.dofs[part.interior]]]))
-            cols.append(slot[self.assembly.local[p]])
-            keep = cols[p] >= 0
-            g[cols[p][keep]] -= self.K_IB[p][:, keep].T @ y[p]
-        x = np.empty_like(r)
-        x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None else g
-        x[self.row[self.assembly.coarse[self.free_coarse]]] = x_G
-        for p, part in enumerate(self.parts):
-            u_B = np.where((cols[p] >= 0)[:, None], x_G[np.maximum(cols[p], 0)], 0.0)
-            x[self.row[part.dofs[part.interior]]] = y[p] - self._part_solve(p, self.K_IB[p] @ u_B)
-        return x.reshape(shape)
-
-    def recover(self, U: np.ndarray, n_model: int) -> np.ndarray:
-        """Model-DOF vectors (n_model, k) from assembly vectors U (n_asm, k): u_G as given, each part's
-        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4)."""
-        a = self.assembly
-        out = np.zeros((n_model, U.shape[1]))
-        out[a.coarse] = U[:len(a.coarse)]
-        for p, part in enumerate(self.parts):
-            q = U[a.offsets[p]:a.offsets[p + 1]]
-            out[part.dofs[part.interior]] = self.reductions[p].modes @ q - self._part_solve(p, self.K_IB[p] @ U[a.local[p]])
-        return out
-
-    def eigenvalue_count(self, red, sigma: float) -> int | None:
-        """Eigenvalues of the whole model below ``sigma`` (held DOFs removed): Sylvester's law of inertia
-        with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative pivots of
-        every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur complements on G
-        (``part_dynamic_schur``: on ``tasks`` when given, a function fn, [args per part] -> [results], else
-        here), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a pivot had to be perturbed."""
-        a = self.assembly
-        args = [(part, sigma) for part in self.parts]
-        schurs = self.tasks(part_dynamic_schur, args) if self.tasks is not None \
-            else [part_dynamic_schur(*x) for x in args]
-        if any(schur is None for schur in schurs):
-            return None
-        keep = ~np.isin(a.coarse, [] if red.held is None else red.held)
-        coarse = coarse_inertia(summed_blocks(a.local, [schur[1] for schur in schurs], len(a.coarse))[keep][:, keep])
-        if coarse is None:
-            return None
-        return int(sum(schur[0] for schur in schurs) + coarse)
-
-
-def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
-    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``."""
-    rows = np.concatenate([np.repeat(pos, len(pos)) for pos in positions])
-    cols = np.concatenate([np.tile(pos, len(pos)) for pos in positions])
-    return sp.csr_matrix((np.concatenate([B.ravel() for B in blocks]), (rows, cols)), shape=(n, n))
+    args = [(part, sigma) for part in parts]
+    schurs = tasks(part_dynamic_schur, args) if tasks is not None else [part_dynamic_schur(*x) for x in args]
+    if any(schur is None for schur in schurs):
+        return None
+    keep = ~np.isin(coarse, [] if held is None else held)
+    coarse_count = coarse_inertia(summed_blocks(local, [schur[1] for schur in schurs], len(coarse))[keep][:, keep])
+    if coarse_count is None:
+        return None
+    return int(sum(schur[0] for schur in schurs) + coarse_count)
 
 
 def coarse_inertia(S: sp.csr_matrix) -> int | None:
@@ -353,24 +383,101 @@ def part_dynamic_schur(part: PartModel, sigma: float):
     return None if inertia.n_perturbed else (inertia.n_negative, inertia.schur)
 
 
-def second_level(assembly: Assembly, boundary, n_modes=None, fmax=None):
-    """Step 3: Craig-Bampton of the assembled parts on the monolithic boundary b (in b's order)."""
+class SubstructuredSolver:
+    """Exact solves with K_ii of the whole model (i = every model DOF but the boundary b) from the
+    parts' interior factors and the factor of the exact static Schur complement S on the coarse DOFs
+    G \\ b (CoarseSpace.S):
 
-    b = np.searchsorted(assembly.coarse, np.asarray(boundary, dtype=np.int64))
-    return craig_bampton(assembly.K, assembly.M, b, n_modes=n_modes, fmax=fmax)
+        y_p = K_II^-1 r_p,   S x_G = r_G - sum_p K_GI y_p,   x_p = y_p - K_II^-1 K_IG x_G
+
+    It is the ``interior_factor`` of the parts' ReducedModel (``solve``), recovers every model DOF
+    from coarse coordinates and modal coordinates (``recover``) and counts eigenvalues over the
+    parts (``eigenvalue_count``).
+    """
+
+    def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, tasks=None):
+
+        self.parts, self.reductions, self.assembly, self.tasks = parts, reductions, assembly, tasks
+        self.space = assembly.space
+        self.boundary = np.asarray(boundary, dtype=np.int64)
+        interior = np.ones(n_model, bool)
+        interior[self.boundary] = False
+        self.row = np.cumsum(interior) - 1                 # model DOF -> row of K_ii
+        self.free_coarse = np.flatnonzero(~np.isin(self.space.coarse, self.boundary))   # G \ b in G
+        self.factors, self.K_IB = [], []
+        for part in parts:
+            own = part.interior
+            self.factors.append(factorize(part.K[own][:, own]))
+            self.K_IB.append(part.K[own][:, part.boundary].tocsc())
+        S = self.space.S[self.free_coarse][:, self.free_coarse]
+        self.schur = factorize(S) if S.shape[0] else None
+
+    def _part_solve(self, p: int, rhs: np.ndarray) -> np.ndarray:
+        return np.asarray(self.factors[p].solve(rhs)).reshape(rhs.shape)
+
+    def solve(self, r: np.ndarray) -> np.ndarray:
+        """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending)."""
+        shape = np.shape(r)
+        r = np.asarray(r, dtype=float).reshape(shape[0], -1)
+        coarse = self.space.coarse
+        slot = np.full(len(coarse), -1)
+        slot[self.free_coarse] = np.arange(len(self.free_coarse))
+        g = r[self.row[coarse[self.free_coarse]]].copy()
+        y, cols = [], []
+        for p, part in enumerate(self.parts):
+            y.append(self._part_solve(p, r[self.row[part.dofs[part.interior]]]))
+            cols.append(slot[self.space.local[p]])
+            keep = cols[p] >= 0
+            g[cols[p][keep]] -= self.K_IB[p][:, keep].T @ y[p]
+        x = np.empty_like(r)
+        x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None else g
+        x[self.row[coarse[self.free_coarse]]] = x_G
+        for p, part in enumerate(self.parts):
+            u_B = np.where((cols[p] >= 0)[:, None], x_G[np.maximum(cols[p], 0)], 0.0)
+            x[self.row[part.dofs[part.interior]]] = y[p] - self._part_solve(p, self.K_IB[p] @ u_B)
+        return x.reshape(shape)
+
+    def recover(self, U: np.ndarray, n_model: int) -> np.ndarray:
+        """Model-DOF vectors (n_model, k) from assembly vectors U (n_asm, k): u_G = R c, each part's
+        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4)."""
+        a, space = self.assembly, self.space
+        out = np.zeros((n_model, U.shape[1]))
+        u_G = space.R @ U[:space.R.shape[1]]
+        out[space.coarse] = u_G
+        for p, part in enumerate(self.parts):
+            q = U[a.offsets[p]:a.offsets[p + 1]]
+            out[part.dofs[part.interior]] = self.reductions[p].modes @ q - self._part_solve(p, self.K_IB[p] @ u_G[space.local[p]])
+        return out
+
+    def constraint_modes(self, K_model) -> np.ndarray:
+        """(ni, nb) the whole model's exact constraint modes on the interior, -K_ii^-1 K_ib."""
+        interior = np.ones(K_model.shape[0], bool)
+        interior[self.boundary] = False
+        return -self.solve(K_model[interior][:, self.boundary].toarray())
+
+    def eigenvalue_count(self, red, sigma: float) -> int | None:
+        """Eigenvalues of the whole model below ``sigma`` (held DOFs removed), over the parts (``count_below``)."""
+        return count_below(self.parts, self.space.local, self.space.coarse, red.held, sigma, self.tasks)
+
+
+def second_level(assembly: Assembly, n_modes=None, fmax=None):
+    """Step 3: Craig-Bampton of the assembled parts on the monolithic boundary b (c's first coordinates)."""
+    return craig_bampton(assembly.K, assembly.M, np.arange(assembly.space.n_boundary), n_modes=n_modes, fmax=fmax)
 
 
 def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2, tasks=None):
     """Step 4: the ReducedModel of the whole model in model DOFs, as ``craig_bampton`` returns it
-    (basis with the boundary columns first, K, M projected from the model matrices), with the
+    (basis with the boundary columns first: the EXACT constraint modes by the substructured solve;
+    then the refined fixed-interface modes; K, M projected from the model matrices), with the
     substructured K_ii solver as its factor (``tasks``: where it runs per-part work, see there)."""
 
     n = K_model.shape[0]
     solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, tasks)
-    basis = solver.recover(level2.basis, n)
     nb = len(boundary)
+    basis = solver.recover(level2.basis, n)
     interior = np.ones(n, bool)
     interior[boundary] = False
+    basis[np.ix_(interior, np.arange(nb))] = solver.constraint_modes(K_model)
     f, basis[interior, nb:] = refined_modes(K_model, M_model, interior, solver, basis[interior, nb:])
     return ReducedModel(basis, project(K_model, basis), project(M_model, basis),
                         np.asarray(boundary, dtype=np.int64), f, solver)
