@@ -38,8 +38,8 @@ PART_FIRST_ROUND = 1.25
 #: interface modes kept on every cut: INTERFACE_PER_MODE x the second level's fixed-interface modes
 #: (n_modes, or the whole model's count below fmax), at least INTERFACE_MIN_MODES (tests/test_parts.py:
 #: 1e-4 agreement with the monolithic reduction on the piston rod and the bar)
-INTERFACE_PER_MODE = 4.0
-INTERFACE_MIN_MODES = 48
+INTERFACE_PER_MODE = 2.0
+INTERFACE_MIN_MODES = 24
 #: most parts suggested when a part does not fit a worker
 MAX_SUGGESTED_PARTS = 4096
 

@@ -258,7 +258,8 @@ def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interfa
     S = summed_blocks(local, schurs, len(coarse))
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
     for g in cut_groups(local, len(coarse), b):
-        phi = interface_modes(S[g][:, g].toarray(), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
+        with single_threaded_blas():                      # 3x faster than two threads on the shared machine
+            phi = interface_modes(S[g][:, g].toarray(), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
     return CoarseSpace(coarse, local, len(b), sp.hstack(blocks, format="csr"), S)
