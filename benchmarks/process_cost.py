@@ -31,6 +31,11 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = r"""
 import json, sys, time
 t0 = time.process_time()
+try:  # what `sidprep simulate` does before its imports (absent in older checkouts)
+    from sidprep.cli.simulate import one_blas_thread
+    one_blas_thread()
+except ImportError:
+    pass
 from sidprep.solver.scene import load_scene, simulate
 t_import = time.process_time() - t0
 kwargs = {key: float(value) for key, value in zip(("output_dt", "h"), sys.argv[2:4]) if value != "-"}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -11,6 +12,24 @@ from sidprep.solver.integrators.settings import METHODS
 
 #: signals plotted / exported when the scene's [output] names none
 DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
+
+#: the BLAS thread pools of a simulation process, set before numpy loads (a limit set later does not
+#: stop the pools from starting): numpy's and scipy's OpenBLAS each start a pool whose idle threads
+#: spin after the start and after every call, while the solver's matrices are small (tens to a few
+#: hundred rows).  Measured 2026-11-26 (docs/performance.md, "Fixed cost per process"): 0.16-0.22
+#: CPU-s of imports, 0.04 s of the engine's post-processing, the integration unchanged.  A value the
+#: user sets wins.
+SOLVER_THREADS = {"OPENBLAS_NUM_THREADS": "1"}
+
+
+def one_blas_thread() -> None:
+    """The BLAS thread limits of SOLVER_THREADS, unless the environment sets them; nothing once
+    numpy is loaded (``main`` called in a Python session: the limit would only reach its child
+    processes)."""
+    if "numpy" in sys.modules:
+        return
+    for name, value in SOLVER_THREADS.items():
+        os.environ.setdefault(name, value)
 
 
 def positive(text: str) -> float:
@@ -116,6 +135,7 @@ def not_a_scene_hint(path: str) -> str:
 
 
 def run(args) -> int:
+    one_blas_thread()  # before the solver imports numpy
     from sidprep.progress import Phases, SimulationProgress
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results

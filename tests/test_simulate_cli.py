@@ -1,6 +1,9 @@
 """``sidprep simulate``: the JSON contract, the files it writes, the report, and its errors."""
 
 import json
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 import meshio
@@ -8,6 +11,7 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
+from sidprep.cli.simulate import one_blas_thread
 from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 from sidprep.solver.results import read_results
 from test_scene import TINY_SCENE, tiny_sid
@@ -137,3 +141,32 @@ def test_solver_errors_name_the_scene_file(tmp_path, capsys):
     code = main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "-q"])
     err = capsys.readouterr().err
     assert (code, err.count("\n")) == (2, 1) and err.startswith(f"sidprep: error: {scene}: "), err
+
+
+BLAS_THREADS = """
+import json, os, sys
+from sidprep.cli.simulate import one_blas_thread
+one_blas_thread()
+import numpy, scipy.linalg
+from threadpoolctl import threadpool_info
+print(json.dumps([os.environ.get("OPENBLAS_NUM_THREADS"), [p["num_threads"] for p in threadpool_info()
+                                                           if p["internal_api"] == "openblas"]]))
+"""
+
+
+@pytest.mark.parametrize("user, threads", [(None, "1"), ("2", "2")])
+def test_simulate_process_starts_one_blas_thread_unless_the_user_sets_it(user, threads):
+    """The command's BLAS pools start with one thread (their idle threads cost 0.2 CPU-s of every
+    process, cli/simulate.py SOLVER_THREADS); the user's own OPENBLAS_NUM_THREADS wins."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | (
+        {"OPENBLAS_NUM_THREADS": user} if user else {})
+    out = subprocess.run([sys.executable, "-c", BLAS_THREADS], env=env, capture_output=True, text=True, check=True)
+    setting, pools = json.loads(out.stdout)
+    assert setting == threads
+    assert pools and all(n <= int(threads) for n in pools)
+
+
+def test_one_blas_thread_leaves_a_session_with_numpy_loaded_alone(monkeypatch):
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    one_blas_thread()  # numpy is loaded here: setting it would only reach child processes
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
