@@ -11,11 +11,13 @@ both after the temporary files are removed.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import math
 import os
 import pkgutil
 import sys
+import threading
 import warnings
 
 from sidprep import cli
@@ -83,5 +85,23 @@ def main(argv: list[str] | None = None) -> int:
         return 3
 
 
+def command() -> None:
+    """The ``sidprep`` command: ``main`` as a process of its own, ended without Python's teardown
+    of its modules once the atexit handlers have run and stdout and stderr are flushed: that
+    teardown (the cyclic garbage collector over numba's type registries, LLVM's modules freed one
+    by one) cost 0.2-0.3 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
+    While another thread still runs (a pool, a Dask client), the process ends the ordinary way."""
+    code = main()
+    if threading.active_count() > 1:
+        sys.exit(code)
+    atexit._run_exitfuncs()  # what the interpreter runs first at its exit (temporary folders, h5py, logging)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (BrokenPipeError, ValueError):  # reader gone, or the stream closed: nothing left to write
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    command()

@@ -38,3 +38,26 @@ def test_view_writes_into_the_current_folder(tmp_path):
                        cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "bar.html").is_file() and r.stdout.strip() == "wrote bar.html"
+
+
+#: the console command with an atexit handler of its own, arguments from the command line
+COMMAND = """
+import atexit, sys
+atexit.register(lambda: print("atexit handler ran"))
+from sidprep.cli.main import command
+sys.argv = ["sidprep", *sys.argv[1:]]
+command()
+"""
+
+
+@pytest.mark.parametrize("argv, code", [(["beam", "--material", "list"], 0), (["info", "missing.sid.h5"], 2)])
+def test_the_command_ends_with_its_exit_code_its_output_and_the_atexit_handlers(tmp_path, argv, code):
+    """``command`` skips Python's module teardown (cli/main.py): the exit code, everything written
+    and the atexit handlers are kept."""
+    r = subprocess.run([sys.executable, "-c", COMMAND, *argv], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == code, r.stderr
+    assert r.stdout.endswith("atexit handler ran\n")
+    if code == 0:
+        assert "steel" in r.stdout
+    else:
+        assert r.stderr.startswith("sidprep: error:") and "missing.sid.h5" in r.stderr
