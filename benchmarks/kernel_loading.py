@@ -32,8 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = r"""
 import json, sys, time
 from pathlib import Path
-from sidprep.cli.simulate import one_blas_thread
-one_blas_thread()
+from sidprep.cli.simulate import process_setup
+process_setup()
 from sidprep.solver.scene import load_scene, simulate
 from sidprep.solver.equations.kernel_cache import KERNEL_CACHE, NAMESPACE
 from numba.core import codegen, dispatcher

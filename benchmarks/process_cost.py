@@ -38,9 +38,9 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = r"""
 import json, sys, time
 t0 = time.process_time()
-try:  # what `sidprep simulate` does before its imports (absent in older checkouts)
-    from sidprep.cli.simulate import one_blas_thread
-    one_blas_thread()
+try:  # what `sidprep simulate` does to its process (absent in older checkouts)
+    from sidprep.cli.simulate import process_setup
+    process_setup()
 except ImportError:
     pass
 from sidprep.solver.scene import load_scene, simulate

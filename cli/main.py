@@ -54,12 +54,16 @@ def check_finite_options(args) -> None:
             raise InputError(f"--{key.replace('_', '-')} {value}: must be a finite number")
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
+    """Run one sub-command; ``own_process``: the process is the command's own (``command``), so
+    the sub-command's ``process_setup`` (if its parser sets one) runs first."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    if own_process and getattr(args, "process_setup", None):
+        args.process_setup()
     terminate_on_sigterm()
     warnings.showwarning = one_line_warning
     try:
@@ -91,7 +95,7 @@ def command() -> None:
     teardown (the cyclic garbage collector over numba's type registries, LLVM's modules freed one
     by one) cost 0.2-0.3 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
     While another thread still runs (a pool, a Dask client), the process ends the ordinary way."""
-    code = main()
+    code = main(own_process=True)
     if threading.active_count() > 1:
         sys.exit(code)
     atexit._run_exitfuncs()  # what the interpreter runs first at its exit (temporary folders, h5py, logging)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import sys
@@ -22,14 +23,17 @@ DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
 SOLVER_THREADS = {"OPENBLAS_NUM_THREADS": "1"}
 
 
-def one_blas_thread() -> None:
-    """The BLAS thread limits of SOLVER_THREADS, unless the environment sets them; nothing once
-    numpy is loaded (``main`` called in a Python session: the limit would only reach its child
-    processes)."""
-    if "numpy" in sys.modules:
-        return
+def process_setup() -> None:
+    """What the command changes about its process when it runs as one (``sidprep simulate``, not
+    ``main`` called from Python), before the solver's imports: the BLAS thread limits of
+    SOLVER_THREADS unless the environment sets them, and no cyclic garbage collection (reference
+    counting frees as always).  The collector scans numba's growing registries again and again
+    while the solver imports and loads its kernels: 0.06-0.14 CPU-s of a simulate process, and a
+    run leaves next to no cyclic garbage (the engine's peak memory unchanged, 310 MB;
+    docs/performance.md, "Fixed cost per process")."""
     for name, value in SOLVER_THREADS.items():
         os.environ.setdefault(name, value)
+    gc.disable()
 
 
 def positive(text: str) -> float:
@@ -71,7 +75,7 @@ def register(subparsers) -> None:
     p.add_argument("--list-signals", action="store_true",
                    help="print the signal names of the scene (for [output] signals) and exit without simulating")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, process_setup=process_setup)
 
 
 def effects_summary(report) -> dict:
@@ -135,7 +139,6 @@ def not_a_scene_hint(path: str) -> str:
 
 
 def run(args) -> int:
-    one_blas_thread()  # before the solver imports numpy
     from sidprep.progress import Phases, SimulationProgress
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results

@@ -1,5 +1,6 @@
 """``sidprep simulate``: the JSON contract, the files it writes, the report, and its errors."""
 
+import gc
 import json
 import os
 import subprocess
@@ -11,7 +12,6 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.cli.simulate import one_blas_thread
 from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 from sidprep.solver.results import read_results
 from test_scene import TINY_SCENE, tiny_sid
@@ -143,30 +143,36 @@ def test_solver_errors_name_the_scene_file(tmp_path, capsys):
     assert (code, err.count("\n")) == (2, 1) and err.startswith(f"sidprep: error: {scene}: "), err
 
 
-BLAS_THREADS = """
-import json, os, sys
-from sidprep.cli.simulate import one_blas_thread
-one_blas_thread()
+
+PROCESS = """
+import gc, json, os, sys
+from sidprep.cli.simulate import process_setup
+process_setup()
 import numpy, scipy.linalg
 from threadpoolctl import threadpool_info
 print(json.dumps([os.environ.get("OPENBLAS_NUM_THREADS"), [p["num_threads"] for p in threadpool_info()
-                                                           if p["internal_api"] == "openblas"]]))
+                                                           if p["internal_api"] == "openblas"], gc.isenabled()]))
 """
 
 
 @pytest.mark.parametrize("user, threads", [(None, "1"), ("2", "2")])
 def test_simulate_process_starts_one_blas_thread_unless_the_user_sets_it(user, threads):
-    """The command's BLAS pools start with one thread (their idle threads cost 0.2 CPU-s of every
-    process, cli/simulate.py SOLVER_THREADS); the user's own OPENBLAS_NUM_THREADS wins."""
+    """The command's process: BLAS pools with one thread (their idle threads cost 0.2 CPU-s of every
+    process, cli/simulate.py SOLVER_THREADS; the user's own OPENBLAS_NUM_THREADS wins) and no
+    cyclic garbage collector."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | (
         {"OPENBLAS_NUM_THREADS": user} if user else {})
-    out = subprocess.run([sys.executable, "-c", BLAS_THREADS], env=env, capture_output=True, text=True, check=True)
-    setting, pools = json.loads(out.stdout)
+    out = subprocess.run([sys.executable, "-c", PROCESS], env=env, capture_output=True, text=True, check=True)
+    setting, pools, collector = json.loads(out.stdout)
     assert setting == threads
     assert pools and all(n <= int(threads) for n in pools)
+    assert collector is False
 
 
-def test_one_blas_thread_leaves_a_session_with_numpy_loaded_alone(monkeypatch):
+def test_main_called_from_python_leaves_the_process_alone(scene, tmp_path, monkeypatch):
+    """``main`` in a Python session (not the command's own process) changes neither the BLAS
+    setting its child processes would inherit nor the garbage collector."""
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
-    one_blas_thread()  # numpy is loaded here: setting it would only reach child processes
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "--t-end", "0.01", "-q"]) == 0
     assert "OPENBLAS_NUM_THREADS" not in os.environ
+    assert gc.isenabled()
