@@ -32,7 +32,9 @@ CASES = ((4, 2.5e-4), (8, 1.25e-4), (16, 5e-5))
 def main(argv=None):
     from dataclasses import replace
 
-    from sidprep.solver.absolute_nodal import assemble, integrate, load_absolute_nodal_scene
+    from sidprep.solver.absolute_nodal.assembly import assemble
+    from sidprep.solver.absolute_nodal.run import integrate
+    from sidprep.solver.absolute_nodal.scene import load_absolute_nodal_scene
     from sidprep.solver.integrators.settings import SolverSettings
     from sidprep.tables import read_toml
 

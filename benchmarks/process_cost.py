@@ -10,6 +10,11 @@ run's excess over it is the kernel cache loading (and first-call overheads) of t
 
     python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --repeat 5
     python benchmarks/process_cost.py examples/engine/scene_rigid.toml --before /work/main --h 1e-4
+    python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --cli --before /work/main
+
+With ``--cli`` each child is the command itself (``python -m sidprep.cli.main simulate SCENE -q``,
+results into a temporary folder) and the figure is its whole life in CPU s (user + system of the
+child, every thread: start-up, imports, scene, run, results file, the process's exit).
 
 One process per checkout first fills the kernel cache (not counted); the load average is printed.
 """
@@ -19,8 +24,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +38,11 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = r"""
 import json, sys, time
 t0 = time.process_time()
+try:  # what `sidprep simulate` does to its process (absent in older checkouts)
+    from sidprep.cli.simulate import process_setup
+    process_setup()
+except ImportError:
+    pass
 from sidprep.solver.scene import load_scene, simulate
 t_import = time.process_time() - t0
 kwargs = {key: float(value) for key, value in zip(("output_dt", "h"), sys.argv[2:4]) if value != "-"}
@@ -66,6 +78,20 @@ def child_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
+def command_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:
+    """CPU s of one ``sidprep simulate`` process (the command of ``root``), user + system."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    extra = (["--rate", repr(1.0 / float(output_dt))] if output_dt != "-" else []) + (
+        ["--step", h] if h != "-" else [])
+    with tempfile.TemporaryDirectory() as tmp:
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([sys.executable, "-m", "sidprep.cli.main", "simulate", str(scene), "-q", "-o",
+                        str(Path(tmp) / "r.results.h5"), *extra], env=env, cwd=scene.parent, check=True,
+                       capture_output=True)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return {"process": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scene", type=Path)
@@ -73,27 +99,30 @@ def main() -> None:
     parser.add_argument("--before", type=Path, help="another checkout to run side by side (e.g. /work/main)")
     parser.add_argument("--output-dt", default="-", help="output interval, s (default: the scene's)")
     parser.add_argument("--h", default="-", help="step, s (default: the scene's)")
+    parser.add_argument("--cli", action="store_true", help="whole `sidprep simulate` processes instead of stages")
     args = parser.parse_args()
     scene = args.scene.resolve()
     roots = {"this": ROOT} | ({"before": args.before.resolve()} if args.before else {})
     rows: dict[str, list[dict]] = {name: [] for name in roots}
+    run, stages = (command_run, ("process",)) if args.cli else (child_run, STAGES)
     for root in roots.values():  # warm-up: the kernel cache filled
-        child_run(root, scene, args.output_dt, args.h)
+        run(root, scene, args.output_dt, args.h)
     loads = [os.getloadavg()[0]]
     for _ in range(args.repeat):
         for name, root in roots.items():
-            rows[name].append(child_run(root, scene, args.output_dt, args.h))
+            rows[name].append(run(root, scene, args.output_dt, args.h))
         loads.append(os.getloadavg()[0])
     print(f"{scene.relative_to(ROOT) if scene.is_relative_to(ROOT) else scene}, output_dt {args.output_dt}, "
           f"h {args.h}, medians of {args.repeat} processes, load average {min(loads):.1f}-{max(loads):.1f}, CPU s")
     names = list(roots)
     print("| stage | " + " | ".join(names) + (" | ratio |" if len(names) == 2 else " |"))
     print("|---" * (len(names) + 1 + (len(names) == 2)) + "|")
-    for stage in STAGES:
+    for stage in stages:
         med = [float(np.median([r[stage] for r in rows[n]])) for n in names]
         ratio = f" | {med[0] / med[1]:.2f}" if len(med) == 2 and med[1] > 0 else ""
         print(f"| {stage} | " + " | ".join(f"{m:.3f}" for m in med) + ratio + " |")
-    print(f"samples per run: {rows[names[0]][0]['samples']}")
+    if not args.cli:
+        print(f"samples per run: {rows[names[0]][0]['samples']}")
 
 
 if __name__ == "__main__":

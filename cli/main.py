@@ -11,11 +11,13 @@ both after the temporary files are removed.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import math
 import os
 import pkgutil
 import sys
+import threading
 import warnings
 
 from sidprep import cli
@@ -52,12 +54,16 @@ def check_finite_options(args) -> None:
             raise InputError(f"--{key.replace('_', '-')} {value}: must be a finite number")
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
+    """Run one sub-command; ``own_process``: the process is the command's own (``command``), so
+    the sub-command's ``process_setup`` (if its parser sets one) runs first."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    if own_process and getattr(args, "process_setup", None):
+        args.process_setup()
     terminate_on_sigterm()
     warnings.showwarning = one_line_warning
     try:
@@ -83,5 +89,23 @@ def main(argv: list[str] | None = None) -> int:
         return 3
 
 
+def command() -> None:
+    """The ``sidprep`` command: ``main`` as a process of its own, ended without Python's teardown
+    of its modules once the atexit handlers have run and stdout and stderr are flushed: that
+    teardown (the cyclic garbage collector over numba's type registries, LLVM's modules freed one
+    by one) cost 0.2-0.3 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
+    While another thread still runs (a pool, a Dask client), the process ends the ordinary way."""
+    code = main(own_process=True)
+    if threading.active_count() > 1:
+        sys.exit(code)
+    atexit._run_exitfuncs()  # what the interpreter runs first at its exit (temporary folders, h5py, logging)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (BrokenPipeError, ValueError):  # reader gone, or the stream closed: nothing left to write
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    command()

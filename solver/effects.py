@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 
 from sidprep.solver.compile.layout import pack_terms
 from sidprep.solver.equations.body import body_equations
@@ -249,8 +250,6 @@ def signal_coefficients(rows, probe_signals, modes) -> tuple[np.ndarray, np.ndar
 
 def free_modes(ke, me) -> tuple[np.ndarray, np.ndarray]:
     """omega (nq,) rad/s and the mass-normalised modes (nq, nq) of (Ke, Me) (nq, nq)."""
-    import scipy.linalg  # deferred: 0.22 CPU-s of import, needed only for the effects estimates
-
     lam, modes = scipy.linalg.eigh(ke, me)
     return np.sqrt(np.maximum(lam, 0.0)), modes
 
@@ -382,6 +381,8 @@ class LeftOutTerms:
     def __init__(self, body, chosen: set, modes: np.ndarray):
         w, a, wdot, g = probe_states()
         nq = modes.shape[0]
+        modes = np.ascontiguousarray(modes)  # C like the generic state's column: one compiled signature of
+        # elastic_rows, not two (scipy's eigh returns F order; each signature is 28 CPU-ms of kernel loading)
         self.body, self.chosen, self.modes, self.avail = body, set(chosen), modes, body.available()
         self.probes = (w, g, np.concatenate([a, wdot, np.zeros((N_SIGNALS, nq))], axis=1), modes)
         generic = np.random.default_rng(0).uniform(0.5, 1.5, 12 + 2 * nq)  # no cancellation (e.g. a = g)

@@ -27,10 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError, SimulationFailed
-from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
 from sidprep.sid.io import read_sid
-from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, initial_result, is_absolute_nodal_scene,
-    load_absolute_nodal_scene, simulate_absolute_nodal)
+from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel
+from sidprep.solver.absolute_nodal.scene import is_absolute_nodal_scene, load_absolute_nodal_scene
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.equations.rotations import as_rotation
 from sidprep.solver.model.bodies import FlexibleBody, RigidBody
@@ -122,6 +121,9 @@ def _flexible_body(name: str, t: TomlTable, pose: dict):
 
 def _beam_body(name: str, t: TomlTable, pose: dict):
     """An analytical Euler-Bernoulli Beam declared inline (sidprep.reduction.beam: its SID in memory)."""
+    # deferred: 14 CPU-ms of imports (the FE side's analytical beam) that scenes without inline beams skip
+    from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, beam_sid
+
     beam = {key: t.raw(key) for key in BEAM_TABLE_KEYS if t.has(key)}
     sid = beam_sid(beam_options_from_table(beam, f"{t.file}: [{t.where}]"))
     q0 = t.array("q0", None, shape=(sid.nq,))
@@ -389,6 +391,7 @@ def empty_result(system):
     """A Result with no samples but every body, joint, marker and energy of ``system``: what the
     signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
     if isinstance(system, AbsoluteNodalModel):
+        from sidprep.solver.absolute_nodal.results import initial_result  # deferred: 28 CPU-ms, its kernels
         return initial_result(system)
 
     z = np.zeros((0, 3))
@@ -465,6 +468,7 @@ def simulate(scene: Scene, settings: SolverSettings | None = None, *, t_end: flo
         settings = replace(settings or scene.settings, **given)
         t_end = scene.t_end if t_end is None else t_end
         if isinstance(scene.system, AbsoluteNodalModel):
+            from sidprep.solver.absolute_nodal.run import simulate_absolute_nodal  # deferred: 28 CPU-ms, its kernels
             return simulate_absolute_nodal(scene.system, t_end, settings)
         return simulate_system(scene.system, t_end, settings)
     except SimulationFailed as exc:

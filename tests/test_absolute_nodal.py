@@ -11,9 +11,11 @@ from readme_numbers import check_numbers
 from scipy.integrate import solve_ivp
 
 from sidprep.errors import InputError
-from sidprep.solver.absolute_nodal import (AbsoluteNodalModel, Beam, Driver, Support, assemble,
-                                   initial_vector, integrate, kernel_params, load_absolute_nodal_scene, rhs,
-                                   simulate_absolute_nodal, unpack)
+from sidprep.solver.absolute_nodal.assembly import assemble, initial_vector, kernel_params, unpack
+from sidprep.solver.absolute_nodal.kernels import rhs
+from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel, Beam, Driver, Support
+from sidprep.solver.absolute_nodal.run import integrate, simulate_absolute_nodal
+from sidprep.solver.absolute_nodal.scene import load_absolute_nodal_scene
 from sidprep.solver.integrators.runge_kutta import rk4_fixed
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.tables import read_toml_text

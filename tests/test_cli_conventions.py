@@ -38,3 +38,33 @@ def test_view_writes_into_the_current_folder(tmp_path):
                        cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "bar.html").is_file() and r.stdout.strip() == "wrote bar.html"
+
+
+#: the console command with an atexit handler of its own (it prints whether the cyclic garbage
+#: collector runs), arguments from the command line
+COMMAND = """
+import atexit, gc, sys
+atexit.register(lambda: print("atexit handler ran, collector", gc.isenabled()))
+from sidprep.cli.main import command
+sys.argv = ["sidprep", *sys.argv[1:]]
+command()
+"""
+PENDULUM = ROOT / "examples" / "flexible_pendulum" / "scene.toml"
+
+
+@pytest.mark.parametrize("argv, code, collector", [(["beam", "--material", "list"], 0, True),
+                                                    (["info", "missing.sid.h5"], 2, True),
+                                                    (["simulate", str(PENDULUM), "--list-signals"], 0, False)])
+def test_the_command_ends_with_its_exit_code_its_output_and_the_atexit_handlers(tmp_path, argv, code, collector):
+    """``command`` skips Python's module teardown (cli/main.py): the exit code, everything written
+    and the atexit handlers are kept; the sub-command's process set-up runs (simulate's pauses
+    the cyclic garbage collector, cli/simulate.py)."""
+    r = subprocess.run([sys.executable, "-c", COMMAND, *argv], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == code, r.stderr
+    assert r.stdout.endswith(f"atexit handler ran, collector {collector}\n")
+    if argv[0] == "beam":
+        assert "steel" in r.stdout
+    elif argv[0] == "simulate":
+        assert "hinge.coordinate" in r.stdout
+    else:
+        assert r.stderr.startswith("sidprep: error:") and "missing.sid.h5" in r.stderr

@@ -1,6 +1,10 @@
 """``sidprep simulate``: the JSON contract, the files it writes, the report, and its errors."""
 
+import gc
 import json
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 import meshio
@@ -137,3 +141,38 @@ def test_solver_errors_name_the_scene_file(tmp_path, capsys):
     code = main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "-q"])
     err = capsys.readouterr().err
     assert (code, err.count("\n")) == (2, 1) and err.startswith(f"sidprep: error: {scene}: "), err
+
+
+
+PROCESS = """
+import gc, json, os, sys
+from sidprep.cli.simulate import process_setup
+process_setup()
+import numpy, scipy.linalg
+from threadpoolctl import threadpool_info
+print(json.dumps([os.environ.get("OPENBLAS_NUM_THREADS"), [p["num_threads"] for p in threadpool_info()
+                                                           if p["internal_api"] == "openblas"], gc.isenabled()]))
+"""
+
+
+@pytest.mark.parametrize("user, threads", [(None, "1"), ("2", "2")])
+def test_simulate_process_starts_one_blas_thread_unless_the_user_sets_it(user, threads):
+    """The command's process: BLAS pools with one thread (their idle threads cost 0.2 CPU-s of every
+    process, cli/simulate.py SOLVER_THREADS; the user's own OPENBLAS_NUM_THREADS wins) and no
+    cyclic garbage collector."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | (
+        {"OPENBLAS_NUM_THREADS": user} if user else {})
+    out = subprocess.run([sys.executable, "-c", PROCESS], env=env, capture_output=True, text=True, check=True)
+    setting, pools, collector = json.loads(out.stdout)
+    assert setting == threads
+    assert pools and all(n <= int(threads) for n in pools)
+    assert collector is False
+
+
+def test_main_called_from_python_leaves_the_process_alone(scene, tmp_path, monkeypatch):
+    """``main`` in a Python session (not the command's own process) changes neither the BLAS
+    setting its child processes would inherit nor the garbage collector."""
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "--t-end", "0.01", "-q"]) == 0
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
+    assert gc.isenabled()

@@ -139,8 +139,9 @@ def _chain_signals(pin, elbow, tip) -> dict:
 def anc_signals(elements: int, t_end: float, rate: float, EI: float = EI):
     """Times and the same signals of the absolute-nodal model with ``elements`` per link (EA of
     the strip), RK4 at 90 % of its stability limit."""
-    from sidprep.solver.absolute_nodal import (RK4_STABILITY, AbsoluteNodalModel, Beam, Support, assemble,
-                                               highest_frequency, simulate_absolute_nodal)
+    from sidprep.solver.absolute_nodal.assembly import assemble
+    from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel, Beam, Support
+    from sidprep.solver.absolute_nodal.run import RK4_STABILITY, highest_frequency, simulate_absolute_nodal
     from sidprep.solver.integrators.settings import SolverSettings
 
     beams = (Beam("link1", LENGTH, MASS, EI, EA_STRIP, elements, ("pin", "elbow"), 0.0),

@@ -15,7 +15,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))   # the repository's solver package
 
-from sidprep.solver.absolute_nodal import load_absolute_nodal_scene, simulate_absolute_nodal  # noqa: E402
+from sidprep.solver.absolute_nodal.run import simulate_absolute_nodal  # noqa: E402
+from sidprep.solver.absolute_nodal.scene import load_absolute_nodal_scene  # noqa: E402
 from sidprep.solver.results import write_csv, write_results  # noqa: E402
 from sidprep.tables import read_toml_text  # noqa: E402
 

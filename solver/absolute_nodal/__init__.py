@@ -21,17 +21,7 @@ inertial X-Y plane) of the nodes of two-node elements; beams joined by a revolut
 Modules, in the order of the data: model (the description) -> assembly (nodes, constant
 matrices) -> kernels (compiled) -> run (the RK4 stepper) -> results (a ``solver.results.Result``:
 a body per beam, a marker per point, a revolute "joint" per support and shared point, energies);
-scene reads the scene tables.
+scene reads the scene tables.  Import the names from those modules: the package imports nothing,
+so that a scene of floating-frame bodies does not load this solver (28 CPU-ms of imports,
+docs/performance.md "Fixed cost per process").
 """
-
-from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, initial_vector, kernel_params, unpack
-from sidprep.solver.absolute_nodal.kernels import accelerations, rhs
-from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel, Beam, Driver, NodalForce, Support
-from sidprep.solver.absolute_nodal.results import initial_result
-from sidprep.solver.absolute_nodal.run import RK4_STABILITY, highest_frequency, integrate, simulate_absolute_nodal
-from sidprep.solver.absolute_nodal.scene import AbsoluteNodalScene, is_absolute_nodal_scene, load_absolute_nodal_scene
-
-__all__ = ["AbsoluteNodalModel", "AbsoluteNodalScene", "Assembly", "Beam", "Driver", "NodalForce", "RK4_STABILITY",
-           "Support", "accelerations", "assemble", "highest_frequency", "initial_result", "initial_vector", "integrate",
-           "is_absolute_nodal_scene", "kernel_params", "load_absolute_nodal_scene", "rhs", "simulate_absolute_nodal",
-           "unpack"]

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from sidprep.errors import InputError
 from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel, Beam, Driver, NodalForce, Support
-from sidprep.solver.absolute_nodal.results import initial_result
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.results import signal
 from sidprep.solver.scene_tables import OutputSettings, read_output_settings, read_solver_settings
@@ -94,6 +93,8 @@ def load_absolute_nodal_scene(root: dict, source, t_end: float | None = None) ->
         forces.append(NodalForce(name, t.string("point"), tuple(t.array("force", shape=(2,)))))
         t.finish()
     model = AbsoluteNodalModel(tuple(beams), tuple(supports), tuple(drivers), tuple(forces), gravity, zero, title)
+    from sidprep.solver.absolute_nodal.results import initial_result  # deferred: its kernels, 28 CPU-ms of
+    # imports that a scene of floating-frame bodies (which imports this module) does not need
     try:                                                 # validate before the long work
         first = initial_result(model)
         for name in output.signals:

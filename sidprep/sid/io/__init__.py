@@ -13,7 +13,6 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.sid.checks import physical_problems, structure_problem
 from sidprep.sid.io.obj import write_obj
-from sidprep.sid.io.sid_fem import read_sid_fem, write_sid_fem
 from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
 
 
@@ -21,7 +20,16 @@ def _write_hdf5(sid, path, comment: str) -> Path:
     return write_sid_hdf5(sid, path)
 
 
+def _read_sid_fem(path):
+    # deferred: 11 CPU-ms of import that a process reading only .sid.h5 files (a simulation) skips
+    from sidprep.sid.io.sid_fem import read_sid_fem
+
+    return read_sid_fem(path)
+
+
 def _write_sid_fem(sid, path, comment: str) -> Path:
+    from sidprep.sid.io.sid_fem import write_sid_fem  # deferred: 11 CPU-ms of import, see _read_sid_fem
+
     return write_sid_fem(sid, path, comment=comment)
 
 
@@ -45,7 +53,7 @@ class SIDFormat:
 #: the formats, by file ending; ``.obj`` holds only a SID's surface (written, not read as a SID)
 FORMATS = (
     SIDFormat("hdf5", (".sid.h5", ".h5", ".hdf5"), read_sid_hdf5, _write_hdf5),
-    SIDFormat("sid_fem", (".sid_fem",), read_sid_fem, _write_sid_fem),
+    SIDFormat("sid_fem", (".sid_fem",), _read_sid_fem, _write_sid_fem),
     SIDFormat("obj", (".obj",), None, _write_surface),
 )
 #: file endings of HDF5 SID files (lower case)
