@@ -16,7 +16,7 @@ import numpy as np
 from sidprep.solver.effects import build_report, estimate_changes
 from sidprep.solver.equations.assemble import energies, evaluate_into, evaluation_arrays, every_marker, moving_masses
 from sidprep.solver.equations.rotations import jit, put, tmatvec
-from sidprep.solver.integrators.base import SampleBuffers, advance_pose, expand
+from sidprep.solver.integrators.base import SampleBuffers, advance_pose, expand, has_friction
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 from sidprep.solver.stiffening_work import RATE_STEP, base_layout, model_power, motion_energy
@@ -95,13 +95,15 @@ def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
     es = evaluation_arrays(L) if c.stiffening else e
     es0 = evaluation_arrays(L0) if c.stiffening else e
     lam_all = np.zeros(e.g.shape[0])
+    friction = has_friction(L)
     for k in range(nt):
         R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
         lam = expand(s.lam[k], c.kept, lam_all)
-        if c.fixed.shape[0]:
-            evaluate_into(L, e, R, A, Q, u, t, lam, refs)
-            lam = out_of_plane_reactions(e, ud, lam, c.kept, c.dropped, c.fixed)
         evaluate_into(L, e, R, A, Q, u, t, lam, refs)
+        if c.fixed.shape[0]:
+            lam = out_of_plane_reactions(e, ud, lam, c.kept, c.dropped, c.fixed)
+            if friction:  # only friction reads the multipliers: the others' evaluation stands
+                evaluate_into(L, e, R, A, Q, u, t, lam, refs)
         for mk in range(nmk):
             put(out.P[k, mk], 0, e.kin.P[mk])
         for r in c.kept_3d:

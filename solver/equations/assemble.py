@@ -18,8 +18,8 @@ from collections import namedtuple
 import numpy as np
 
 from sidprep.solver.equations.body import DE, F_DAMPING, body_equations, body_potentials
-from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_kinematics,
-                                                  stiffened_jacobian)
+from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_jacobians,
+                                                  marker_pose, stiffened_jacobian)
 from sidprep.solver.equations.curves import motion_state, path_shapes
 from sidprep.solver.equations.forces import FE_MOVING_MASS, force_elements, motion_curve
 from sidprep.solver.equations.rotations import add, align, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
@@ -203,11 +203,12 @@ def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rota
 
 
 @jit
-def load_stiffened(L):  # pragma: no cover - compiled
-    """Whether a marker of the layout is load-stiffened (K0F / K0M): B_F, JTF, JRF differ from
-    B, JT, JR only then."""
-    for k in range(L.mk_k0.shape[0]):
-        if L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0:
+def load_stiffened(mk_k0):  # pragma: no cover - compiled
+    """Whether a marker is load-stiffened (K0F / K0M; mk_k0 (nmk, 2) of the layout): B_F, JTF,
+    JRF differ from B, JT, JR only then.  (Takes the one array: passing the layout costs
+    reference counts of all its arrays.)"""
+    for k in range(mk_k0.shape[0]):
+        if mk_k0[k, 0] >= 0 or mk_k0[k, 1] >= 0:
             return True
     return False
 
@@ -222,7 +223,7 @@ def marker_arrays(L):  # pragma: no cover - compiled
         wmax = max(wmax, L.uoff[b + 1] - L.uoff[b])
     JT = np.zeros((nmk, 3, wmax))
     JR = np.zeros((nmk, 3, wmax))
-    stiffened = load_stiffened(L)
+    stiffened = load_stiffened(L.mk_k0)
     JTF = np.zeros((nmk, 3, wmax)) if stiffened else JT
     JRF = np.zeros((nmk, 3, wmax)) if stiffened else JR
     return MarkerKinematics(np.zeros((nmk, 3)), np.zeros((nmk, 3, 3)), np.zeros((nmk, 3)), np.zeros((nmk, 3)), JT, JR,
@@ -237,7 +238,7 @@ def evaluation_arrays(L):  # pragma: no cover - compiled
     m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     nj, nmk = L.joint_mk.shape[0], L.mk_body.shape[0]
     B = np.zeros((m_all, n))
-    BF = np.zeros((m_all, n)) if load_stiffened(L) else B
+    BF = np.zeros((m_all, n)) if load_stiffened(L.mk_k0) else B
     return Evaluation(np.zeros((n, n)), np.zeros(n), np.zeros(m_all), B, BF, np.zeros(m_all), np.zeros((m_all, 4, 3)),
                       np.zeros((nj, 2)), np.zeros((nmk, 6)), np.zeros(4), marker_arrays(L), np.zeros((nj, 4, 3)),
                       np.zeros(nj))
@@ -258,7 +259,7 @@ def markers_into(L, kin, R, A, Q, u, t):  # pragma: no cover - compiled
     costs about a microsecond of reference counting.)"""
     nmk = L.mk_body.shape[0]
     uoff, qoff = L.uoff, L.qoff
-    stiffened = load_stiffened(L)
+    stiffened = load_stiffened(L.mk_k0)
     P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = kin
     P.fill(0.0)
     AM.fill(0.0)
@@ -297,23 +298,28 @@ def markers_into(L, kin, R, A, Q, u, t):  # pragma: no cover - compiled
                                          L.mk_rot[k], rot, on)
                 put(VC[k], 0, vc)
                 put(WC[k], 0, wc)
-            jt, jr = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2:4]
-            if not on:  # off its path: carries no load
-                jt, jr = np.zeros_like(jt), np.zeros_like(jr)
+            if on:  # off its path it carries no load: zero Jacobians
+                d = marker_pose(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2]
+                marker_jacobians(A[b], d, phi, psi, JT[k], JR[k])
         else:
-            p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
-                                                  shapes[o:o + 3 * nq].reshape((3, nq)),
-                                                  shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq)))
+            phi = shapes[o:o + 3 * nq].reshape((3, nq))
+            psi = shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq))
+            p, rot, d = marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], phi, psi)
+            marker_jacobians(A[b], d, phi, psi, JT[k], JR[k])
         put(P[k], 0, p)
         put2(AM[k], 0, 0, rot)
-        ub = u[uoff[b]:uoff[b + 1]]
-        put(VEL[k], 0, matvec(jt, ub))
-        put(OMG[k], 0, matvec(jr, ub))
-        put2(JT[k], 0, 0, jt)
-        put2(JR[k], 0, 0, jr)
+        w = uoff[b + 1] - uoff[b]
+        for a in range(3):  # VEL = JT u_b, OMG = JR u_b
+            vel = 0.0
+            omg = 0.0
+            for j in range(w):
+                vel += JT[k, a, j] * u[uoff[b] + j]
+                omg += JR[k, a, j] * u[uoff[b] + j]
+            VEL[k, a] = vel
+            OMG[k, a] = omg
         if stiffened:
-            put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
-            put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
+            put2(JTF[k], 0, 0, stiffen(JT[k, :, :w], A[b], q, shapes, L.mk_k0[k, 0]))
+            put2(JRF[k], 0, 0, stiffen(JR[k, :, :w], A[b], q, shapes, L.mk_k0[k, 1]))
 
 
 def markers(L, R, A, Q, u, t):
@@ -414,7 +420,7 @@ def evaluate_into(L, W, R, A, Q, u, t, lam, refs):  # pragma: no cover - compile
     B.fill(0.0)
     BF.fill(0.0)  # (B itself unless load-stiffened: the load Jacobians differ from JT, JR only then)
     C.fill(0.0)
-    stiffened = load_stiffened(L)
+    stiffened = load_stiffened(L.mk_k0)
     for j in range(nj):
         k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
         r0, r1 = L.joint_off[j], L.joint_off[j + 1]

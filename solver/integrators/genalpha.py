@@ -45,10 +45,10 @@ import numpy as np
 
 from sidprep.solver.equations.assemble import (constraint_power, evaluate_into, evaluation_arrays, has_moving_masses,
                                                markers_into, moving_masses)
-from sidprep.solver.equations.rotations import jit, put, put2
+from sidprep.solver.equations.rotations import jit, put
 from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
                                              Samples, Stepper, advance_pose, expand, first_samples, lu_factor,
-                                             lu_solve, new_status, restrict, sample_buffers, store_sample)
+                                             lu_solve, new_status, sample_buffers, store_sample)
 from sidprep.solver.integrators.runge_kutta import hermite
 from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
                                             inertial_accelerations, inertial_velocities, to_body_frame)
@@ -73,10 +73,11 @@ GaConstants = namedtuple("GaConstants", ["prm", "free", "kept", "w", "length", "
                                          "h_nominal", "out_dt"])
 #: a run's workspace (made once per run, ``ga_workspace``): the Evaluations (assemble.evaluation_arrays)
 #: of the Newton iterate e and of the finite-difference columns e_col, the multipliers of all rows
-#: lam_all (m_all,), the Newton residuals r and r_col (free + kept,), and the run's work integrals
+#: lam_all (m_all,), the Newton residuals r and r_col (free + kept,), the iteration matrix jac
+#: (free + kept, free + kept), and the run's work integrals
 #: work (3,) = [applied loads, dissipated, drivers] (J) and power flows at its current state
 #: flows (4,) (W; NaN before the first step), carried from one call of ga_loop to the next
-GaWorkspace = namedtuple("GaWorkspace", ["e", "e_col", "lam_all", "r", "r_col", "work", "flows"])
+GaWorkspace = namedtuple("GaWorkspace", ["e", "e_col", "lam_all", "r", "r_col", "jac", "work", "flows"])
 
 
 def ga_workspace(L, constants) -> GaWorkspace:
@@ -84,7 +85,7 @@ def ga_workspace(L, constants) -> GaWorkspace:
     m_all = int(L.joint_off[-1] + L.drv_joint.size)
     size = constants.free.size + constants.kept.size
     return GaWorkspace(evaluation_arrays(L), evaluation_arrays(L), np.zeros(m_all), np.zeros(size), np.zeros(size),
-                       np.zeros(3), np.full(4, np.nan))
+                       np.zeros((size, size)), np.zeros(3), np.full(4, np.nan))
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -155,14 +156,19 @@ def state_flows(L, e, x, lam_all, mass_power):  # pragma: no cover - compiled
 
 
 @jit
-def iteration_matrix(Mf, D, Bk, BFk):  # pragma: no cover - compiled
-    """[M + D, B_F^T; B, 0]."""
-    nf, m = Mf.shape[0], Bk.shape[0]
-    jac = np.zeros((nf + m, nf + m))
-    put2(jac, 0, 0, Mf + D)
-    put2(jac, 0, nf, BFk.T)
-    put2(jac, nf, 0, Bk)
-    return jac
+def iteration_matrix(e, D, free, kept, jac):  # pragma: no cover - compiled
+    """[M + D, B_F^T; B, 0] (free + kept, free + kept) written into jac, with M, B, B_F of the
+    Evaluation e restricted to the free coordinates and the kept rows."""
+    nf, m = free.shape[0], kept.shape[0]
+    for i in range(nf):
+        for j in range(nf):
+            jac[i, j] = e.M[free[i], free[j]] + D[i, j]
+        for k in range(m):
+            jac[i, nf + k] = e.BF[kept[k], free[i]]
+            jac[nf + k, i] = e.B[kept[k], free[i]]
+    for k in range(m):
+        for j in range(m):
+            jac[nf + k, nf + j] = 0.0
 
 
 @jit
@@ -277,8 +283,8 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pra
                 D_h, have_d, fresh_d, want_d, factor_now = h, True, True, False, True
                 status.jacobians += 1
             if factor_now:  # M, B of this iterate; D re-used over steps
-                Mf, _, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
-                lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
+                iteration_matrix(e, D, free, kept, ws.jac)
+                lu, piv = lu_factor(ws.jac)
                 factor_now = False
             drift = 0.0  # constraint residual before this update, m or rad
             for k in range(m):

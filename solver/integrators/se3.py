@@ -129,7 +129,7 @@ def to_body_frame(L, A, u_K, e):  # pragma: no cover - compiled
     right_multiply(M, L, A)
     left_multiply(M, L, A)
     right_multiply(e.B, L, A)
-    if load_stiffened(L):  # B_F is B itself otherwise
+    if load_stiffened(L.mk_k0):  # B_F is B itself otherwise
         right_multiply(e.BF, L, A)
 
 
