@@ -409,9 +409,14 @@ def evaluate_into(L, W, R, A, Q, u, t, lam, refs):  # pragma: no cover - compile
     for k in range(nmk):
         b = L.mk_body[k]
         if b >= 0 and L.mk_active[k]:
-            w = uoff[b + 1] - uoff[b]
-            add(f, L.uoff[b], tmatvec(JTF[k, :, :w], loads[k, 0:3]))
-            add(f, L.uoff[b], tmatvec(JRF[k, :, :w], loads[k, 3:6]))
+            for i in range(uoff[b + 1] - uoff[b]):  # f += JTF^T F + JRF^T T, in scalars
+                force = 0.0
+                torque = 0.0
+                for a in range(3):
+                    force += JTF[k, a, i] * loads[k, a]
+                    torque += JRF[k, a, i] * loads[k, 3 + a]
+                f[uoff[b] + i] += force
+                f[uoff[b] + i] += torque
     nrj = L.joint_off[-1]
     m_all = nrj + L.drv_joint.shape[0]
     g, bt, B, BF, C = W.g, W.bt, W.B, W.BF, W.C

@@ -19,7 +19,7 @@ from numba.np.linalg import _LAPACK
 
 from sidprep.solver.equations.assemble import evaluate_into
 from sidprep.solver.equations.forces import FE_FRICTION
-from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2, se3_jacobian
+from sidprep.solver.equations.rotations import add, exp_so3, jit, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
@@ -180,14 +180,31 @@ def advance_pose(L, R, A, Q, dx, body_frame=False):  # pragma: no cover - compil
     R^3 x SO(3)); ``body_frame``: dr in body components, moved along the SE(3) exponential,
     r + A V(dtheta) dr (se3_jacobian; integrators/se3.py)."""
     R2, A2, Q2 = R.copy(), np.empty_like(A), Q.copy()
-    for i in range(R.shape[0]):
+    for i in range(R.shape[0]):  # in scalars where it costs nothing: this runs at every Newton iteration
         s = L.uoff[i]
         theta = dx[s + 3:s + 6].copy()
         if body_frame:
-            add(R2[i], 0, matvec(A[i], matvec(se3_jacobian(theta), dx[s:s + 3].copy())))
+            V = se3_jacobian(theta)
+            y0, y1, y2 = 0.0, 0.0, 0.0  # V dr
+            for j in range(3):
+                y0 += V[0, j] * dx[s + j]
+                y1 += V[1, j] * dx[s + j]
+                y2 += V[2, j] * dx[s + j]
+            for a in range(3):
+                acc = 0.0
+                acc += A[i, a, 0] * y0
+                acc += A[i, a, 1] * y1
+                acc += A[i, a, 2] * y2
+                R2[i, a] += acc
         else:
             add(R2[i], 0, dx[s:s + 3])
-        put2(A2[i], 0, 0, matmul(A[i], exp_so3(theta)))
+        E = exp_so3(theta)
+        for a in range(3):  # A exp(theta~)
+            for k in range(3):
+                acc = 0.0
+                for j in range(3):
+                    acc += A[i, a, j] * E[j, k]
+                A2[i, a, k] = acc
         nq = L.qoff[i + 1] - L.qoff[i]
         add(Q2, L.qoff[i], dx[s + 6:s + 6 + nq])
     return R2, A2, Q2

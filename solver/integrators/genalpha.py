@@ -102,9 +102,14 @@ def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
 def ga_state(L, udn, x, h, prm):  # pragma: no cover - compiled
     """(a_{n+1}, R, A, Q, u_{n+1}) of the update of the GaState x for ud_{n+1} (module doc)."""
     am, af, gamma, beta = prm[0], prm[1], prm[2], prm[3]
-    an = (af * x.ud + (1 - af) * udn - am * x.a) / (1 - am)
-    R2, A2, Q2 = advance_pose(L, x.R, x.A, x.Q, h * x.u + h * h * ((0.5 - beta) * x.a + beta * an), True)
-    return an, R2, A2, Q2, x.u + h * ((1 - gamma) * x.a + gamma * an)
+    n = udn.shape[0]
+    an, dx, un = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):  # element by element: three arrays instead of one per operation
+        an[i] = (af * x.ud[i] + (1 - af) * udn[i] - am * x.a[i]) / (1 - am)
+        dx[i] = h * x.u[i] + h * h * ((0.5 - beta) * x.a[i] + beta * an[i])
+        un[i] = x.u[i] + h * ((1 - gamma) * x.a[i] + gamma * an[i])
+    R2, A2, Q2 = advance_pose(L, x.R, x.A, x.Q, dx, True)
+    return an, R2, A2, Q2, un
 
 
 @jit

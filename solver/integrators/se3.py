@@ -32,17 +32,27 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.assemble import load_stiffened
-from sidprep.solver.equations.rotations import (SMALL_ANGLE, cross, jit, matmul, matvec, put, se3_jacobian,
-                                                tmatvec)
+from sidprep.solver.equations.rotations import SMALL_ANGLE, jit, matmul, put, se3_jacobian, tmatvec
 
 @jit
 def rotate_translations(L, A, u, inverse):  # pragma: no cover - compiled
-    """u_O = S u_K (inverse False) or u_K = S^T u_O (inverse True), (n,)."""
+    """u_O = S u_K (inverse False) or u_K = S^T u_O (inverse True), (n,) (in scalars: one
+    array per call, this runs at every Newton iteration)."""
     out = u.copy()
     for b in range(A.shape[0]):
         s = L.uoff[b]
-        v = u[s:s + 3].copy()
-        put(out, s, tmatvec(A[b], v) if inverse else matvec(A[b], v))
+        v0, v1, v2 = u[s], u[s + 1], u[s + 2]
+        for i in range(3):
+            acc = 0.0
+            if inverse:
+                acc += A[b, 0, i] * v0
+                acc += A[b, 1, i] * v1
+                acc += A[b, 2, i] * v2
+            else:
+                acc += A[b, i, 0] * v0
+                acc += A[b, i, 1] * v1
+                acc += A[b, i, 2] * v2
+            out[s + i] = acc
     return out
 
 
@@ -60,11 +70,18 @@ def body_velocities(L, A, u_O):  # pragma: no cover - compiled
 
 @jit
 def convective(L, A, u_K):  # pragma: no cover - compiled
-    """c = dS/dt u_K (n,): A (omega x v_K) on each body's translational rows."""
+    """c = dS/dt u_K (n,): A (omega x v_K) on each body's translational rows (in scalars)."""
     c = np.zeros(u_K.shape[0])
     for b in range(A.shape[0]):
         s = L.uoff[b]
-        put(c, s, matvec(A[b], cross(u_K[s + 3:s + 6].copy(), u_K[s:s + 3].copy())))
+        w0, w1, w2, v0, v1, v2 = u_K[s + 3], u_K[s + 4], u_K[s + 5], u_K[s], u_K[s + 1], u_K[s + 2]
+        x0, x1, x2 = w1 * v2 - w2 * v1, w2 * v0 - w0 * v2, w0 * v1 - w1 * v0
+        for i in range(3):
+            acc = 0.0
+            acc += A[b, i, 0] * x0
+            acc += A[b, i, 1] * x1
+            acc += A[b, i, 2] * x2
+            c[s + i] = acc
     return c
 
 
