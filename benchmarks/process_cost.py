@@ -6,7 +6,9 @@ the same for another checkout (e.g. /work/main), the two alternating, so that th
 machine's load.
 
 Every child process runs the scene twice: the second run has every kernel loaded, so the first
-run's excess over it is the kernel cache loading (and first-call overheads) of that stage.
+run's excess over it is the kernel cache loading (and first-call overheads) of that stage.  Per
+step and per sample (second run): the integration's CPU per step, and the compiled
+post-processing's (``postprocess.sample_outputs`` alone, timed around its call) per output sample.
 
     python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --repeat 5
     python benchmarks/process_cost.py examples/engine/scene_rigid.toml --before /work/main --h 1e-4
@@ -44,7 +46,16 @@ try:  # what `sidprep simulate` does to its process (absent in older checkouts)
 except ImportError:
     pass
 from sidprep.solver.scene import load_scene, simulate
+import sidprep.solver.postprocess as post
 t_import = time.process_time() - t0
+compiled_post = []
+sample_outputs = post.sample_outputs
+def timed_sample_outputs(*args):
+    t = time.process_time()
+    out = sample_outputs(*args)
+    compiled_post.append(time.process_time() - t)
+    return out
+post.sample_outputs = timed_sample_outputs
 kwargs = {key: float(value) for key, value in zip(("output_dt", "h"), sys.argv[2:4]) if value != "-"}
 runs = []
 for _ in range(2):
@@ -55,19 +66,22 @@ for _ in range(2):
     t3 = time.process_time()
     s = result.stats
     runs.append({"scene": t2 - t1, "start": s["cpu_setup"], "integration": s["cpu_integration"],
-                 "post": t3 - t2 - s["cpu_setup"] - s["cpu_integration"], "samples": int(result.t.size)})
+                 "post": t3 - t2 - s["cpu_setup"] - s["cpu_integration"], "samples": int(result.t.size),
+                 "steps": int(s["steps"]), "sample_outputs": compiled_post[-1]})
 first, second = runs
 loading = sum(first[k] - second[k] for k in ("start", "integration", "post"))
 print(json.dumps({"imports": t_import, "scene": first["scene"], "start": second["start"],
                   "kernel loading": loading, "integration": second["integration"], "post": second["post"],
                   "samples": second["samples"],
+                  "integration per step (us)": 1e6 * second["integration"] / max(second["steps"], 1),
+                  "sample_outputs per sample (us)": 1e6 * second["sample_outputs"] / max(second["samples"], 1),
                   "before first step": t_import + first["scene"] + first["start"]
                   + first["integration"] - second["integration"],
                   "process (one run)": t_import + first["scene"] + first["start"] + first["integration"]
                   + first["post"]}))
 """
 STAGES = ("imports", "scene", "start", "kernel loading", "integration", "post", "before first step",
-          "process (one run)")
+          "process (one run)", "integration per step (us)", "sample_outputs per sample (us)")
 
 
 def child_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:

@@ -14,9 +14,9 @@ from collections import namedtuple
 import numpy as np
 
 from sidprep.solver.effects import build_report, estimate_changes
-from sidprep.solver.equations.assemble import energies, evaluate, every_marker, moving_masses
+from sidprep.solver.equations.assemble import energies, evaluate_into, evaluation_arrays, every_marker, moving_masses
 from sidprep.solver.equations.rotations import jit, put, tmatvec
-from sidprep.solver.integrators.base import SampleBuffers, advance_pose, expand
+from sidprep.solver.integrators.base import SampleBuffers, advance_pose, expand, has_friction
 from sidprep.solver.integrators.planar import out_of_plane_reactions
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 from sidprep.solver.stiffening_work import RATE_STEP, base_layout, model_power, motion_energy
@@ -85,18 +85,25 @@ def constraint_outputs(out, k, e, lam, c):  # pragma: no cover - compiled
 def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
     """The SampledOutputs of the samples s (base.SampleBuffers, nt rows) of a run with layout L
     (every marker active: every_marker), L0 the reference layout of the stiffening work
-    (stiffening_work.base_layout; L when c.stiffening is 0) and the PostConstants c.  (evaluate is
-    called here, not through helpers: every compiled function that calls it compiles its whole
-    call tree once more; docs/performance.md.)"""
+    (stiffening_work.base_layout; L when c.stiffening is 0) and the PostConstants c.  (evaluate_into
+    is called here, not through helpers: every compiled function that calls it compiles its
+    whole call tree once more; docs/performance.md.)  One workspace per layout for the run
+    (assemble.evaluation_arrays): e at the sample, es for the stiffening work's evaluations."""
     nt, nmk = s.t.shape[0], L.mk_body.shape[0]
-    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     out = empty_outputs(nt, nmk, c.c_driver.shape[0])
+    e = evaluation_arrays(L)
+    es = evaluation_arrays(L) if c.stiffening else e
+    es0 = evaluation_arrays(L0) if c.stiffening else e
+    lam_all = np.zeros(e.g.shape[0])
+    friction = has_friction(L)
     for k in range(nt):
         R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
-        lam = expand(s.lam[k], c.kept, m_all)
+        lam = expand(s.lam[k], c.kept, lam_all)
+        evaluate_into(L, e, R, A, Q, u, t, lam, refs)
         if c.fixed.shape[0]:
-            lam = out_of_plane_reactions(evaluate(L, R, A, Q, u, t, lam, refs), ud, lam, c.kept, c.dropped, c.fixed)
-        e = evaluate(L, R, A, Q, u, t, lam, refs)
+            lam = out_of_plane_reactions(e, ud, lam, c.kept, c.dropped, c.fixed)
+            if friction:  # only friction reads the multipliers: the others' evaluation stands
+                evaluate_into(L, e, R, A, Q, u, t, lam, refs)
         for mk in range(nmk):
             put(out.P[k, mk], 0, e.kin.P[mk])
         for r in c.kept_3d:
@@ -108,13 +115,15 @@ def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
         if c.stiffening:  # model power of L minus that of L0 (stiffening_work.py)
             for which in range(2):
                 Lw = L if which == 0 else L0
+                ew = es if which == 0 else es0
                 side = np.zeros(2)
                 for i in range(2):
                     sign = 1.0 - 2.0 * i
                     Rs, As, Qs = advance_pose(Lw, R, A, Q, sign * RATE_STEP * u)
-                    es = evaluate(Lw, Rs, As, Qs, u, t + sign * RATE_STEP, lam, refs)
-                    side[i] = motion_energy(Lw, Rs, As, Qs, u, es.M)
-                p = model_power(evaluate(Lw, R, A, Q, u, t, lam, refs), u, lam, side[0], side[1])
+                    evaluate_into(Lw, ew, Rs, As, Qs, u, t + sign * RATE_STEP, lam, refs)
+                    side[i] = motion_energy(Lw, Rs, As, Qs, u, ew.M)
+                evaluate_into(Lw, ew, R, A, Q, u, t, lam, refs)
+                p = model_power(ew, u, lam, side[0], side[1])
                 out.power[k] += p if which == 0 else -p
         react = constraint_outputs(out, k, e, lam, c)
         for mk in range(nmk):

@@ -18,8 +18,8 @@ from collections import namedtuple
 import numpy as np
 
 from sidprep.solver.equations.body import DE, F_DAMPING, body_equations, body_potentials
-from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_kinematics,
-                                                  stiffened_jacobian)
+from sidprep.solver.equations.constraints import (NO_COORDINATE, joint_coordinate, joint_rows, marker_jacobians,
+                                                  marker_pose, stiffened_jacobian)
 from sidprep.solver.equations.curves import motion_state, path_shapes
 from sidprep.solver.equations.forces import FE_MOVING_MASS, force_elements, motion_curve
 from sidprep.solver.equations.rotations import add, align, dot, exp_so3, jit, matmul, matvec, put, put2, tmatvec
@@ -31,13 +31,17 @@ PATH_TANGENT_STEP = 1e-6
 #: Newton steps projecting a point onto a path (from the nearest sample; quadratic convergence)
 PROJECTION_ITERATIONS = 3
 
-#: kinematics of the markers (``markers``): positions P (nmk, 3), frames AM (nmk, 3, 3), material
+#: kinematics of the markers (``markers_into``): positions P (nmk, 3), frames AM (nmk, 3, 3), material
 #: velocities VEL and angular velocities OMG (nmk, 3), Jacobians JT, JR and load Jacobians JTF,
 #: JRF (nmk, 3, w_max), convective velocities VC and angular velocities WC (nmk, 3) of path markers
 MarkerKinematics = namedtuple("MarkerKinematics", ["P", "AM", "VEL", "OMG", "JT", "JR", "JTF", "JRF", "VC", "WC"])
-#: the system at a state (``evaluate``): M (n, n), f (n,), g, b_t (m,), B, B_F (m, n), C (m, 4, 3),
-#: coords (nj, 2), loads (nmk, 6), flows (4,) and kin, the MarkerKinematics of the active markers
-Evaluation = namedtuple("Evaluation", ["M", "f", "g", "B", "BF", "bt", "C", "coords", "loads", "flows", "kin"])
+#: the system at a state (``evaluate_into``), also the per-run workspace it writes into
+#: (``evaluation_arrays``): M (n, n), f (n,), g, b_t (m,), B, B_F (m, n; B itself unless a
+#: marker is load-stiffened), C (m, 4, 3), coords (nj, 2), loads (nmk, 6), flows (4,), kin, the
+#: MarkerKinematics of the active markers, and the joint coordinates' velocity rows crows
+#: (nj, 4, 3) and the parts of their rates due to path markers' motions convective (nj,)
+Evaluation = namedtuple("Evaluation", ["M", "f", "g", "B", "BF", "bt", "C", "coords", "loads", "flows", "kin",
+                                       "crows", "convective"])
 
 
 @jit
@@ -199,9 +203,52 @@ def path_convection(curve_x, curve_c, curve_meta, first, r, a, q, s, s_dot, rota
 
 
 @jit
-def markers(L, R, A, Q, u, t):  # pragma: no cover - compiled
+def load_stiffened(mk_k0):  # pragma: no cover - compiled
+    """Whether a marker is load-stiffened (K0F / K0M; mk_k0 (nmk, 2) of the layout): B_F, JTF,
+    JRF differ from B, JT, JR only then.  (Takes the one array: passing the layout costs
+    reference counts of all its arrays.)"""
+    for k in range(mk_k0.shape[0]):
+        if mk_k0[k, 0] >= 0 or mk_k0[k, 1] >= 0:
+            return True
+    return False
+
+
+@jit
+def marker_arrays(L):  # pragma: no cover - compiled
+    """A MarkerKinematics workspace for the markers of layout L (zeros; JTF, JRF are JT, JR
+    unless load-stiffened): the Jacobians are zero-padded to the widest body, w_max = max 6 + nq."""
+    nmk = L.mk_body.shape[0]
+    wmax = 0
+    for b in range(L.uoff.shape[0] - 1):
+        wmax = max(wmax, L.uoff[b + 1] - L.uoff[b])
+    JT = np.zeros((nmk, 3, wmax))
+    JR = np.zeros((nmk, 3, wmax))
+    stiffened = load_stiffened(L.mk_k0)
+    JTF = np.zeros((nmk, 3, wmax)) if stiffened else JT
+    JRF = np.zeros((nmk, 3, wmax)) if stiffened else JR
+    return MarkerKinematics(np.zeros((nmk, 3)), np.zeros((nmk, 3, 3)), np.zeros((nmk, 3)), np.zeros((nmk, 3)), JT, JR,
+                            JTF, JRF, np.zeros((nmk, 3)), np.zeros((nmk, 3)))
+
+
+@jit
+def evaluation_arrays(L):  # pragma: no cover - compiled
+    """The per-run workspace of ``evaluate_into`` for layout L: an Evaluation of zeros (B_F is B
+    unless a marker is load-stiffened), made once per run (an evaluation writes into it)."""
+    n = L.uoff[-1]
+    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+    nj, nmk = L.joint_mk.shape[0], L.mk_body.shape[0]
+    B = np.zeros((m_all, n))
+    BF = np.zeros((m_all, n)) if load_stiffened(L.mk_k0) else B
+    return Evaluation(np.zeros((n, n)), np.zeros(n), np.zeros(m_all), B, BF, np.zeros(m_all), np.zeros((m_all, 4, 3)),
+                      np.zeros((nj, 2)), np.zeros((nmk, 6)), np.zeros(4), marker_arrays(L), np.zeros((nj, 4, 3)),
+                      np.zeros(nj))
+
+
+@jit
+def markers_into(L, kin, R, A, Q, u, t):  # pragma: no cover - compiled
     """Kinematics at time t (s; path markers move) of the markers with L.mk_active (nmk,) != 0
-    (those that joints and forces use; every marker in the layout of ``every_marker``):
+    (those that joints and forces use; every marker in the layout of ``every_marker``), written
+    into the MarkerKinematics kin (marker_arrays(L); zero for the other markers):
     P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial velocities of the material point (the
     body's motion), the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max),
     zero-padded (JTF, JRF are JT, JR when no marker is load-stiffened), and VC, WC (nmk, 3) the
@@ -212,22 +259,18 @@ def markers(L, R, A, Q, u, t):  # pragma: no cover - compiled
     costs about a microsecond of reference counting.)"""
     nmk = L.mk_body.shape[0]
     uoff, qoff = L.uoff, L.qoff
-    wmax = 0
-    for b in range(R.shape[0]):
-        wmax = max(wmax, uoff[b + 1] - uoff[b])
-    stiffened = False
-    for k in range(nmk):
-        stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
-    P = np.zeros((nmk, 3))
-    AM = np.zeros((nmk, 3, 3))
-    VEL = np.zeros((nmk, 3))
-    OMG = np.zeros((nmk, 3))
-    VC = np.zeros((nmk, 3))
-    WC = np.zeros((nmk, 3))
-    JT = np.zeros((nmk, 3, wmax))
-    JR = np.zeros((nmk, 3, wmax))
-    JTF = np.zeros((nmk, 3, wmax)) if stiffened else JT
-    JRF = np.zeros((nmk, 3, wmax)) if stiffened else JR
+    stiffened = load_stiffened(L.mk_k0)
+    P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = kin
+    P.fill(0.0)
+    AM.fill(0.0)
+    VEL.fill(0.0)
+    OMG.fill(0.0)
+    VC.fill(0.0)
+    WC.fill(0.0)
+    JT.fill(0.0)
+    JR.fill(0.0)
+    JTF.fill(0.0)  # (JT, JR themselves unless load-stiffened)
+    JRF.fill(0.0)
     shapes = L.shapes
     for sweep in range(2 * nmk):  # markers that follow a partner on their path (OnPath) after the others
         k = sweep % nmk
@@ -255,24 +298,35 @@ def markers(L, R, A, Q, u, t):  # pragma: no cover - compiled
                                          L.mk_rot[k], rot, on)
                 put(VC[k], 0, vc)
                 put(WC[k], 0, wc)
-            jt, jr = marker_kinematics(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2:4]
-            if not on:  # off its path: carries no load
-                jt, jr = np.zeros_like(jt), np.zeros_like(jr)
+            if on:  # off its path it carries no load: zero Jacobians
+                d = marker_pose(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2]
+                marker_jacobians(A[b], d, phi, psi, JT[k], JR[k])
         else:
-            p, rot, jt, jr, _ = marker_kinematics(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k],
-                                                  shapes[o:o + 3 * nq].reshape((3, nq)),
-                                                  shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq)))
+            phi = shapes[o:o + 3 * nq].reshape((3, nq))
+            psi = shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq))
+            p, rot, d = marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], phi, psi)
+            marker_jacobians(A[b], d, phi, psi, JT[k], JR[k])
         put(P[k], 0, p)
         put2(AM[k], 0, 0, rot)
-        ub = u[uoff[b]:uoff[b + 1]]
-        put(VEL[k], 0, matvec(jt, ub))
-        put(OMG[k], 0, matvec(jr, ub))
-        put2(JT[k], 0, 0, jt)
-        put2(JR[k], 0, 0, jr)
+        w = uoff[b + 1] - uoff[b]
+        for a in range(3):  # VEL = JT u_b, OMG = JR u_b
+            vel = 0.0
+            omg = 0.0
+            for j in range(w):
+                vel += JT[k, a, j] * u[uoff[b] + j]
+                omg += JR[k, a, j] * u[uoff[b] + j]
+            VEL[k, a] = vel
+            OMG[k, a] = omg
         if stiffened:
-            put2(JTF[k], 0, 0, stiffen(jt, A[b], q, shapes, L.mk_k0[k, 0]))
-            put2(JRF[k], 0, 0, stiffen(jr, A[b], q, shapes, L.mk_k0[k, 1]))
-    return MarkerKinematics(P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC)
+            put2(JTF[k], 0, 0, stiffen(JT[k, :, :w], A[b], q, shapes, L.mk_k0[k, 0]))
+            put2(JRF[k], 0, 0, stiffen(JR[k, :, :w], A[b], q, shapes, L.mk_k0[k, 1]))
+
+
+def markers(L, R, A, Q, u, t):
+    """The MarkerKinematics of markers_into in a fresh workspace, for callers in Python."""
+    kin = marker_arrays(L)
+    markers_into(L, kin, R, A, Q, u, t)
+    return kin
 
 
 def every_marker(L):
@@ -281,23 +335,23 @@ def every_marker(L):
 
 
 @jit
-def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
-    """The system at a state (module doc).
+def evaluate_into(L, W, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
+    """The system at a state (module doc), written into the Evaluation W (evaluation_arrays(L),
+    made once per run; everything in it is overwritten).
 
     R (nb, 3), A (nb, 3, 3), Q (sum nq,), u (n,), t s, lam (m,) multipliers of all rows
-    (friction), refs (nj,) angle-unwrapping references.  Returns M (n, n), f (n,), g (m,),
+    (friction), refs (nj,) angle-unwrapping references.  Fills M (n, n), f (n,), g (m,),
     B (m, n), B_F (m, n), b_t (m,), C (m, 4, 3) the rows' marker coefficients (cT1, cR1, cT2,
     cR2), coords (nj, 2) joint coordinates and rates, loads (nmk, 6) applied marker loads
     (inertial) and flows (4,) = [power in by loads, power dissipated, spring energy, power in by
     the drives of force elements on moving markers] (the drives' power through constraint rows is
     constraint_power, taken with the step's converged multipliers) and kin, the MarkerKinematics
-    of the markers with L.mk_active != 0 (a layout with every marker active gives them all), as
-    an Evaluation.
+    of the markers with L.mk_active != 0 (a layout with every marker active gives them all).
     """
     nb = R.shape[0]
-    n = u.shape[0]
-    M = np.zeros((n, n))
-    f = np.zeros(n)
+    M, f = W.M, W.f
+    M.fill(0.0)
+    f.fill(0.0)
     uoff, qoff = L.uoff, L.qoff
     for i in range(nb):
         q = Q[qoff[i]:qoff[i + 1]]
@@ -312,13 +366,15 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
         put2(M, s, s, mk)
         add(f, s, matvec(A[i], h[:3]))
         add(f, s + 3, h[3:])
-    kin = markers(L, R, A, Q, u, t)
+    kin = W.kin
+    markers_into(L, kin, R, A, Q, u, t)
     P, AM, VEL, OMG, JT, JR, JTF, JRF, VC, WC = kin
     nmk = P.shape[0]
     nj = L.joint_mk.shape[0]
-    coords = np.zeros((nj, 2))
-    crows = np.zeros((nj, 4, 3))
-    convective = np.zeros(nj)  # the part of a joint coordinate's rate due to path markers' motions
+    coords, crows, convective = W.coords, W.crows, W.convective
+    coords.fill(0.0)
+    crows.fill(0.0)
+    convective.fill(0.0)
     for j in range(nj):
         if L.joint_kind[j] != NO_COORDINATE:
             k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
@@ -327,8 +383,9 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
             coords[j, 0] = value
             coords[j, 1] = row_rate(c, VEL[k1], OMG[k1], VEL[k2], OMG[k2]) + convective[j]
             put2(crows[j], 0, 0, c)
-    loads = np.zeros((nmk, 6))
-    flows = np.zeros(4)
+    loads, flows = W.loads, W.flows
+    loads.fill(0.0)
+    flows.fill(0.0)
     force_elements(L, t, kin, coords, crows, convective, lam, loads, flows)
     for i in range(L.fe_int.shape[0]):  # moving masses: m J^T J in M, m (g - a_convective) at the point
         if L.fe_int[i, 0] == FE_MOVING_MASS:
@@ -352,19 +409,23 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
     for k in range(nmk):
         b = L.mk_body[k]
         if b >= 0 and L.mk_active[k]:
-            w = uoff[b + 1] - uoff[b]
-            add(f, L.uoff[b], tmatvec(JTF[k, :, :w], loads[k, 0:3]))
-            add(f, L.uoff[b], tmatvec(JRF[k, :, :w], loads[k, 3:6]))
+            for i in range(uoff[b + 1] - uoff[b]):  # f += JTF^T F + JRF^T T, in scalars
+                force = 0.0
+                torque = 0.0
+                for a in range(3):
+                    force += JTF[k, a, i] * loads[k, a]
+                    torque += JRF[k, a, i] * loads[k, 3 + a]
+                f[uoff[b] + i] += force
+                f[uoff[b] + i] += torque
     nrj = L.joint_off[-1]
     m_all = nrj + L.drv_joint.shape[0]
-    g = np.zeros(m_all)
-    bt = np.zeros(m_all)
-    B = np.zeros((m_all, n))
-    stiffened = False
-    for k in range(nmk):
-        stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
-    BF = np.zeros((m_all, n)) if stiffened else B  # the load Jacobians differ from JT, JR only when stiffened
-    C = np.zeros((m_all, 4, 3))
+    g, bt, B, BF, C = W.g, W.bt, W.B, W.BF, W.C
+    g.fill(0.0)
+    bt.fill(0.0)
+    B.fill(0.0)
+    BF.fill(0.0)  # (B itself unless load-stiffened: the load Jacobians differ from JT, JR only then)
+    C.fill(0.0)
+    stiffened = load_stiffened(L.mk_k0)
     for j in range(nj):
         k1, k2 = L.joint_mk[j, 0], L.joint_mk[j, 1]
         r0, r1 = L.joint_off[j], L.joint_off[j + 1]
@@ -393,7 +454,14 @@ def evaluate(L, R, A, Q, u, t, lam, refs):  # pragma: no cover - compiled
                 add_rows(B, r, L.uoff[b], C[r], JT[k], JR[k], which, w)
                 if stiffened:
                     add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
-    return Evaluation(M, f, g, B, BF, bt, C, coords, loads, flows, kin)
+
+
+def evaluate(L, R, A, Q, u, t, lam, refs):
+    """The Evaluation of evaluate_into in a fresh workspace, for callers in Python (set-up,
+    linearisation); compiled code passes its per-run workspace to evaluate_into."""
+    W = evaluation_arrays(L)
+    evaluate_into(L, W, R, A, Q, u, t, lam, refs)
+    return W
 
 
 @jit

@@ -115,9 +115,16 @@ def body_equations(F, off, flags, mass, q, qd, w, gk):  # pragma: no cover - com
     ke = block(F, off[KE], nq, nq)
     put2(m, 6, 6, me)
     h = np.zeros(n)
-    put(h, 0, cross(w, cross(w, md)), -1.0)
-    put(h, 3, cross(w, matvec(inertia, w)), -1.0)
-    wh = np.array([w[0] * w[0], w[1] * w[1], w[2] * w[2], w[0] * w[1], w[1] * w[2], w[0] * w[2]])
+    c0, c1, c2 = w[1] * md[2] - w[2] * md[1], w[2] * md[0] - w[0] * md[2], w[0] * md[1] - w[1] * md[0]  # w x md
+    h[0], h[1], h[2] = -(w[1] * c2 - w[2] * c1), -(w[2] * c0 - w[0] * c2), -(w[0] * c1 - w[1] * c0)
+    i0, i1, i2 = 0.0, 0.0, 0.0  # I w
+    for b in range(3):
+        i0 += inertia[0, b] * w[b]
+        i1 += inertia[1, b] * w[b]
+        i2 += inertia[2, b] * w[b]
+    h[3], h[4], h[5] = -(w[1] * i2 - w[2] * i1), -(w[2] * i0 - w[0] * i2), -(w[0] * i1 - w[1] * i0)
+    wh = np.array([w[0] * w[0], w[1] * w[1], w[2] * w[2], w[0] * w[1], w[1] * w[2], w[0] * w[2]]) if (
+        flags[F_OE0] or flags[F_OE1]) else np.zeros(0)
     if flags[F_CORIOLIS]:
         ctq = np.zeros(3)
         g = np.zeros((3, 3))

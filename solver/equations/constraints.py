@@ -13,15 +13,39 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.rotations import cross, dot, exp_so3, jit, matmul, put, skew
+from sidprep.solver.equations.rotations import cross, dot, exp_so3, jit, matmul, put
 
 #: joint coordinate kinds (layout.py)
 NO_COORDINATE, ANGLE, SLIDE = 0, 1, 2
 
 
 @jit
-def marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
-    """p (3,), A_m (3, 3), JT (3, 6+nq), JR (3, 6+nq), d (3,) of a marker (module doc)."""
+def marker_jacobians(A, d, phi, psi, jt, jr):  # pragma: no cover - compiled
+    """JT = [E, -A d~, A Phi], JR = [0, A, A Psi] (module doc) written into the first 6 + nq
+    columns of jt, jr (3, >= 6+nq), in scalars (no temporaries: this runs for every marker at
+    every evaluation)."""
+    nq = phi.shape[1]
+    for a in range(3):  # -A d~ (d~ x = d x x): column b of A d~ is A (d x e_b)
+        jt[a, 3] = -(A[a, 1] * d[2] - A[a, 2] * d[1])
+        jt[a, 4] = -(A[a, 2] * d[0] - A[a, 0] * d[2])
+        jt[a, 5] = -(A[a, 0] * d[1] - A[a, 1] * d[0])
+        for b in range(3):
+            jt[a, b] = 1.0 if a == b else 0.0
+            jr[a, b] = 0.0
+            jr[a, 3 + b] = A[a, b]
+        for k in range(nq):
+            st = 0.0
+            sr = 0.0
+            for b in range(3):
+                st += A[a, b] * phi[b, k]
+                sr += A[a, b] * psi[b, k]
+            jt[a, 6 + k] = st
+            jr[a, 6 + k] = sr
+
+
+@jit
+def marker_pose(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
+    """p (3,), A_m (3, 3) and d (3,) of a marker (module doc)."""
     nq = q.shape[0]
     d = position.copy()
     rv = np.zeros(3)
@@ -30,22 +54,20 @@ def marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cove
             d[a] += phi[a, k] * q[k]
             rv[a] += psi[a, k] * q[k]
     rot = matmul(matmul(A, exp_so3(rv)), rotation)
-    jt = np.zeros((3, 6 + nq))
-    jr = np.zeros((3, 6 + nq))
-    ad = -matmul(A, skew(d))
-    for a in range(3):
-        jt[a, a] = 1.0
-        for b in range(3):
-            jt[a, 3 + b] = ad[a, b]
-            jr[a, 3 + b] = A[a, b]
-        for k in range(nq):
-            for b in range(3):
-                jt[a, 6 + k] += A[a, b] * phi[b, k]
-                jr[a, 6 + k] += A[a, b] * psi[b, k]
     p = r.copy()
     for a in range(3):
         for b in range(3):
             p[a] += A[a, b] * d[b]
+    return p, rot, d
+
+
+@jit
+def marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
+    """p (3,), A_m (3, 3), JT (3, 6+nq), JR (3, 6+nq), d (3,) of a marker (module doc)."""
+    p, rot, d = marker_pose(r, A, q, position, rotation, phi, psi)
+    jt = np.empty((3, 6 + q.shape[0]))
+    jr = np.empty((3, 6 + q.shape[0]))
+    marker_jacobians(A, d, phi, psi, jt, jr)
     return p, rot, jt, jr, d
 
 

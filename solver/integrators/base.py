@@ -17,9 +17,9 @@ import numpy as np
 from numba import types
 from numba.np.linalg import _LAPACK
 
-from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.equations.assemble import evaluate_into
 from sidprep.solver.equations.forces import FE_FRICTION
-from sidprep.solver.equations.rotations import add, exp_so3, jit, matmul, matvec, put, put2, se3_jacobian
+from sidprep.solver.equations.rotations import add, exp_so3, jit, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
@@ -165,9 +165,10 @@ def store_sample(buf, k, t, R, A, Q, u, ud, lam, refs, work):  # pragma: no cove
 
 
 @jit
-def expand(lam, kept, m_all):  # pragma: no cover - compiled
-    """Multipliers of all m_all rows (zero on the dropped ones) from those of the kept rows."""
-    out = np.zeros(m_all)
+def expand(lam, kept, out):  # pragma: no cover - compiled
+    """Multipliers of all rows, written into out (m_all,; zero on the dropped rows), from those
+    of the kept rows; returns out."""
+    out.fill(0.0)
     for k in range(kept.shape[0]):
         out[kept[k]] = lam[k]
     return out
@@ -179,14 +180,31 @@ def advance_pose(L, R, A, Q, dx, body_frame=False):  # pragma: no cover - compil
     R^3 x SO(3)); ``body_frame``: dr in body components, moved along the SE(3) exponential,
     r + A V(dtheta) dr (se3_jacobian; integrators/se3.py)."""
     R2, A2, Q2 = R.copy(), np.empty_like(A), Q.copy()
-    for i in range(R.shape[0]):
+    for i in range(R.shape[0]):  # in scalars where it costs nothing: this runs at every Newton iteration
         s = L.uoff[i]
         theta = dx[s + 3:s + 6].copy()
         if body_frame:
-            add(R2[i], 0, matvec(A[i], matvec(se3_jacobian(theta), dx[s:s + 3].copy())))
+            V = se3_jacobian(theta)
+            y0, y1, y2 = 0.0, 0.0, 0.0  # V dr
+            for j in range(3):
+                y0 += V[0, j] * dx[s + j]
+                y1 += V[1, j] * dx[s + j]
+                y2 += V[2, j] * dx[s + j]
+            for a in range(3):
+                acc = 0.0
+                acc += A[i, a, 0] * y0
+                acc += A[i, a, 1] * y1
+                acc += A[i, a, 2] * y2
+                R2[i, a] += acc
         else:
             add(R2[i], 0, dx[s:s + 3])
-        put2(A2[i], 0, 0, matmul(A[i], exp_so3(theta)))
+        E = exp_so3(theta)
+        for a in range(3):  # A exp(theta~)
+            for k in range(3):
+                acc = 0.0
+                for j in range(3):
+                    acc += A[i, a, j] * E[j, k]
+                A2[i, a, k] = acc
         nq = L.qoff[i + 1] - L.qoff[i]
         add(Q2, L.qoff[i], dx[s + 6:s + 6 + nq])
     return R2, A2, Q2
@@ -268,11 +286,17 @@ def kkt_solve(M, f, B, BF, rhs):  # pragma: no cover - compiled
 
 
 @jit
-def constraint_convection(e_plus, e_minus, u, kept):  # pragma: no cover - compiled
+def constraint_convection(L, W, R, A, Q, u, t, refs, kept):  # pragma: no cover - compiled
     """gamma (kept,) = d/dt (B u + b_t) at constant u: the central difference of B u + b_t
-    between the Evaluations at the poses moved by +-GAMMA_STEP u (at t +- GAMMA_STEP), exact to
-    O(1e-12) relative for the smooth constraint functions."""
-    plus, minus = matvec(e_plus.B, u) + e_plus.bt, matvec(e_minus.B, u) + e_minus.bt
+    between the evaluations (into the workspace W) at the poses moved by +-GAMMA_STEP u (at
+    t +- GAMMA_STEP), exact to O(1e-12) relative for the smooth constraint functions."""
+    zero = np.zeros(W.g.shape[0])
+    Rp, Ap, Qp = advance_pose(L, R, A, Q, GAMMA_STEP * u)
+    evaluate_into(L, W, Rp, Ap, Qp, u, t + GAMMA_STEP, zero, refs)
+    plus = matvec(W.B, u) + W.bt
+    Rm, Am, Qm = advance_pose(L, R, A, Q, -GAMMA_STEP * u)
+    evaluate_into(L, W, Rm, Am, Qm, u, t - GAMMA_STEP, zero, refs)
+    minus = matvec(W.B, u) + W.bt
     gam = np.empty(kept.shape[0])
     for k in range(kept.shape[0]):
         gam[k] = (plus[kept[k]] - minus[kept[k]]) / (2 * GAMMA_STEP)
@@ -315,28 +339,24 @@ def index1_solve(e, gam, u, free, kept, baumgarte):  # pragma: no cover - compil
 
 
 @jit
-def index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess, iterations):  # pragma: no cover
-    """Accelerations ud (n,) and kept multipliers of the index-1 form (index1_solve), for the
-    compiled explicit loops; iterated when forces depend on lambda (friction) until lambda
-    changes by less than MULTIPLIER_RTOL of its largest entry, at most ``iterations`` times.
-    (The start takes the same steps from Python, initial.accelerations: evaluate is compiled
-    anyway, while every compiled function that calls it compiles its whole call tree once more;
-    docs/performance.md.)"""
-    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
+def index1_accelerations(L, W, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess):  # pragma: no cover
+    """Accelerations ud (n,) and kept multipliers of the index-1 form (index1_solve) at the
+    state (R, A, Q, u, t), evaluated into the workspace W (assemble.evaluation_arrays; it holds
+    the evaluation at the last guess of the multipliers afterwards); iterated when forces depend on
+    lambda (friction) until lambda changes by less than MULTIPLIER_RTOL of its largest entry, at
+    most MULTIPLIER_ITERATIONS times (lam_guess (kept,) the first guess).  The start
+    (initial.accelerations) and the explicit loops call it."""
     gam = np.zeros(kept.shape[0])
     if kept.shape[0]:
-        Rp, Ap, Qp = advance_pose(L, R, A, Q, GAMMA_STEP * u)
-        Rm, Am, Qm = advance_pose(L, R, A, Q, -GAMMA_STEP * u)
-        gam = constraint_convection(evaluate(L, Rp, Ap, Qp, u, t + GAMMA_STEP, np.zeros(m_all), refs),
-                                    evaluate(L, Rm, Am, Qm, u, t - GAMMA_STEP, np.zeros(m_all), refs), u, kept)
+        gam = constraint_convection(L, W, R, A, Q, u, t, refs, kept)
     lam = lam_guess.copy()
+    lam_all = np.zeros(W.g.shape[0])
     ud = np.zeros(u.shape[0])
-    for _ in range(iterations if has_friction(L) else 1):
-        e = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs)
-        ud, lam_new = index1_solve(e, gam, u, free, kept, baumgarte)
+    for _ in range(MULTIPLIER_ITERATIONS if has_friction(L) else 1):
+        evaluate_into(L, W, R, A, Q, u, t, expand(lam, kept, lam_all), refs)
+        ud, lam_new = index1_solve(W, gam, u, free, kept, baumgarte)
         settled = multipliers_settled(lam, lam_new)
         lam = lam_new
         if settled:
             break
-    return ud, lam
     return ud, lam

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import constraint_power, evaluate, moving_masses
+from sidprep.solver.equations.assemble import constraint_power, evaluate_into, evaluation_arrays, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
-from sidprep.solver.integrators.base import (CHUNK, MULTIPLIER_ITERATIONS, Samples, Stepper, expand, first_samples,
+from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, expand, first_samples, has_friction,
                                              index1_accelerations, sample_buffers, store_sample)
 from sidprep.solver.integrators.runge_kutta import hermite, rk4_combine, rk4_stage
 
@@ -49,15 +49,15 @@ def pack(L, R, A, Q, u, work) -> np.ndarray:
 
 @jit
 def index1_rhs(t, y, params):  # pragma: no cover - compiled
-    """dy/dt of the explicit state; params = (L, free, kept, refs, baumgarte, lam guess (kept))."""
-    L, free, kept, refs, baumgarte, lam_guess = params
+    """dy/dt of the explicit state; params = (L, free, kept, refs, baumgarte, lam guess (kept),
+    the run's workspace W (assemble.evaluation_arrays))."""
+    L, free, kept, refs, baumgarte, lam_guess, e = params
     R, A, Q, u = unpack(L, y)
-    ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
-                                   MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
+    ud, lam = index1_accelerations(L, e, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess)
     put(lam_guess, 0, lam)
-    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    lam_all = expand(lam, kept, m_all)
-    e = evaluate(L, R, A, Q, u, t, lam_all, refs)
+    lam_all = expand(lam, kept, np.zeros(e.g.shape[0]))
+    if has_friction(L):  # e holds the evaluation at the last guess: only friction reads lambda
+        evaluate_into(L, e, R, A, Q, u, t, lam_all, refs)
     flows = e.flows
     ydot = np.zeros(y.shape[0])
     o = 0
@@ -80,14 +80,11 @@ def index1_rhs(t, y, params):  # pragma: no cover - compiled
 @jit
 def sample(L, t, y, params, refs):  # pragma: no cover - compiled
     """(R, A, Q, u, ud, lam, work) at an accepted state, refs updated to its joint angles."""
-    L_, free, kept, _, baumgarte, lam_guess = params
+    L_, free, kept, _, baumgarte, lam_guess, e = params
     R, A, Q, u = unpack(L, y)
-    ud, lam = index1_accelerations(L, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess,
-                                   MULTIPLIER_ITERATIONS if kept.shape[0] else 1)
-    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
-    coords = evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs).coords
-    for j in range(refs.shape[0]):
-        refs[j] = coords[j, 0]
+    ud, lam = index1_accelerations(L, e, R, A, Q, u, t, refs, free, kept, baumgarte, lam_guess)
+    for j in range(refs.shape[0]):  # the joint coordinates are kinematic: e's at any multipliers
+        refs[j] = e.coords[j, 0]
     return R, A, Q, u, ud, lam, y[y.shape[0] - 3:].copy()
 
 
@@ -156,7 +153,8 @@ class _Explicit(Stepper):
         super().__init__(problem, state, settings)
         L = problem.L
         self.y = pack(L, state.R, state.A, state.Q, state.u, np.zeros(3))
-        self.params = (L, problem.free, problem.kept, problem.refs, float(settings.baumgarte), state.lam.copy())
+        self.params = (L, problem.free, problem.kept, problem.refs, float(settings.baumgarte), state.lam.copy(),
+                       evaluation_arrays(L))
         self.next_out = settings.output_dt or 0.0
         self.next_index = 1
 

@@ -43,12 +43,12 @@ from collections import namedtuple
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import (constraint_power, evaluate, has_moving_masses, markers,
-                                               moving_masses)
-from sidprep.solver.equations.rotations import jit, matvec, put, put2
+from sidprep.solver.equations.assemble import (constraint_power, evaluate_into, evaluation_arrays, has_moving_masses,
+                                               markers_into, moving_masses)
+from sidprep.solver.equations.rotations import jit, put
 from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
                                              Samples, Stepper, advance_pose, expand, first_samples, lu_factor,
-                                             lu_solve, new_status, restrict, sample_buffers, store_sample)
+                                             lu_solve, new_status, sample_buffers, store_sample)
 from sidprep.solver.integrators.runge_kutta import hermite
 from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
                                             inertial_accelerations, inertial_velocities, to_body_frame)
@@ -71,6 +71,21 @@ GaState = namedtuple("GaState", ["R", "A", "Q", "u", "ud", "a", "lam"])
 #: nominal step (s) and the output interval (s; <= 0: every step)
 GaConstants = namedtuple("GaConstants", ["prm", "free", "kept", "w", "length", "limits", "tol", "rtol", "atol",
                                          "h_nominal", "out_dt"])
+#: a run's workspace (made once per run, ``ga_workspace``): the Evaluations (assemble.evaluation_arrays)
+#: of the Newton iterate e and of the finite-difference columns e_col, the multipliers of all rows
+#: lam_all (m_all,), the Newton residuals r and r_col (free + kept,), the iteration matrix jac
+#: (free + kept, free + kept), and the run's work integrals
+#: work (3,) = [applied loads, dissipated, drivers] (J) and power flows at its current state
+#: flows (4,) (W; NaN before the first step), carried from one call of ga_loop to the next
+GaWorkspace = namedtuple("GaWorkspace", ["e", "e_col", "lam_all", "r", "r_col", "jac", "work", "flows"])
+
+
+def ga_workspace(L, constants) -> GaWorkspace:
+    """The GaWorkspace of a run with layout L and GaConstants ``constants``."""
+    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+    size = constants.free.size + constants.kept.size
+    return GaWorkspace(evaluation_arrays(L), evaluation_arrays(L), np.zeros(m_all), np.zeros(size), np.zeros(size),
+                       np.zeros((size, size)), np.zeros(3), np.full(4, np.nan))
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -87,29 +102,36 @@ def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
 def ga_state(L, udn, x, h, prm):  # pragma: no cover - compiled
     """(a_{n+1}, R, A, Q, u_{n+1}) of the update of the GaState x for ud_{n+1} (module doc)."""
     am, af, gamma, beta = prm[0], prm[1], prm[2], prm[3]
-    an = (af * x.ud + (1 - af) * udn - am * x.a) / (1 - am)
-    R2, A2, Q2 = advance_pose(L, x.R, x.A, x.Q, h * x.u + h * h * ((0.5 - beta) * x.a + beta * an), True)
-    return an, R2, A2, Q2, x.u + h * ((1 - gamma) * x.a + gamma * an)
+    n = udn.shape[0]
+    an, dx, un = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):  # element by element: three arrays instead of one per operation
+        an[i] = (af * x.ud[i] + (1 - af) * udn[i] - am * x.a[i]) / (1 - am)
+        dx[i] = h * x.u[i] + h * h * ((0.5 - beta) * x.a[i] + beta * an[i])
+        un[i] = x.u[i] + h * ((1 - gamma) * x.a[i] + gamma * an[i])
+    R2, A2, Q2 = advance_pose(L, x.R, x.A, x.Q, dx, True)
+    return an, R2, A2, Q2, un
 
 
 @jit
-def newton_residual(e, udn, lamn, h, c):  # pragma: no cover - compiled
-    """r = [M ud - f + B_F^T lambda; g / (h^2 beta')] on the free coordinates and kept rows of
-    the GaConstants c, from the Evaluation e at the state updated for (udn, lamn).  (The loop
-    calls evaluate itself: every compiled function that calls it re-optimises its whole call
-    tree, seconds of compilation each; docs/performance.md.)"""
+def newton_residual(e, udn, lamn, h, c, r):  # pragma: no cover - compiled
+    """r (free + kept,; written in place) = [M ud - f + B_F^T lambda; g / (h^2 beta')] on the
+    free coordinates and kept rows of the GaConstants c, from the Evaluation e at the state
+    updated for (udn, lamn).  (The loop calls evaluate_into itself: every compiled function
+    that calls it re-optimises its whole call tree, seconds of compilation each;
+    docs/performance.md.)"""
     free, kept = c.free, c.kept
     nf, m = free.shape[0], kept.shape[0]
-    r = np.empty(nf + m)
-    full = matvec(e.M, udn)
     for i in range(nf):
-        acc = full[free[i]] - e.f[free[i]]
+        row = free[i]
+        acc = 0.0  # (M ud)_row
+        for j in range(udn.shape[0]):
+            acc += e.M[row, j] * udn[j]
+        acc = acc - e.f[row]
         for k in range(m):
             acc += e.BF[kept[k], free[i]] * lamn[k]
         r[i] = acc
     for k in range(m):
         r[nf + k] = e.g[kept[k]] / (h * h * c.prm[4])
-    return r
 
 
 @jit
@@ -139,14 +161,19 @@ def state_flows(L, e, x, lam_all, mass_power):  # pragma: no cover - compiled
 
 
 @jit
-def iteration_matrix(Mf, D, Bk, BFk):  # pragma: no cover - compiled
-    """[M + D, B_F^T; B, 0]."""
-    nf, m = Mf.shape[0], Bk.shape[0]
-    jac = np.zeros((nf + m, nf + m))
-    put2(jac, 0, 0, Mf + D)
-    put2(jac, 0, nf, BFk.T)
-    put2(jac, nf, 0, Bk)
-    return jac
+def iteration_matrix(e, D, free, kept, jac):  # pragma: no cover - compiled
+    """[M + D, B_F^T; B, 0] (free + kept, free + kept) written into jac, with M, B, B_F of the
+    Evaluation e restricted to the free coordinates and the kept rows."""
+    nf, m = free.shape[0], kept.shape[0]
+    for i in range(nf):
+        for j in range(nf):
+            jac[i, j] = e.M[free[i], free[j]] + D[i, j]
+        for k in range(m):
+            jac[i, nf + k] = e.BF[kept[k], free[i]]
+            jac[nf + k, i] = e.B[kept[k], free[i]]
+    for k in range(m):
+        for j in range(m):
+            jac[nf + k, nf + j] = 0.0
 
 
 @jit
@@ -180,15 +207,15 @@ def deflection_check(L, Q, c, status):  # pragma: no cover - compiled
 
 
 @jit
-def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacity):  # pragma: no cover - compiled
+def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pragma: no cover - compiled
     """Generalised-alpha steps of the GaState x from t until t_end or until ``capacity`` output
-    samples, with the run's GaConstants c; samples at next_index c.out_dt, (next_index + 1)
-    c.out_dt, ... (dense_state), or after every step (c.out_dt <= 0), and at t_end.
+    samples, with the run's GaConstants c and GaWorkspace ws; samples at next_index c.out_dt,
+    (next_index + 1) c.out_dt, ... (dense_state), or after every step (c.out_dt <= 0), and at t_end.
 
-    c.rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  work (3,)
-    the work integrals [applied loads, dissipated, drivers] and flows0 (4,) the power flows at
-    the current state (NaN before the first call: computed here, and x.a set to x.ud) are updated in place, as refs (angle references) and stats (base.STATUS,
-    one record).  Returns the new GaState, t, step size, next output index and the samples.
+    c.rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  ws.work (3,)
+    the work integrals [applied loads, dissipated, drivers] and ws.flows (4,) the power flows at
+    the current state (NaN before the first call: computed here, and x.a set to x.ud) are
+    updated in place, as refs (angle references) and stats (base.STATUS, one record).  Returns the new GaState, t, step size, next output index and the samples.
     x.u, x.ud in and out and the samples are inertial (v_O); the steps are taken in the SE(3)
     coordinates of se3.py, in which x.a is kept.
     """
@@ -198,15 +225,16 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
     free, kept = c.free, c.kept
     nf, m = free.shape[0], kept.shape[0]
     nj = refs.shape[0]
-    m_all = L.joint_off[-1] + L.drv_joint.shape[0]
     masses = has_moving_masses(L)
+    e, work, flows0, lam_all, r = ws.e, ws.work, ws.flows, ws.lam_all, ws.r
     if not np.isfinite(flows0[0]):  # the first call: a = ud and the power flows at the start state
         x = GaState(x.R, x.A, x.Q, x.u, x.ud, x.ud.copy(), x.lam)
-        lam_all = expand(x.lam, kept, m_all)
+        expand(x.lam, kept, lam_all)
         u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
-        e0 = evaluate(L, x.R, x.A, x.Q, u_o, t, lam_all, refs)
-        mass_power = moving_masses(L, e0.kin, x.R, x.A, x.Q, u_o, ud_o, t)[0] if masses else 0.0
-        put(flows0, 0, state_flows(L, to_body_frame(L, x.A, x.u, e0), x, lam_all, mass_power))
+        evaluate_into(L, e, x.R, x.A, x.Q, u_o, t, lam_all, refs)
+        mass_power = moving_masses(L, e.kin, x.R, x.A, x.Q, u_o, ud_o, t)[0] if masses else 0.0
+        to_body_frame(L, x.A, x.u, e)
+        put(flows0, 0, state_flows(L, e, x, lam_all, mass_power))
     buf = sample_buffers(capacity, x.R, x.Q, x.u, x.lam, refs)
     ns = 0
     end_tol = 1e-12 * max(1.0, t_end)
@@ -239,9 +267,9 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
         it = 0
         converged = False
         _, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
-        e = to_body_frame(L, A2, un, evaluate(L, R2, A2, Q2, inertial_velocities(L, A2, un), t + h,
-                                              expand(lamn, kept, m_all), refs))
-        r = newton_residual(e, udn, lamn, h, c)
+        evaluate_into(L, e, R2, A2, Q2, inertial_velocities(L, A2, un), t + h, expand(lamn, kept, lam_all), refs)
+        to_body_frame(L, A2, un, e)
+        newton_residual(e, udn, lamn, h, c, r)
         while True:
             if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
                 eps_pos = np.sqrt(np.finfo(np.float64).eps) / (h * h * c.prm[4])
@@ -251,16 +279,17 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
                     trial = udn.copy()
                     trial[free[col]] += delta
                     _, R3, A3, Q3, u3 = ga_state(L, trial, x, h, c.prm)
-                    e3 = evaluate(L, R3, A3, Q3, inertial_velocities(L, A3, u3), t + h, expand(lamn, kept, m_all),
-                                  refs)
-                    r1 = newton_residual(to_body_frame(L, A3, u3, e3), trial, lamn, h, c)
+                    evaluate_into(L, ws.e_col, R3, A3, Q3, inertial_velocities(L, A3, u3), t + h, lam_all, refs)
+                    to_body_frame(L, A3, u3, ws.e_col)
+                    newton_residual(ws.e_col, trial, lamn, h, c, ws.r_col)
+                    r1 = ws.r_col
                     for row in range(nf):
                         D[row, col] = (r1[row] - r[row]) / delta - e.M[free[row], free[col]]
                 D_h, have_d, fresh_d, want_d, factor_now = h, True, True, False, True
                 status.jacobians += 1
             if factor_now:  # M, B of this iterate; D re-used over steps
-                Mf, _, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, free, kept)
-                lu, piv = lu_factor(iteration_matrix(Mf, D, Bk, BFk))
+                iteration_matrix(e, D, free, kept, ws.jac)
+                lu, piv = lu_factor(ws.jac)
                 factor_now = False
             drift = 0.0  # constraint residual before this update, m or rad
             for k in range(m):
@@ -285,9 +314,10 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
                 converged = True
                 break
             _, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
-            e = to_body_frame(L, A2, un, evaluate(L, R2, A2, Q2, inertial_velocities(L, A2, un), t + h,
-                                                  expand(lamn, kept, m_all), refs))
-            r = newton_residual(e, udn, lamn, h, c)
+            evaluate_into(L, e, R2, A2, Q2, inertial_velocities(L, A2, un), t + h, expand(lamn, kept, lam_all),
+                          refs)
+            to_body_frame(L, A2, un, e)
+            newton_residual(e, udn, lamn, h, c, r)
             if it >= MAX_NEWTON or (it > 1 and err > SLOW_CONTRACTION * last):
                 if not refactored:  # first: the current M, B with the old D
                     refactored, factor_now, it, last = True, True, 0, np.inf
@@ -328,9 +358,9 @@ def ga_loop(L, c, x, t, t_end, h, next_index, refs, work, flows0, stats, capacit
         u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
         mass_power = 0.0
         if masses:
-            kin = markers(L, x.R, x.A, x.Q, u_o, t)
-            mass_power = moving_masses(L, kin, x.R, x.A, x.Q, u_o, ud_o, t)[0]
-        flows = state_flows(L, e, x, expand(lamn, kept, m_all), mass_power)
+            markers_into(L, ws.e_col.kin, x.R, x.A, x.Q, u_o, t)
+            mass_power = moving_masses(L, ws.e_col.kin, x.R, x.A, x.Q, u_o, ud_o, t)[0]
+        flows = state_flows(L, e, x, expand(lamn, kept, lam_all), mass_power)
         work[0] += 0.5 * h * (flows[0] + flows0[0])
         work[1] += 0.5 * h * (flows[1] + flows0[1])
         work[2] += 0.5 * h * (flows[3] + flows0[3])
@@ -378,15 +408,14 @@ class GeneralizedAlpha(Stepper):
         self.a = np.full(state.u.size, np.nan)  # in the coordinates of se3.py: ga_loop starts it at ud
         self.h = settings.h
         self.next_index = 1
-        self.work = np.zeros(3)
-        self.flows = np.full(4, np.nan)  # the power flows of the current state: ga_loop computes them first
+        self.workspace = ga_workspace(problem.L, self.constants)
         self.status_record = new_status(settings.max_steps)
 
     def advance(self, t_stop: float) -> Samples:
         p, s, st = self.problem, self.state, self.settings
         x = GaState(s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam)
-        x, s.t, self.h, self.next_index, buf = ga_loop(p.L, self.constants, x, s.t, t_stop, self.h, self.next_index,
-                                                       p.refs, self.work, self.flows, self.status_record, CHUNK)
+        x, s.t, self.h, self.next_index, buf = ga_loop(p.L, self.constants, self.workspace, x, s.t, t_stop, self.h,
+                                                       self.next_index, p.refs, self.status_record, CHUNK)
         s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam = x
         record = self.status_record[0]
         code = int(record["code"])

@@ -13,10 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.integrators.base import (GAMMA_STEP, MULTIPLIER_ITERATIONS, advance_pose, constraint_convection,
-                                             expand, has_friction, index1_solve, kkt_solve, multipliers_settled,
-                                             restrict)
+from sidprep.solver.equations.assemble import evaluate, evaluation_arrays
+from sidprep.solver.integrators.base import advance_pose, index1_accelerations, kkt_solve, restrict
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -188,25 +186,10 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
 
 
 def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
-    """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte):
-    base.index1_accelerations's steps taken from Python, because evaluate is compiled anyway
-    while every compiled function that calls it compiles its whole call tree once more on a
-    first run (docs/performance.md, "First run")."""
-    m_all = int(L.joint_off[-1] + L.drv_joint.size)
-    gam = np.zeros(kept.size)
-    if kept.size:
-        plus, minus = (evaluate(L, *advance_pose(L, R, A, Q, sign * GAMMA_STEP * u), u, t + sign * GAMMA_STEP,
-                                np.zeros(m_all), refs) for sign in (1.0, -1.0))
-        gam = constraint_convection(plus, minus, u, kept)
+    """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte;
+    base.index1_accelerations, lam the first guess of the multipliers, default zero)."""
     lam = np.zeros(kept.size) if lam is None else lam
-    for _ in range(MULTIPLIER_ITERATIONS if has_friction(L) else 1):
-        ud, lam_new = index1_solve(evaluate(L, R, A, Q, u, t, expand(lam, kept, m_all), refs), gam, u, free, kept,
-                                   0.0)
-        settled = multipliers_settled(lam, lam_new)
-        lam = lam_new
-        if settled:
-            break
-    return ud, lam
+    return index1_accelerations(L, evaluation_arrays(L), R, A, Q, u, t, refs, free, kept, 0.0, lam)
 
 
 def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):

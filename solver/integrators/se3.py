@@ -31,18 +31,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import Evaluation
-from sidprep.solver.equations.rotations import (SMALL_ANGLE, cross, jit, matmul, matvec, put, se3_jacobian,
-                                                tmatvec)
+from sidprep.solver.equations.assemble import load_stiffened
+from sidprep.solver.equations.rotations import SMALL_ANGLE, jit, matmul, put, se3_jacobian, tmatvec
 
 @jit
 def rotate_translations(L, A, u, inverse):  # pragma: no cover - compiled
-    """u_O = S u_K (inverse False) or u_K = S^T u_O (inverse True), (n,)."""
+    """u_O = S u_K (inverse False) or u_K = S^T u_O (inverse True), (n,) (in scalars: one
+    array per call, this runs at every Newton iteration)."""
     out = u.copy()
     for b in range(A.shape[0]):
         s = L.uoff[b]
-        v = u[s:s + 3].copy()
-        put(out, s, tmatvec(A[b], v) if inverse else matvec(A[b], v))
+        v0, v1, v2 = u[s], u[s + 1], u[s + 2]
+        for i in range(3):
+            acc = 0.0
+            if inverse:
+                acc += A[b, 0, i] * v0
+                acc += A[b, 1, i] * v1
+                acc += A[b, 2, i] * v2
+            else:
+                acc += A[b, i, 0] * v0
+                acc += A[b, i, 1] * v1
+                acc += A[b, i, 2] * v2
+            out[s + i] = acc
     return out
 
 
@@ -60,11 +70,18 @@ def body_velocities(L, A, u_O):  # pragma: no cover - compiled
 
 @jit
 def convective(L, A, u_K):  # pragma: no cover - compiled
-    """c = dS/dt u_K (n,): A (omega x v_K) on each body's translational rows."""
+    """c = dS/dt u_K (n,): A (omega x v_K) on each body's translational rows (in scalars)."""
     c = np.zeros(u_K.shape[0])
     for b in range(A.shape[0]):
         s = L.uoff[b]
-        put(c, s, matvec(A[b], cross(u_K[s + 3:s + 6].copy(), u_K[s:s + 3].copy())))
+        w0, w1, w2, v0, v1, v2 = u_K[s + 3], u_K[s + 4], u_K[s + 5], u_K[s], u_K[s + 1], u_K[s + 2]
+        x0, x1, x2 = w1 * v2 - w2 * v1, w2 * v0 - w0 * v2, w0 * v1 - w1 * v0
+        for i in range(3):
+            acc = 0.0
+            acc += A[b, i, 0] * x0
+            acc += A[b, i, 1] * x1
+            acc += A[b, i, 2] * x2
+            c[s + i] = acc
     return c
 
 
@@ -82,43 +99,55 @@ def body_accelerations(L, A, u_K, ud_O):  # pragma: no cover - compiled
 
 @jit
 def right_multiply(X, L, A):  # pragma: no cover - compiled
-    """X S in place (X (k, n)): body b's translational columns times A_b."""
+    """X S in place (X (k, n)): body b's translational columns times A_b (in scalars: no
+    temporaries, this runs at every Newton iteration)."""
     for b in range(A.shape[0]):
         s = L.uoff[b]
         for r in range(X.shape[0]):
-            row = X[r, s:s + 3].copy()
-            put(X[r], s, tmatvec(A[b], row))
+            x0, x1, x2 = X[r, s], X[r, s + 1], X[r, s + 2]
+            for i in range(3):
+                acc = 0.0
+                acc += A[b, 0, i] * x0
+                acc += A[b, 1, i] * x1
+                acc += A[b, 2, i] * x2
+                X[r, s + i] = acc
 
 
 @jit
 def left_multiply(X, L, A):  # pragma: no cover - compiled
-    """S^T X in place (X (n, k)): body b's translational rows times A_b^T."""
+    """S^T X in place (X (n, k)): body b's translational rows times A_b^T (in scalars)."""
     for b in range(A.shape[0]):
         s = L.uoff[b]
         for col in range(X.shape[1]):
-            x = np.array([X[s, col], X[s + 1, col], X[s + 2, col]])
-            y = tmatvec(A[b], x)
-            X[s, col], X[s + 1, col], X[s + 2, col] = y[0], y[1], y[2]
+            x0, x1, x2 = X[s, col], X[s + 1, col], X[s + 2, col]
+            for i in range(3):
+                acc = 0.0
+                acc += A[b, 0, i] * x0
+                acc += A[b, 1, i] * x1
+                acc += A[b, 2, i] * x2
+                X[s + i, col] = acc
 
 
 @jit
 def to_body_frame(L, A, u_K, e):  # pragma: no cover - compiled
-    """The Evaluation e of ``evaluate`` (assemble.py) at the inertial velocities S u_K with M, f,
-    B, B_F in the coordinates of this module (module doc; M, B, B_F changed in place), the rest
-    as evaluate gives it.  (The callers evaluate themselves: every compiled function that calls
-    evaluate compiles its whole call tree once more; docs/performance.md.)"""
-    M, B, BF = e.M, e.B, e.BF
-    rhs = (e.f - matvec(M, convective(L, A, u_K))).reshape((-1, 1))
-    left_multiply(rhs, L, A)
+    """The Evaluation e (assemble.evaluate_into, at the inertial velocities S u_K) turned in
+    place into the coordinates of this module (module doc): M -> S^T M S, f -> S^T (f - M c),
+    B -> B S, B_F -> B_F S; the rest as evaluate_into gives it.  (The callers evaluate
+    themselves: every compiled function that calls evaluate_into compiles its whole call tree
+    once more; docs/performance.md.)"""
+    M, f = e.M, e.f
+    c = convective(L, A, u_K)
+    for i in range(f.shape[0]):
+        acc = 0.0
+        for j in range(M.shape[1]):
+            acc += M[i, j] * c[j]
+        f[i] = f[i] - acc
+    left_multiply(f.reshape((-1, 1)), L, A)
     right_multiply(M, L, A)
     left_multiply(M, L, A)
-    right_multiply(B, L, A)
-    stiffened = False  # B_F is B itself unless a marker is load-stiffened (evaluate)
-    for k in range(L.mk_k0.shape[0]):
-        stiffened = stiffened or L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0
-    if stiffened:
-        right_multiply(BF, L, A)
-    return Evaluation(M, rhs[:, 0].copy(), e.g, B, BF, e.bt, e.C, e.coords, e.loads, e.flows, e.kin)
+    right_multiply(e.B, L, A)
+    if load_stiffened(L.mk_k0):  # B_F is B itself otherwise
+        right_multiply(e.BF, L, A)
 
 
 @jit
