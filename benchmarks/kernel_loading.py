@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = r"""
 import json, sys, time
 from pathlib import Path
-from sidprep.cli.simulate import process_setup
+from sidprep.cli.options import process_setup
 process_setup()
 from sidprep.solver.scene import load_scene, simulate
 from sidprep.solver.equations.kernel_cache import KERNEL_CACHE, NAMESPACE

@@ -41,7 +41,7 @@ CHILD = r"""
 import json, sys, time
 t0 = time.process_time()
 try:  # what `sidprep simulate` does to its process (absent in older checkouts)
-    from sidprep.cli.simulate import process_setup
+    from sidprep.cli.options import process_setup
     process_setup()
 except ImportError:
     pass

@@ -3,6 +3,8 @@ start (sidprep.solver.linear.mechanism_modes), as a table or JSON."""
 
 from __future__ import annotations
 
+from sidprep.cli.options import process_setup
+
 #: entries of a mode shape printed in the table (the largest, by magnitude)
 SHAPE_ENTRIES = 3
 
@@ -19,7 +21,7 @@ def register(subparsers) -> None:
     p.add_argument("--count", type=int, metavar="N", help="print the first N modes (default all)")
     p.add_argument("--json", action="store_true",
                    help="one JSON object: frequencies_hz, n_rigid, coordinates, shapes (columns)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, process_setup=process_setup)
 
 
 def shape_summary(shape, coordinates, entries: int = SHAPE_ENTRIES) -> str:

@@ -93,7 +93,7 @@ def command() -> None:
     """The ``sidprep`` command: ``main`` as a process of its own, ended without Python's teardown
     of its modules once the atexit handlers have run and stdout and stderr are flushed: that
     teardown (the cyclic garbage collector over numba's type registries, LLVM's modules freed one
-    by one) cost 0.2-0.3 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
+    by one) cost 0.2-0.35 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
     While another thread still runs (a pool, a Dask client), the process ends the ordinary way."""
     code = main(own_process=True)
     if threading.active_count() > 1:

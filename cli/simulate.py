@@ -3,38 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import json
-import os
 import sys
 from pathlib import Path
 
+from sidprep.cli.options import process_setup
 from sidprep.solver.integrators.settings import METHODS
 
 #: signals plotted / exported when the scene's [output] names none
 DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
-
-#: the BLAS thread pools of a simulation process, set before numpy loads (a limit set later does not
-#: stop the pools from starting): numpy's and scipy's OpenBLAS each start a pool whose idle threads
-#: spin after the start and after every call, while the solver's matrices are small (tens to a few
-#: hundred rows).  Measured 2026-11-26 (docs/performance.md, "Fixed cost per process"): 0.16-0.22
-#: CPU-s of imports, 0.04 s of the engine's post-processing, the integration unchanged.  A value the
-#: user sets wins.
-SOLVER_THREADS = {"OPENBLAS_NUM_THREADS": "1"}
-
-
-def process_setup() -> None:
-    """What the command changes about its process when it runs as one (``sidprep simulate``, not
-    ``main`` called from Python), before the solver's imports: the BLAS thread limits of
-    SOLVER_THREADS unless the environment sets them, and no cyclic garbage collection (reference
-    counting frees as always).  The collector scans numba's growing registries again and again
-    while the solver imports and loads its kernels: 0.06-0.14 CPU-s of a simulate process, and a
-    run leaves next to no cyclic garbage (the engine's peak memory unchanged, 310 MB;
-    docs/performance.md, "Fixed cost per process")."""
-    for name, value in SOLVER_THREADS.items():
-        os.environ.setdefault(name, value)
-    gc.disable()
-
 
 def positive(text: str) -> float:
     """argparse type: a number > 0."""

@@ -146,7 +146,7 @@ def test_solver_errors_name_the_scene_file(tmp_path, capsys):
 
 PROCESS = """
 import gc, json, os, sys
-from sidprep.cli.simulate import process_setup
+from sidprep.cli.options import process_setup
 process_setup()
 import numpy, scipy.linalg
 from threadpoolctl import threadpool_info
@@ -158,7 +158,7 @@ print(json.dumps([os.environ.get("OPENBLAS_NUM_THREADS"), [p["num_threads"] for 
 @pytest.mark.parametrize("user, threads", [(None, "1"), ("2", "2")])
 def test_simulate_process_starts_one_blas_thread_unless_the_user_sets_it(user, threads):
     """The command's process: BLAS pools with one thread (their idle threads cost 0.2 CPU-s of every
-    process, cli/simulate.py SOLVER_THREADS; the user's own OPENBLAS_NUM_THREADS wins) and no
+    process, cli/options.py SOLVER_THREADS; the user's own OPENBLAS_NUM_THREADS wins) and no
     cyclic garbage collector."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | (
         {"OPENBLAS_NUM_THREADS": user} if user else {})
