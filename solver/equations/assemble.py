@@ -272,6 +272,7 @@ def markers_into(L, kin, R, A, Q, u, t):  # pragma: no cover - compiled
     JTF.fill(0.0)  # (JT, JR themselves unless load-stiffened)
     JRF.fill(0.0)
     shapes = L.shapes
+    p_path, rot_path, d = np.empty(3), np.empty((3, 3)), np.empty(3)  # scratch of the markers below
     for sweep in range(2 * nmk):  # markers that follow a partner on their path (OnPath) after the others
         k = sweep % nmk
         if not L.mk_active[k] or (L.mk_path[k, 2] >= 0) != (sweep >= nmk):
@@ -293,21 +294,21 @@ def markers_into(L, kin, R, A, Q, u, t):  # pragma: no cover - compiled
                 s, s_dot, _ = motion_state(int(L.mk_motion[k, 0]), L.mk_motion[k, 1:], cx, cc, t)
             p, rot, point, phi, psi, on = path_pose(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s,
                                                     L.mk_rot[k], False)
+            put(P[k], 0, p)
+            put2(AM[k], 0, 0, rot)
             if L.mk_path[k, 2] < 0:
                 vc, wc = path_convection(L.curve_x, L.curve_c, L.curve_meta, first, R[b], A[b], q, s, s_dot,
                                          L.mk_rot[k], rot, on)
                 put(VC[k], 0, vc)
                 put(WC[k], 0, wc)
             if on:  # off its path it carries no load: zero Jacobians
-                d = marker_pose(R[b], A[b], q, point, L.mk_rot[k], phi, psi)[2]
+                marker_pose(R[b], A[b], q, point, L.mk_rot[k], phi, psi, p_path, rot_path, d)
                 marker_jacobians(A[b], d, phi, psi, JT[k], JR[k])
         else:
             phi = shapes[o:o + 3 * nq].reshape((3, nq))
             psi = shapes[o + 3 * nq:o + 6 * nq].reshape((3, nq))
-            p, rot, d = marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], phi, psi)
+            marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], phi, psi, P[k], AM[k], d)
             marker_jacobians(A[b], d, phi, psi, JT[k], JR[k])
-        put(P[k], 0, p)
-        put2(AM[k], 0, 0, rot)
         w = uoff[b + 1] - uoff[b]
         for a in range(3):  # VEL = JT u_b, OMG = JR u_b
             vel = 0.0

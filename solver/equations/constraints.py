@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.rotations import cross, dot, exp_so3, jit, matmul, put
+from sidprep.solver.equations.rotations import cross, dot, exp_so3, jit, put
 
 #: joint coordinate kinds (layout.py)
 NO_COORDINATE, ANGLE, SLIDE = 0, 1, 2
@@ -44,27 +44,42 @@ def marker_jacobians(A, d, phi, psi, jt, jr):  # pragma: no cover - compiled
 
 
 @jit
-def marker_pose(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
-    """p (3,), A_m (3, 3) and d (3,) of a marker (module doc)."""
+def marker_pose(r, A, q, position, rotation, phi, psi, p, rot, d):  # pragma: no cover - compiled
+    """p (3,), A_m (3, 3) and d (3,) of a marker (module doc), written into p, rot, d (in
+    scalars: this runs for every marker at every evaluation)."""
     nq = q.shape[0]
-    d = position.copy()
     rv = np.zeros(3)
     for a in range(3):
+        da = position[a]
         for k in range(nq):
-            d[a] += phi[a, k] * q[k]
+            da += phi[a, k] * q[k]
             rv[a] += psi[a, k] * q[k]
-    rot = matmul(matmul(A, exp_so3(rv)), rotation)
-    p = r.copy()
+        d[a] = da
+    e = exp_so3(rv)
+    for a in range(3):  # row a of (A exp(rv~)) rotation
+        t0, t1, t2 = 0.0, 0.0, 0.0
+        for j in range(3):
+            t0 += A[a, j] * e[j, 0]
+            t1 += A[a, j] * e[j, 1]
+            t2 += A[a, j] * e[j, 2]
+        for k in range(3):
+            acc = 0.0
+            acc += t0 * rotation[0, k]
+            acc += t1 * rotation[1, k]
+            acc += t2 * rotation[2, k]
+            rot[a, k] = acc
     for a in range(3):
+        pa = r[a]
         for b in range(3):
-            p[a] += A[a, b] * d[b]
-    return p, rot, d
+            pa += A[a, b] * d[b]
+        p[a] = pa
 
 
 @jit
 def marker_kinematics(r, A, q, position, rotation, phi, psi):  # pragma: no cover - compiled
     """p (3,), A_m (3, 3), JT (3, 6+nq), JR (3, 6+nq), d (3,) of a marker (module doc)."""
-    p, rot, d = marker_pose(r, A, q, position, rotation, phi, psi)
+    p, rot, d = np.empty(3), np.empty((3, 3)), np.empty(3)
+    marker_pose(r, A, q, position, rotation, phi, psi, p, rot, d)
     jt = np.empty((3, 6 + q.shape[0]))
     jr = np.empty((3, 6 + q.shape[0]))
     marker_jacobians(A, d, phi, psi, jt, jr)

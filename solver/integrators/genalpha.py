@@ -141,12 +141,16 @@ def dense_state(L, x0, x1, h, theta):  # pragma: no cover - compiled
     u, ud handed out inertial (se3.py)."""
     b00, b10, b01, b11 = hermite(theta)
     step = body_increment(L, x0.R, x0.A, x1.R, x1.A, x0.Q, x1.Q)  # h dx: what took x0 to x1 (ga_state)
-    delta = b10 * h * x0.u + b01 * step + b11 * h * x1.u
+    n, m = step.shape[0], x0.lam.shape[0]
+    delta, u, ud, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(m)
+    for i in range(n):  # element by element: one array per quantity
+        delta[i] = b10 * h * x0.u[i] + b01 * step[i] + b11 * h * x1.u[i]
+        u[i] = b00 * x0.u[i] + b10 * h * x0.ud[i] + b01 * x1.u[i] + b11 * h * x1.ud[i]
+        ud[i] = (1.0 - theta) * x0.ud[i] + theta * x1.ud[i]
+    for k in range(m):
+        lam[k] = (1.0 - theta) * x0.lam[k] + theta * x1.lam[k]
     R, A, Q = advance_pose(L, x0.R, x0.A, x0.Q, delta, True)
-    u = b00 * x0.u + b10 * h * x0.ud + b01 * x1.u + b11 * h * x1.ud
-    ud = (1.0 - theta) * x0.ud + theta * x1.ud
-    return (R, A, Q, inertial_velocities(L, A, u), inertial_accelerations(L, A, u, ud),
-            (1.0 - theta) * x0.lam + theta * x1.lam)
+    return R, A, Q, inertial_velocities(L, A, u), inertial_accelerations(L, A, u, ud), lam
 
 
 @jit
