@@ -384,11 +384,14 @@ def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None
     schurs = tasks(part_dynamic_schur, args) if tasks is not None else [part_dynamic_schur(*x) for x in args]
     if any(schur is None for schur in schurs):
         return None
+    below = sum(schur[0] for schur in schurs)
+    S = summed_blocks(local, [schur[1] for schur in schurs], len(coarse))
+    del schurs
     keep = ~np.isin(coarse, [] if held is None else held)
-    coarse_count = coarse_inertia(summed_blocks(local, [schur[1] for schur in schurs], len(coarse))[keep][:, keep])
+    coarse_count = coarse_inertia(S if keep.all() else S[keep][:, keep])     # no copy for a free body
     if coarse_count is None:
         return None
-    return int(sum(schur[0] for schur in schurs) + coarse_count)
+    return int(below + coarse_count)
 
 
 def coarse_inertia(S: sp.csr_matrix) -> int | None:
