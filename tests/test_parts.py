@@ -251,3 +251,12 @@ def test_a_part_larger_than_a_worker_is_refused_before_it_starts_with_the_parts_
                          capture_output=True, text=True, env=env, timeout=300)
     assert run.returncode == 2 and "use --parts" in run.stderr, run.stderr
     assert not list(tmp_path.iterdir())                     # nothing written
+
+
+def test_a_workers_peak_is_its_own_not_the_spawning_drivers():
+    import multiprocessing
+
+    ballast = np.ones(2**27)                                # 1 GiB in this process when the worker spawns
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        peak = pool.apply(rp.worker_peak_mb)
+    assert peak < 0.5 * ballast.nbytes / 2**20              # numpy + scipy + sidprep: ~100-200 MiB
