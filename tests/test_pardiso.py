@@ -39,3 +39,11 @@ def test_schur_complement_and_the_interior_inertia():
     assert inertia.n_negative == np.sum(np.linalg.eigvalsh(D[np.ix_(I, I)]) < 0)
     # Sylvester: the interior's negative count plus the Schur complement's is the whole matrix's
     assert inertia.n_negative + np.sum(np.linalg.eigvalsh(inertia.schur) < 0) == np.sum(np.linalg.eigvalsh(D) < 0)
+
+
+def test_a_matrix_without_stored_diagonal_entries():
+    A = sp.csr_matrix(np.array([[0.0, 2.0, 0.0], [2.0, 0.0, 1.0], [0.0, 1.0, 3.0]]))                     # nonsingular, zeros on the diagonal
+    inertia = ldlt_inertia(A)
+    lam = np.linalg.eigvalsh(A.toarray())
+    assert inertia.n_perturbed == 0
+    assert (inertia.n_negative, inertia.n_positive) == (np.sum(lam < 0), np.sum(lam > 0))

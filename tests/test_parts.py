@@ -93,10 +93,10 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     b = im.master_dofs.ravel()
     labels = rp.partition_cells(mesh.cells, 8)
     parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    space = rp.coarse_space(parts, coarse, b, [rp.part_static_schur(p) for p in parts], M, n_interface=24)
+    space, coarse_factor = rp.coarse_space(parts, coarse, b, [rp.part_static_schur(p) for p in parts], M, n_interface=24)
     reductions = [rp.reduce_part(p, space.part_map(k), n_modes=40) for k, p in enumerate(parts)]
     assembly = rp.assemble_parts(reductions, space)
-    solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0])
+    solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor)
     interior = np.ones(K.shape[0], bool)
     interior[b] = False
     r = np.random.default_rng(1).standard_normal((interior.sum(), 3))
@@ -251,3 +251,12 @@ def test_a_part_larger_than_a_worker_is_refused_before_it_starts_with_the_parts_
                          capture_output=True, text=True, env=env, timeout=300)
     assert run.returncode == 2 and "use --parts" in run.stderr, run.stderr
     assert not list(tmp_path.iterdir())                     # nothing written
+
+
+def test_a_workers_peak_is_its_own_not_the_spawning_drivers():
+    import multiprocessing
+
+    ballast = np.ones(2**27)                                # 1 GiB in this process when the worker spawns
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        peak = pool.apply(rp.worker_peak_mb)
+    assert peak < 0.5 * ballast.nbytes / 2**20              # numpy + scipy + sidprep: ~100-200 MiB

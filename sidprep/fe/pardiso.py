@@ -65,6 +65,14 @@ def pardiso_available() -> bool:
     return _pardiso() is not None
 
 
+def with_diagonal(U: sp.csr_matrix) -> sp.csr_matrix:
+    """U with every diagonal entry stored (explicit zeros where missing): PARDISO needs them."""
+    n = U.shape[0]
+    U = U.tocoo()
+    return sp.csr_matrix((np.r_[U.data, np.zeros(n)], (np.r_[U.row, np.arange(n)], np.r_[U.col, np.arange(n)])),
+                         shape=(n, n))
+
+
 def _int(value: int) -> np.ndarray:
     return np.array([value], dtype=np.int32)
 
@@ -77,7 +85,9 @@ def ldlt_inertia(A: sp.spmatrix, schur_rows=None) -> Inertia:
     if fn is None:
         raise RuntimeError("PARDISO needs the PyPI wheel 'mkl' (pip install mkl)")
     n = A.shape[0]
-    U = upper_triangle(A + sp.diags(np.zeros(n), format="csr"))      # PARDISO wants every diagonal entry
+    U = upper_triangle(A)
+    if np.any(np.diff(U.indptr) == 0) or np.any(U.indices[U.indptr[:-1]] != np.arange(n)):
+        U = with_diagonal(U)
     if U.nnz > MAX_INDEX:
         raise MemoryError(f"PARDISO (LP64): {U.nnz} stored entries exceed 2^31 - 1")
     a = np.ascontiguousarray(U.data, dtype=np.float64)

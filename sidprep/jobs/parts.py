@@ -134,14 +134,15 @@ def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: di
 def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None):
     """The coarse space from the parts' exact static Schur complements (one round of tasks), then rounds
     of part reductions until every part's modes reach PART_CUTOFF x the second level's highest
-    fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel)."""
+    fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel,
+    the factor of the exact coarse Schur complement)."""
 
     tasks = on_pools(pools, settings, parts)
     schurs = tasks(part_static_schur, [(part,) for part in parts])
     wanted = n_modes
     if fmax is not None:                                # the whole model's fixed-interface modes below fmax
         wanted = count_below(parts, part_positions(parts, coarse), coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
-    space = coarse_space(parts, coarse, boundary, schurs, M_model,
+    space, coarse_factor = coarse_space(parts, coarse, boundary, schurs, M_model,
                          max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
     del schurs
 
@@ -168,7 +169,7 @@ def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_mo
             break
         asked.update(dict.fromkeys(short, needed))
         run_round(dict.fromkeys(short, (None, needed)))
-    return ordered, assembly, level2
+    return ordered, assembly, level2, coarse_factor
 
 
 def on_pools(pools: list, settings: PartsSettings, parts):
@@ -219,7 +220,7 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
         try:
             memory = worker_memory_bytes(pools[0])
             check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
-            ordered, assembly, level2 = reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory,
+            ordered, assembly, level2, coarse_factor = reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory,
                                                      n_modes, fmax)
         finally:
             pools[0].close()
@@ -232,7 +233,7 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
                          f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
                          f"{sent_mb(parts):.0f} MiB sent to the workers, {sent_mb(ordered):.0f} MiB back")
-        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2,
+        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor,
                                    tasks=part_tasks(settings, parts))
 
     return reducer

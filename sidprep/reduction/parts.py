@@ -192,10 +192,21 @@ def part_static_schur(part: PartModel) -> np.ndarray:
 
 
 def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
-    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``."""
-    rows = np.concatenate([np.repeat(pos, len(pos)) for pos in positions])
-    cols = np.concatenate([np.tile(pos, len(pos)) for pos in positions])
-    return sp.csr_matrix((np.concatenate([B.ravel() for B in blocks]), (rows, cols)), shape=(n, n))
+    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``,
+    row by row into the sparsity pattern of the sum (the union of the blocks' index sets): the peak is
+    the result and the blocks, not the triplets (24 bytes an entry) of every block at once."""
+    sizes = [len(pos) for pos in positions]
+    incidence = sp.csr_matrix((np.ones(sum(sizes), dtype=np.float32),
+                               (np.concatenate(positions), np.repeat(np.arange(len(sizes)), sizes))),
+                              shape=(n, len(sizes)))
+    S = (incidence @ incidence.T).tocsr()
+    S.sort_indices()
+    S.data = np.zeros(S.nnz)
+    for pos, B in zip(positions, blocks):
+        for i, r in enumerate(pos):
+            start = S.indptr[r]
+            S.data[start + np.searchsorted(S.indices[start:S.indptr[r + 1]], pos)] += B[i]
+    return S
 
 
 def cut_groups(local, n_coarse: int, fixed: np.ndarray) -> list[np.ndarray]:
@@ -231,16 +242,24 @@ def part_positions(parts, coarse: np.ndarray) -> tuple:
 class CoarseSpace:
     """The coarse DOFs G and the coordinates c = [u_b, eta_1, ..., eta_k] of the second level: u_G = R c.
 
-    coarse : (nG,) model DOFs, ascending; local : per part, positions of its B_p in G; n_boundary :
-    len(b) (c starts with u_b in b's order); R : (nG, nc) csr, identity on b, a cut's interface modes
-    on its DOFs; S : (nG, nG) csr, the exact static Schur complement of the whole model onto G.
+    coarse : (nG,) model DOFs, ascending; local : per part, positions of its B_p in G; fixed : (nb,)
+    positions of b in G (c starts with u_b in b's order); R : (nG, nc) csr, identity on b, a cut's
+    interface modes on its DOFs.
     """
 
     coarse: np.ndarray
     local: tuple
-    n_boundary: int
+    fixed: np.ndarray
     R: sp.csr_matrix
-    S: sp.csr_matrix
+
+    @property
+    def n_boundary(self) -> int:
+        return len(self.fixed)
+
+    @property
+    def free(self) -> np.ndarray:
+        """Positions in G of G \\ b, ascending."""
+        return np.setdiff1d(np.arange(len(self.coarse)), self.fixed)
 
     def columns(self, p: int) -> np.ndarray:
         """Positions in c of the coordinates that move part p's coarse DOFs."""
@@ -251,9 +270,11 @@ class CoarseSpace:
         return self.R[self.local[p]][:, self.columns(p)].tocsr()
 
 
-def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interface: int) -> CoarseSpace:
+def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interface: int):
     """The coarse space of ``parts`` from their exact static Schur complements ``schurs``
-    (``part_static_schur``): b kept, every cut reduced to its ``n_interface`` lowest interface modes."""
+    (``part_static_schur``): b kept, every cut reduced to its ``n_interface`` lowest interface modes;
+    returns (CoarseSpace, the factor of the exact Schur complement S on G \\ b for the substructured
+    solve: S itself is not kept)."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
@@ -264,7 +285,9 @@ def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interfa
             phi = interface_modes(S[g][:, g].toarray(), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
-    return CoarseSpace(coarse, local, len(b), sp.hstack(blocks, format="csr"), S)
+    space = CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
+    free = space.free
+    return space, (factorize(S[free][:, free]) if len(free) else None)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -317,7 +340,18 @@ def reduce_part(part: PartModel, R: sp.csr_matrix, n_modes: int | None = None, f
                                memory_limit=memory_limit, extent=part.extent)
     except InputError as exc:
         raise InputError(f"{part.name}: {exc}") from None
-    return PartReduction(cb.K, cb.M, cb.basis[:n_i, cb.n_boundary:].copy(), cb.fixed_interface_hz, peak_memory_mb())
+    return PartReduction(cb.K, cb.M, cb.basis[:n_i, cb.n_boundary:].copy(), cb.fixed_interface_hz, worker_peak_mb())
+
+
+def worker_peak_mb() -> float:
+    """Peak resident set of this worker process's own memory, MiB: Linux VmHWM (ru_maxrss, as
+    sidprep.progress.peak_memory_mb reads it, keeps the parent's RSS at the fork before the worker's
+    exec: a pool spawned by a 2 GB driver reported 2 GB workers)."""
+    try:
+        with open("/proc/self/status") as status:
+            return next(int(line.split()[1]) / 1024.0 for line in status if line.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return peak_memory_mb()
 
 
 def short_parts(reductions: list[PartReduction], parts: list[PartModel], f_needed: float) -> list[int]:
@@ -361,18 +395,21 @@ def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None
     schurs = tasks(part_dynamic_schur, args) if tasks is not None else [part_dynamic_schur(*x) for x in args]
     if any(schur is None for schur in schurs):
         return None
+    below = sum(schur[0] for schur in schurs)
+    S = summed_blocks(local, [schur[1] for schur in schurs], len(coarse))
+    del schurs
     keep = ~np.isin(coarse, [] if held is None else held)
-    coarse_count = coarse_inertia(summed_blocks(local, [schur[1] for schur in schurs], len(coarse))[keep][:, keep])
+    coarse_count = coarse_inertia(S if keep.all() else S[keep][:, keep])     # no copy for a free body
     if coarse_count is None:
         return None
-    return int(sum(schur[0] for schur in schurs) + coarse_count)
+    return int(below + coarse_count)
 
 
 def coarse_inertia(S: sp.csr_matrix) -> int | None:
     """Negative eigenvalues of the symmetric sparse coarse matrix S by LDL^T, or None (a perturbed pivot)."""
     if S.shape[0] == 0:
         return 0
-    inertia = ldlt_inertia(0.5 * (S + S.T))
+    inertia = ldlt_inertia(S)                            # symmetric: PARDISO's blocks are
     return None if inertia.n_perturbed else inertia.n_negative
 
 
@@ -388,8 +425,8 @@ def part_dynamic_schur(part: PartModel, sigma: float):
 
 class SubstructuredSolver:
     """Exact solves with K_ii of the whole model (i = every model DOF but the boundary b) from the
-    parts' interior factors and the factor of the exact static Schur complement S on the coarse DOFs
-    G \\ b (CoarseSpace.S):
+    parts' interior factors and ``coarse_factor``, the factor of the exact static Schur complement S
+    on the coarse DOFs G \\ b (``coarse_space``):
 
         y_p = K_II^-1 r_p,   S x_G = r_G - sum_p K_GI y_p,   x_p = y_p - K_II^-1 K_IG x_G
 
@@ -398,7 +435,7 @@ class SubstructuredSolver:
     parts (``eigenvalue_count``).
     """
 
-    def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, tasks=None):
+    def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, coarse_factor, tasks=None):
 
         self.parts, self.reductions, self.assembly, self.tasks = parts, reductions, assembly, tasks
         self.space = assembly.space
@@ -406,14 +443,13 @@ class SubstructuredSolver:
         interior = np.ones(n_model, bool)
         interior[self.boundary] = False
         self.row = np.cumsum(interior) - 1                 # model DOF -> row of K_ii
-        self.free_coarse = np.flatnonzero(~np.isin(self.space.coarse, self.boundary))   # G \ b in G
+        self.free_coarse = self.space.free
         self.factors, self.K_IB = [], []
         for part in parts:
             own = part.interior
             self.factors.append(factorize(part.K[own][:, own]))
             self.K_IB.append(part.K[own][:, part.boundary].tocsc())
-        S = self.space.S[self.free_coarse][:, self.free_coarse]
-        self.schur = factorize(S) if S.shape[0] else None
+        self.schur = coarse_factor
 
     def _part_solve(self, p: int, rhs: np.ndarray) -> np.ndarray:
         return np.asarray(self.factors[p].solve(rhs)).reshape(rhs.shape)
@@ -468,14 +504,14 @@ def second_level(assembly: Assembly, n_modes=None, fmax=None):
     return craig_bampton(assembly.K, assembly.M, np.arange(assembly.space.n_boundary), n_modes=n_modes, fmax=fmax)
 
 
-def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2, tasks=None):
+def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2, coarse_factor, tasks=None):
     """Step 4: the ReducedModel of the whole model in model DOFs, as ``craig_bampton`` returns it
     (basis with the boundary columns first: the EXACT constraint modes by the substructured solve;
     then the refined fixed-interface modes; K, M projected from the model matrices), with the
-    substructured K_ii solver as its factor (``tasks``: where it runs per-part work, see there)."""
+    substructured K_ii solver as its factor (``coarse_factor``, ``tasks``: see there)."""
 
     n = K_model.shape[0]
-    solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, tasks)
+    solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, coarse_factor, tasks)
     nb = len(boundary)
     basis = solver.recover(level2.basis, n)
     interior = np.ones(n, bool)
