@@ -17,7 +17,7 @@ from sidprep.solver.effects import build_report, estimate_changes
 from sidprep.solver.equations.assemble import energies, evaluate_into, evaluation_arrays, every_marker, moving_masses
 from sidprep.solver.equations.rotations import jit, put, tmatvec
 from sidprep.solver.integrators.base import SampleBuffers, advance_pose, expand, has_friction
-from sidprep.solver.integrators.planar import out_of_plane_reactions
+from sidprep.solver.integrators.planar import independent_equations, out_of_plane_reactions, out_of_plane_system
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 from sidprep.solver.stiffening_work import RATE_STEP, base_layout, model_power, motion_energy
 
@@ -95,13 +95,16 @@ def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
     es = evaluation_arrays(L) if c.stiffening else e
     es0 = evaluation_arrays(L0) if c.stiffening else e
     lam_all = np.zeros(e.g.shape[0])
+    rows = np.zeros(0, np.int64)
     friction = has_friction(L)
     for k in range(nt):
         R, A, Q, u, ud, t, refs = s.R[k], s.A[k], s.Q[k], s.u[k], s.ud[k], s.t[k], s.refs[k]
         lam = expand(s.lam[k], c.kept, lam_all)
         evaluate_into(L, e, R, A, Q, u, t, lam, refs)
         if c.fixed.shape[0]:
-            lam = out_of_plane_reactions(e, ud, lam, c.kept, c.dropped, c.fixed)
+            if k == 0:  # the independent out-of-plane equations, once per run
+                rows = independent_equations(out_of_plane_system(e, ud, lam, c.kept, c.dropped, c.fixed)[0])
+            lam = out_of_plane_reactions(e, ud, lam, c.kept, c.dropped, c.fixed, rows)
             if friction:  # only friction reads the multipliers: the others' evaluation stands
                 evaluate_into(L, e, R, A, Q, u, t, lam, refs)
         for mk in range(nmk):

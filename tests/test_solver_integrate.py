@@ -243,6 +243,44 @@ def test_out_of_plane_load_decides_the_planar_form():
     assert not pendulum_with_force(flexible).stats["planar"]
 
 
+#: the out-of-plane reactions' minimum-norm solution against LAPACK's lstsq (gelsd), relative to
+#: the largest reaction, on matrices of singular values 0.4-2 (the rigid engine's: 0.40-1.93)
+MIN_NORM_RTOL = 1e-12
+
+
+def test_out_of_plane_reactions_are_lstsq_minimum_norm_solution():
+    """planar.minimum_norm_solution with the independent equations picked once (on a first
+    matrix) equals numpy's lstsq on later matrices of the same pattern, square, wide and tall,
+    full rank or redundant; when the picked rows no longer span the equations (rank fell, or
+    another row became independent) it falls back to lstsq and still agrees."""
+    from sidprep.solver.integrators.planar import independent_equations, minimum_norm_solution
+
+    rng = np.random.default_rng(3)
+
+    def matrix(no, nd, rank, dependent_on):
+        """(no, nd) of the given rank: rows >= rank are combinations of the rows dependent_on."""
+        u, _ = np.linalg.qr(rng.standard_normal((nd, rank)))
+        head = rng.uniform(0.4, 2.0, (rank, 1)) * u.T
+        tail = rng.standard_normal((no - rank, len(dependent_on))) @ head[dependent_on] / len(dependent_on)
+        return np.vstack([head, tail])
+
+    def agrees(a, rows):
+        load = a @ rng.standard_normal(a.shape[1])
+        x, ref = minimum_norm_solution(a, load, rows), np.linalg.lstsq(a, load, rcond=None)[0]
+        return np.max(np.abs(x - ref)) <= MIN_NORM_RTOL * np.max(np.abs(ref))
+
+    for no, nd, rank in ((9, 9, 9), (9, 12, 9), (9, 12, 6), (12, 9, 9), (12, 9, 5)):
+        deps = list(range(min(rank, 3)))
+        first = matrix(no, nd, rank, deps)
+        rows = independent_equations(first)
+        assert len(rows) == rank == np.linalg.matrix_rank(first[rows])
+        assert all(agrees(matrix(no, nd, rank, deps), rows) for _ in range(5))
+    rows = independent_equations(matrix(9, 12, 6, [0, 1]))
+    fallen = matrix(9, 12, 5, [0, 1])  # rank 5: the six picked rows are dependent
+    grown = matrix(9, 12, 7, [0, 1])  # rank 7: no six rows span it
+    assert agrees(fallen, rows) and agrees(grown, rows)
+
+
 #: energy of a 3D loop of flexible bodies under gravity (first-order consistent effects, no
 #: friction): max |total - total(0)| over 3 s relative to the energy exchanged with gravity, at
 #: h = 1 ms (the issue's 1e-6), and its fall from h = 2 ms (second order: 4x)

@@ -144,6 +144,25 @@ def se3_jacobian(theta: np.ndarray) -> np.ndarray:
 
 
 @jit
+def se3_jacobian_solve(theta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """V(theta)^-1 v (3,) in closed form (se3_jacobian): V^-1 = E - T / 2 + (1 - (t / 2) cot(t / 2)) / t^2 T T,
+    t = |theta| < 2 pi (V and V^-1 are functions of T: on its eigenvalues 0, +-i t, V is
+    (e^(i t) - 1) / (i t) and V^-1 its reciprocal); below SE3_SMALL_ANGLE 1/12 + t^2/720."""
+    x, y, z = theta[0], theta[1], theta[2]
+    t2 = x * x + y * y + z * z
+    if t2 < SE3_SMALL_ANGLE**2:
+        b = 1.0 / 12.0 + t2 / 720.0
+    else:
+        half = 0.5 * math.sqrt(t2)
+        b = (1.0 - half * math.cos(half) / math.sin(half)) / t2
+    tv0, tv1, tv2 = y * v[2] - z * v[1], z * v[0] - x * v[2], x * v[1] - y * v[0]  # T v
+    ttv0, ttv1, ttv2 = y * tv2 - z * tv1, z * tv0 - x * tv2, x * tv1 - y * tv0  # T T v
+    out = np.empty(3)
+    out[0], out[1], out[2] = v[0] - 0.5 * tv0 + b * ttv0, v[1] - 0.5 * tv1 + b * ttv1, v[2] - 0.5 * tv2 + b * ttv2
+    return out
+
+
+@jit
 def align(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The smallest rotation taking the unit vector a to the unit vector b (a . b > -1):
     E + v~ + v~^2 / (1 + a . b), v = a x b; (3,), (3,) -> (3, 3)."""

@@ -19,7 +19,7 @@ the equations M ud_O - f + B_F^T lambda = 0, multiplied by S^T, become
     (S^T M S) ud_K - S^T (f - M c) + (B_F S)^T lambda = 0,    B -> B S   (g, b_t unchanged),
 
 and the pose moves by the SE(3) exponential of the increment (rho, theta) (base.advance_pose
-with body_frame, rotations.se3_jacobian):
+with body_frame, rotations.se3_jacobian; its inverse rotations.se3_jacobian_solve):
 
     r <- r + A V(theta) rho,   A <- A exp(theta~),   V = E + (1 - cos t)/t^2 theta~ + (t - sin t)/t^3 theta~^2
 
@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.assemble import load_stiffened
-from sidprep.solver.equations.rotations import SMALL_ANGLE, jit, matmul, put, se3_jacobian, tmatvec
+from sidprep.solver.equations.rotations import SMALL_ANGLE, jit, matmul, put, se3_jacobian_solve, tmatvec
 
 @jit
 def rotate_translations(L, A, u, inverse):  # pragma: no cover - compiled
@@ -165,7 +165,7 @@ def body_increment(L, R0, A0, R1, A1, Q0, Q1):  # pragma: no cover - compiled
         theta = np.array([scale * (rot[2, 1] - rot[1, 2]), scale * (rot[0, 2] - rot[2, 0]),
                           scale * (rot[1, 0] - rot[0, 1])])
         put(dx, s + 3, theta)
-        put(dx, s, np.linalg.solve(se3_jacobian(theta), tmatvec(A0[i], R1[i] - R0[i])))
+        put(dx, s, se3_jacobian_solve(theta, tmatvec(A0[i], R1[i] - R0[i])))
         for k in range(L.qoff[i + 1] - L.qoff[i]):
             dx[s + 6 + k] = Q1[L.qoff[i] + k] - Q0[L.qoff[i] + k]
     return dx
