@@ -98,5 +98,12 @@ class SimulationProgress:
 
 
 def peak_memory_mb() -> float:
-    """Peak resident set size of this process so far, in MiB (Linux ru_maxrss is in KiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    """Peak resident set size of this process's own memory so far, MiB: Linux VmHWM, else ru_maxrss.
+
+    ru_maxrss keeps the parent's RSS at the fork before a child's exec: a pool spawned by a 2 GB
+    driver reported 2 GB workers (tests/test_parts.py); VmHWM starts afresh at the exec."""
+    try:
+        with open("/proc/self/status") as status:
+            return next(int(line.split()[1]) / 1024.0 for line in status if line.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux and BSD

@@ -28,6 +28,7 @@ from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.parts import PART_RETRIES, PartLost, check_parts_fit
 from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce
+from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.reduction.interfaces import interface_model
 from sidprep.reduction import parts as rp
@@ -258,5 +259,5 @@ def test_a_workers_peak_is_its_own_not_the_spawning_drivers():
 
     ballast = np.ones(2**27)                                # 1 GiB in this process when the worker spawns
     with multiprocessing.get_context("spawn").Pool(1) as pool:
-        peak = pool.apply(rp.worker_peak_mb)
+        peak = pool.apply(peak_memory_mb)
     assert peak < 0.5 * ballast.nbytes / 2**20              # numpy + scipy + sidprep: ~100-200 MiB

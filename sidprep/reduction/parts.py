@@ -340,18 +340,7 @@ def reduce_part(part: PartModel, R: sp.csr_matrix, n_modes: int | None = None, f
                                memory_limit=memory_limit, extent=part.extent)
     except InputError as exc:
         raise InputError(f"{part.name}: {exc}") from None
-    return PartReduction(cb.K, cb.M, cb.basis[:n_i, cb.n_boundary:].copy(), cb.fixed_interface_hz, worker_peak_mb())
-
-
-def worker_peak_mb() -> float:
-    """Peak resident set of this worker process's own memory, MiB: Linux VmHWM (ru_maxrss, as
-    sidprep.progress.peak_memory_mb reads it, keeps the parent's RSS at the fork before the worker's
-    exec: a pool spawned by a 2 GB driver reported 2 GB workers)."""
-    try:
-        with open("/proc/self/status") as status:
-            return next(int(line.split()[1]) / 1024.0 for line in status if line.startswith("VmHWM:"))
-    except (OSError, StopIteration):
-        return peak_memory_mb()
+    return PartReduction(cb.K, cb.M, cb.basis[:n_i, cb.n_boundary:].copy(), cb.fixed_interface_hz, peak_memory_mb())
 
 
 def short_parts(reductions: list[PartReduction], parts: list[PartModel], f_needed: float) -> list[int]:
