@@ -7,8 +7,11 @@ machine's load.
 
 Every child process runs the scene twice: the second run has every kernel loaded, so the first
 run's excess over it is the kernel cache loading (and first-call overheads) of that stage.  Per
-step and per sample (second run): the integration's CPU per step, and the compiled
-post-processing's (``postprocess.sample_outputs`` alone, timed around its call) per output sample.
+step and per sample (second run): the compiled samples' outputs (``sample_outputs`` called once
+more from Python on the second run's samples, timed) per output sample, and the steps' CPU per
+step (the integration less those outputs where the compiled loop computes them: a checkout from
+the fourth pass on, where "integration" includes the outputs and "post" does not); "whole run /
+steps" is start + integration + post over the steps alone (issue 21 item 3's ratio).
 
     python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --repeat 5
     python benchmarks/process_cost.py examples/engine/scene_rigid.toml --before /work/main --h 1e-4
@@ -46,16 +49,22 @@ try:  # what `sidprep simulate` does to its process (absent in older checkouts)
 except ImportError:
     pass
 from sidprep.solver.scene import load_scene, simulate
-import sidprep.solver.postprocess as post
+import sidprep.solver.run as run_module
 t_import = time.process_time() - t0
-compiled_post = []
-sample_outputs = post.sample_outputs
-def timed_sample_outputs(*args):
-    t = time.process_time()
-    out = sample_outputs(*args)
-    compiled_post.append(time.process_time() - t)
-    return out
-post.sample_outputs = timed_sample_outputs
+try:  # the samples' outputs computed inside the compiled loops (the fourth pass on)
+    from sidprep.solver.integrators.outputs import sample_outputs
+    inside = True
+except ImportError:  # before: post-processing called them from Python
+    from sidprep.solver.postprocess import sample_outputs
+    inside = False
+from sidprep.solver.integrators.base import SampleBuffers
+import numpy as np
+captured = []
+postprocess = run_module.postprocess
+def capturing_postprocess(run, samples, *rest):
+    captured.append((run, samples))
+    return postprocess(run, samples, *rest)
+run_module.postprocess = capturing_postprocess
 kwargs = {key: float(value) for key, value in zip(("output_dt", "h"), sys.argv[2:4]) if value != "-"}
 runs = []
 for _ in range(2):
@@ -67,21 +76,43 @@ for _ in range(2):
     s = result.stats
     runs.append({"scene": t2 - t1, "start": s["cpu_setup"], "integration": s["cpu_integration"],
                  "post": t3 - t2 - s["cpu_setup"] - s["cpu_integration"], "samples": int(result.t.size),
-                 "steps": int(s["steps"]), "sample_outputs": compiled_post[-1]})
+                 "steps": int(s["steps"])})
 first, second = runs
+# sample_outputs alone on the second run's samples, called from Python (twice: the second call timed)
+run, samples = captured[-1]
+try:
+    from sidprep.solver.postprocess import post_setup
+    setup = post_setup(run)
+    args = (setup.L, setup.L0)
+    c = setup.c
+except ImportError:
+    from sidprep.solver.postprocess import base_layout, post_constants
+    from sidprep.solver.equations.assemble import every_marker
+    L0 = base_layout(run)
+    c = post_constants(run, L0 is not None)
+    args = (every_marker(run.L), every_marker(run.L if L0 is None else L0))
+buffers = SampleBuffers(*(np.ascontiguousarray(getattr(samples, f)) for f in SampleBuffers._fields))
+sample_outputs(*args, buffers, c)
+t4 = time.process_time()
+sample_outputs(*args, buffers, c)
+outputs = time.process_time() - t4
 loading = sum(first[k] - second[k] for k in ("start", "integration", "post"))
+steps = second["integration"] - (outputs if inside else 0.0)
+whole = second["start"] + second["integration"] + second["post"]
 print(json.dumps({"imports": t_import, "scene": first["scene"], "start": second["start"],
                   "kernel loading": loading, "integration": second["integration"], "post": second["post"],
-                  "samples": second["samples"],
-                  "integration per step (us)": 1e6 * second["integration"] / max(second["steps"], 1),
-                  "sample_outputs per sample (us)": 1e6 * second["sample_outputs"] / max(second["samples"], 1),
+                  "start + integration + post": whole, "samples": second["samples"],
+                  "steps per step (us)": 1e6 * steps / max(second["steps"], 1),
+                  "sample_outputs per sample (us)": 1e6 * outputs / max(second["samples"], 1),
+                  "whole run / steps": whole / steps,
                   "before first step": t_import + first["scene"] + first["start"]
                   + first["integration"] - second["integration"],
                   "process (one run)": t_import + first["scene"] + first["start"] + first["integration"]
                   + first["post"]}))
 """
-STAGES = ("imports", "scene", "start", "kernel loading", "integration", "post", "before first step",
-          "process (one run)", "integration per step (us)", "sample_outputs per sample (us)")
+STAGES = ("imports", "scene", "start", "kernel loading", "integration", "post", "start + integration + post",
+          "before first step", "process (one run)", "steps per step (us)", "sample_outputs per sample (us)",
+          "whole run / steps")
 
 
 def child_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:

@@ -19,8 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from sidprep.solver.equations.assemble import evaluate
-from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.integrators.base import advance_pose, evaluate
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.run import Run
 

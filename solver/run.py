@@ -24,19 +24,20 @@ from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import path_marker_problems
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_warning, energy_balance
-from sidprep.solver.equations.assemble import evaluate, every_marker, markers
+from sidprep.solver.equations.assemble import every_marker
 from sidprep.solver.equations.forces import FE_SPRING
-from sidprep.solver.integrators.base import Problem, Samples, State
+from sidprep.solver.integrators.base import Problem, Samples, State, evaluate
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
     independent_rows, length_weights, project_velocities, quasi_static_elastic)
+from sidprep.solver.integrators.outputs import SampledOutputs
 from sidprep.solver.integrators.planar import planar_coordinates
 from sidprep.solver.integrators.settings import SolverSettings, check_run_size
 from sidprep.solver.model.bodies import RigidBody
 from sidprep.solver.model.effects import EFFECTS, parse_effects
 from sidprep.solver.model.joints import ConstantSpeed, Driver
-from sidprep.solver.postprocess import postprocess
+from sidprep.solver.postprocess import post_setup, postprocess
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
 #: the start reports bodies moved by more than this (m or rad) from their placed positions
@@ -166,7 +167,8 @@ class Run:
         run's layout; the System is not changed)."""
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = markers(every_marker(self.L), R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0).P
+            P = evaluate(every_marker(self.L), R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0,
+                         np.zeros(len(self.names)), self.refs).kin.P
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 
@@ -284,12 +286,12 @@ class Run:
         with notice.watching():
             state = self.consistent_start()
             problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
-                              body_sizes(self.system, self.terms))
+                              body_sizes(self.system, self.terms), post_setup(self))
             first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
                             state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
             stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
         cpu_setup = time.process_time() - cpu0
-        chunks = [first]
+        chunks = [first] if stepper.outputs is None else []  # (a compiled loop records the start itself)
         with notice.watching():
             while stepper.status == "running":
                 chunks.append(stepper.advance(self.t_end))
@@ -297,8 +299,10 @@ class Run:
                     self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
+        outputs = None if stepper.outputs is None else SampledOutputs(
+            *(np.concatenate([getattr(o, f) for o in stepper.outputs]) for f in SampledOutputs._fields))
         with notice.watching():
-            result = postprocess(self, samples)
+            result = postprocess(self, samples, problem.post, outputs)
         dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
                    np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
         result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,

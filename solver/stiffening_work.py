@@ -13,10 +13,11 @@ kinetic and potential energies) between the run's layout and the same layout wit
 stiffening effects and without second_order_inertia (I2 and Gr1 pair with the Kom part of the
 centrifugal stiffening: the exact model is conservative with all three, the first-order one
 with none); dM/dt u and dV/dt are central differences along the motion (step
-RATE_STEP s).  The other terms (loads, drives, damping, friction, springs, moving masses) are
+RATE_STEP s, integrators/outputs.py).  The other terms (loads, drives, damping, friction, springs, moving masses) are
 the same in both layouts and cancel; a term outside the stiffening effects that did not
 conserve energy would still show in the balance error.  P_s is computed at every output sample
-by the compiled post-processing (postprocess.sample_outputs) from ``model_power``.
+by the compiled post-processing (integrators/outputs.py: ``sample_outputs`` from ``model_power``,
+with the central differences at step RATE_STEP).
 
 The work W_s(t) = int_0^t P_s dt is integrated by the trapezoidal rule over the output samples;
 the energy kind "stiffening" is -W_s, so that the total stays constant.
@@ -24,36 +25,12 @@ the energy kind "stiffening" is -W_s, so that the total stays constant.
 
 from __future__ import annotations
 
-
 from sidprep.solver.compile.layout import build_layout
-from sidprep.solver.equations.assemble import energies
-from sidprep.solver.equations.rotations import dot, jit, matvec
 
 #: effects whose work is booked here (preload is a potential, booked in the strain energy)
 STIFFENING_EFFECTS = ("centrifugal_stiffening", "acceleration_stiffening", "load_stiffening")
 #: left out of the reference layout with them: I2, Gr1 balance the Kom part of Oe.M1
 PAIRED_EFFECTS = ("second_order_inertia",)
-#: time step of the central differences of M and V along the motion, s
-RATE_STEP = 1e-6
-
-
-@jit
-def motion_energy(L, R, A, Q, u, M):  # pragma: no cover - compiled
-    """1/2 u.M u + V (J) of layout L at a pose (M its mass matrix there): the part of the model
-    energy whose rate along the motion enters P."""
-    kinetic, strain, grav = energies(L, R, A, Q, u, M)
-    return kinetic + strain + grav
-
-
-@jit
-def model_power(e, u, lam, energy_plus, energy_minus):  # pragma: no cover - compiled
-    """P (module doc, W) at a state from its Evaluation e, the velocities u (n,), the
-    multipliers lam (m_all,) and the motion_energy at the poses moved by +-RATE_STEP u (the
-    central difference of 1/2 u.M u + V along the motion; the caller evaluates them:
-    postprocess.sample_outputs)."""
-    return dot(u, e.f) - dot(lam, matvec(e.BF, u)) + (energy_plus - energy_minus) / (2.0 * RATE_STEP)
-
-
 def base_layout(run):
     """The run's layout without the stiffening effects (None when none is switched on)."""
     if not any(e in chosen for _, chosen, _ in run.choices.values() for e in STIFFENING_EFFECTS):

@@ -6,7 +6,7 @@ from test_solver_bodies import bar_sid
 
 from sidprep.solver import (JOINT_TYPES, ConstantSpeed, Driver, FlexibleBody, JointFriction, PointForce, Prismatic,
                             Revolute, RigidBody, SmoothStart, SolverSettings, SpringDamper, System, Table, bump_stop)
-from sidprep.solver.equations.assemble import evaluate
+from sidprep.solver.integrators.base import evaluate
 from sidprep.solver.integrators.base import advance_pose
 from sidprep.solver.integrators.initial import assemble_positions
 from sidprep.solver.run import Run

@@ -323,13 +323,6 @@ def markers_into(L, kin, R, A, Q, u, t):  # pragma: no cover - compiled
             put2(JRF[k], 0, 0, stiffen(JR[k, :, :w], A[b], q, shapes, L.mk_k0[k, 1]))
 
 
-def markers(L, R, A, Q, u, t):
-    """The MarkerKinematics of markers_into in a fresh workspace, for callers in Python."""
-    kin = marker_arrays(L)
-    markers_into(L, kin, R, A, Q, u, t)
-    return kin
-
-
 def every_marker(L):
     """The layout L with every marker active: its Evaluation's ``kin`` holds all markers."""
     return L._replace(mk_active=np.ones(L.mk_body.shape[0], dtype=np.int64))
@@ -455,14 +448,6 @@ def evaluate_into(L, W, R, A, Q, u, t, lam, refs):  # pragma: no cover - compile
                 add_rows(B, r, L.uoff[b], C[r], JT[k], JR[k], which, w)
                 if stiffened:
                     add_rows(BF, r, L.uoff[b], C[r], JTF[k], JRF[k], which, w)
-
-
-def evaluate(L, R, A, Q, u, t, lam, refs):
-    """The Evaluation of evaluate_into in a fresh workspace, for callers in Python (set-up,
-    linearisation); compiled code passes its per-run workspace to evaluate_into."""
-    W = evaluation_arrays(L)
-    evaluate_into(L, W, R, A, Q, u, t, lam, refs)
-    return W
 
 
 @jit

@@ -5,7 +5,10 @@ The contract follows scipy's ``OdeSolver``: a stepper is made for one run from t
 the consistent initial state and the settings, owns its state from then on, and is driven by
 ``advance(t_stop)``, which integrates up to t_stop (or until its sample buffer is full) and
 returns the output samples of that stretch; ``status`` is "running", "finished" or "failed"
-(``message`` says why).
+(``message`` says why).  A stepper whose compiled loop also computes its samples' outputs
+(integrators/outputs.py) keeps them in ``outputs`` (a list, one SampledOutputs per stretch) and
+records the start (t = 0) as its first sample; otherwise ``outputs`` is None and the run adds
+the start and post-processing computes the outputs.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import numpy as np
 from numba import types
 from numba.np.linalg import _LAPACK
 
-from sidprep.solver.equations.assemble import evaluate_into
+from sidprep.solver.equations.assemble import evaluate_into, evaluation_arrays
 from sidprep.solver.equations.forces import FE_FRICTION
 from sidprep.solver.equations.rotations import add, exp_so3, jit, matvec, put, put2, se3_jacobian
 
@@ -59,8 +62,9 @@ class Problem:
     ``free`` (indices into u; all but the out-of-plane ones of a planar run), the kept
     constraint rows ``kept`` (indices; redundant rows dropped), per-coordinate length weights
     (m per unit), the system length (m), the joints' angle references ``refs`` (nj,), updated
-    by the stepper after every accepted step, t_end (s), and the bodies' sizes (nb,), m (the
-    scale of their small-deformation range)."""
+    by the stepper after every accepted step, t_end (s), the bodies' sizes (nb,), m (the
+    scale of their small-deformation range), and the PostSetup of the samples' outputs
+    (integrators/outputs.py)."""
 
     L: tuple
     free: np.ndarray
@@ -70,6 +74,7 @@ class Problem:
     refs: np.ndarray
     t_end: float
     sizes: np.ndarray
+    post: tuple
 
     @property
     def m_all(self) -> int:
@@ -121,6 +126,8 @@ class Stepper:
         self.status, self.message = "running", ""
         #: (body index, deflection m, time s) when a body left its small-deformation range
         self.large_deformation = None
+        #: the SampledOutputs of each stretch when the compiled loop computes them (module doc)
+        self.outputs: list | None = None
         self.stats = {"steps": 0, "rejected": 0, "rhs_evaluations": 0, "newton_iterations": 0, "jacobians": 0,
                       "h_min": np.inf, "h_max": 0.0}
 
@@ -360,3 +367,33 @@ def index1_accelerations(L, W, R, A, Q, u, t, refs, free, kept, baumgarte, lam_g
         if settled:
             break
     return ud, lam
+
+
+@jit
+def state_equations(L, R, A, Q, u, t, lam, refs, free, kept, solve):  # pragma: no cover - compiled
+    """The Evaluation at the state (R, A, Q, u, t) with the multipliers lam (m_all,), in a fresh
+    workspace; when ``solve``, also the index-1 accelerations ud (n,) and the kept multipliers
+    there (index1_accelerations without Baumgarte, lam[kept] the first guess; the Evaluation is
+    then at the last guess), else two empty arrays.  The one compiled entry of the start and the
+    other callers in Python (``evaluate``, initial.accelerations): a process loads the
+    evaluation's call tree once for all of them (docs/performance.md, "Fourth pass")."""
+    W = evaluation_arrays(L)
+    if solve:
+        guess = np.empty(kept.shape[0])
+        for k in range(kept.shape[0]):
+            guess[k] = lam[kept[k]]
+        ud, lam_kept = index1_accelerations(L, W, R, A, Q, u, t, refs, free, kept, 0.0, guess)
+        return W, ud, lam_kept
+    evaluate_into(L, W, R, A, Q, u, t, lam, refs)
+    return W, np.zeros(0), np.zeros(0)
+
+
+#: the empty row and coordinate lists of an evaluation without the index-1 solve
+NO_INDICES = np.zeros(0, np.int64)
+
+
+def evaluate(L, R, A, Q, u, t, lam, refs):
+    """The Evaluation (assemble.evaluate_into) at a state in a fresh workspace, for callers in
+    Python (start, planar check, linearisation); compiled code passes its per-run workspace to
+    evaluate_into."""
+    return state_equations(L, R, A, Q, u, float(t), lam, refs, NO_INDICES, NO_INDICES, False)[0]

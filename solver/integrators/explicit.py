@@ -16,8 +16,9 @@ import numpy as np
 
 from sidprep.solver.equations.assemble import constraint_power, evaluate_into, evaluation_arrays, moving_masses
 from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
-from sidprep.solver.integrators.base import (CHUNK, Samples, Stepper, expand, first_samples, has_friction,
-                                             index1_accelerations, sample_buffers, store_sample)
+from sidprep.solver.integrators.base import (CHUNK, SampleBuffers, Samples, Stepper, expand, first_samples,
+                                             has_friction, index1_accelerations, sample_buffers, store_sample)
+from sidprep.solver.integrators.outputs import sample_outputs
 from sidprep.solver.integrators.runge_kutta import hermite, rk4_combine, rk4_stage
 
 
@@ -89,18 +90,25 @@ def sample(L, t, y, params, refs):  # pragma: no cover - compiled
 
 
 @jit
-def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps):  # pragma: no cover - compiled
+def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps, first, post):  # pragma: no cover
     """Fixed-step RK4 (runge_kutta.rk4_stage / rk4_combine around index1_rhs) from t to t_end
     (the last step shortened to land on it) or until ``capacity`` samples; steps (2,) counts
-    the steps (up to max_steps, steps[1]); refs (params[3]) follow the accepted steps.  Samples
-    at next_index out_dt, (next_index + 1) out_dt, ... from the cubic Hermite interpolant of y
+    the steps (up to max_steps, steps[1]); refs (params[3]) follow the accepted steps.  Samples:
+    the rows of the SampleBuffers ``first`` (the start on the first call, none after), then at
+    next_index out_dt, (next_index + 1) out_dt, ... from the cubic Hermite interpolant of y
     with the slopes ydot at both ends (error O(h^4), RK4's order), or after every step
     (out_dt <= 0), and at t_end.  A step whose result is not finite (beyond the stability
-    limit) is not taken: the loop returns that non-finite y with t and the samples before it."""
+    limit) is not taken: the loop returns that non-finite y with t and the samples before it.
+    Returns t, y, the next output index, the samples and their SampledOutputs
+    (outputs.sample_outputs with the PostSetup post: one compiled entry for the steps and their
+    outputs)."""
     L, refs = params[0], params[3]
     R0, A0, Q0, u0 = unpack(L, y)
     buf = sample_buffers(capacity, R0, Q0, u0, params[5], refs)
-    ns = 0
+    ns = first.t.shape[0]
+    for k in range(ns):
+        store_sample(buf, k, first.t[k], first.R[k], first.A[k], first.Q[k], first.u[k], first.ud[k], first.lam[k],
+                     first.refs[k], first.work[k])
     end_tol = 1e-12 * max(1.0, t_end)
     k1 = index1_rhs(t, y, params)
     while t < t_end - end_tol and steps[0] < steps[1]:
@@ -136,7 +144,8 @@ def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps):  # pr
             sample(L, t, y, params, refs)
         if ns == capacity:
             break
-    return t, y, next_index, first_samples(buf, ns)
+    samples = first_samples(buf, ns)
+    return t, y, next_index, samples, sample_outputs(post.L, post.L0, samples, post.c)
 
 
 def non_finite_message(t: float, h: float) -> str:
@@ -168,11 +177,25 @@ class RungeKutta4(_Explicit):
 
     name = "rk4"
 
+    def __init__(self, problem, state, settings):
+        super().__init__(problem, state, settings)
+        self.outputs = []
+
+    def first_rows(self) -> SampleBuffers:
+        """The start as the run's first sample on the first call, no rows after (rk4_loop)."""
+        s, rows = self.state, 0 if self.outputs else 1
+        return SampleBuffers(np.full(rows, s.t), np.repeat(s.R[None], rows, 0), np.repeat(s.A[None], rows, 0),
+                             np.repeat(s.Q[None], rows, 0), np.repeat(s.u[None], rows, 0),
+                             np.repeat(s.ud[None], rows, 0), np.repeat(s.lam[None], rows, 0),
+                             np.repeat(self.problem.refs[None], rows, 0), np.zeros((rows, 3)))
+
     def advance(self, t_stop: float) -> Samples:
         st = self.settings
         steps = np.array([self.stats["steps"], st.max_steps], dtype=np.int64)
-        t, self.y, self.next_index, buf = rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
-                                                   self.next_index, self.params, CHUNK, steps)
+        t, self.y, self.next_index, buf, out = rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
+                                                        self.next_index, self.params, CHUNK, steps, self.first_rows(),
+                                                        self.problem.post)
+        self.outputs.append(out)
         arrays = tuple(buf)
         self.stats["steps"] = int(steps[0])
         self.stats["rhs_evaluations"] = 4 * int(steps[0])

@@ -49,6 +49,7 @@ from sidprep.solver.equations.rotations import jit, put
 from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
                                              Samples, Stepper, advance_pose, expand, first_samples, lu_factor,
                                              lu_solve, new_status, sample_buffers, store_sample)
+from sidprep.solver.integrators.outputs import sample_outputs
 from sidprep.solver.integrators.runge_kutta import hermite
 from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
                                             inertial_accelerations, inertial_velocities, to_body_frame)
@@ -211,18 +212,28 @@ def deflection_check(L, Q, c, status):  # pragma: no cover - compiled
 
 
 @jit
-def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pragma: no cover - compiled
+def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post):  # pragma: no cover - compiled
     """Generalised-alpha steps of the GaState x from t until t_end or until ``capacity`` output
     samples, with the run's GaConstants c and GaWorkspace ws; samples at next_index c.out_dt,
-    (next_index + 1) c.out_dt, ... (dense_state), or after every step (c.out_dt <= 0), and at t_end.
+    (next_index + 1) c.out_dt, ... (dense_state; a sample at a step's end is that step's state),
+    or after every step (c.out_dt <= 0), and at t_end; the first call records the start as the
+    run's first sample.  The samples' outputs (outputs.sample_outputs with the PostSetup post)
+    are computed here too, so that one compiled entry holds the evaluation's call tree.
 
     c.rtol <= 0: fixed step h (cut in halves when Newton fails, then doubled back).  ws.work (3,)
     the work integrals [applied loads, dissipated, drivers] and ws.flows (4,) the power flows at
     the current state (NaN before the first call: computed here, and x.a set to x.ud) are
-    updated in place, as refs (angle references) and stats (base.STATUS, one record).  Returns the new GaState, t, step size, next output index and the samples.
+    updated in place, as refs (angle references) and stats (base.STATUS, one record).  Returns
+    the new GaState, t, step size, next output index, the samples and their SampledOutputs.
     x.u, x.ud in and out and the samples are inertial (v_O); the steps are taken in the SE(3)
     coordinates of se3.py, in which x.a is kept.
     """
+    first_call = not np.isfinite(ws.flows[0])
+    buf = sample_buffers(capacity, x.R, x.Q, x.u, x.lam, refs)
+    ns = 0
+    if first_call:  # the start as given (inertial), before any conversion
+        store_sample(buf, 0, t, x.R, x.A, x.Q, x.u, x.ud, x.lam, refs, ws.work)
+        ns = 1
     u_k = body_velocities(L, x.A, x.u)
     x = GaState(x.R, x.A, x.Q, u_k, body_accelerations(L, x.A, u_k, x.ud), x.a, x.lam)
     status = stats[0]
@@ -231,7 +242,7 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pra
     nj = refs.shape[0]
     masses = has_moving_masses(L)
     e, work, flows0, lam_all, r = ws.e, ws.work, ws.flows, ws.lam_all, ws.r
-    if not np.isfinite(flows0[0]):  # the first call: a = ud and the power flows at the start state
+    if first_call:  # a = ud and the power flows at the start state
         x = GaState(x.R, x.A, x.Q, x.u, x.ud, x.ud.copy(), x.lam)
         expand(x.lam, kept, lam_all)
         u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
@@ -239,8 +250,6 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pra
         mass_power = moving_masses(L, e.kin, x.R, x.A, x.Q, u_o, ud_o, t)[0] if masses else 0.0
         to_body_frame(L, x.A, x.u, e)
         put(flows0, 0, state_flows(L, e, x, lam_all, mass_power))
-    buf = sample_buffers(capacity, x.R, x.Q, x.u, x.lam, refs)
-    ns = 0
     end_tol = 1e-12 * max(1.0, t_end)
     D = np.zeros((nf, nf))
     D_h = 0.0
@@ -376,9 +385,13 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pra
         stored = False
         while c.out_dt > 0.0 and next_index * c.out_dt <= t + at:
             t_k = next_index * c.out_dt
-            theta = min(1.0, max(0.0, (t_k - t_old) / h))
-            R_k, A_k, Q_k, u_k, ud_k, lam_k = dense_state(L, x_old, x, h, theta)
-            store_sample(buf, ns, t_k, R_k, A_k, Q_k, u_k, ud_k, lam_k, refs, (1.0 - theta) * work_old + theta * work)
+            if t_k >= t - at:  # at the step's end: its state (the interpolant's end point, to rounding)
+                store_sample(buf, ns, t_k, x.R, x.A, x.Q, u_o, ud_o, x.lam, refs, work)
+            else:
+                theta = min(1.0, max(0.0, (t_k - t_old) / h))
+                R_k, A_k, Q_k, u_k, ud_k, lam_k = dense_state(L, x_old, x, h, theta)
+                store_sample(buf, ns, t_k, R_k, A_k, Q_k, u_k, ud_k, lam_k, refs,
+                             (1.0 - theta) * work_old + theta * work)
             ns, next_index, stored = ns + 1, next_index + 1, t_k >= t - at
         if c.out_dt <= 0.0 or (final and not stored):
             store_sample(buf, ns, t, x.R, x.A, x.Q, u_o, ud_o, x.lam, refs, work)
@@ -393,7 +406,8 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity):  # pra
         status.code = FINISHED
     x = GaState(x.R, x.A, x.Q, inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud), x.a,
                 x.lam)
-    return x, t, h, next_index, first_samples(buf, ns)
+    samples = first_samples(buf, ns)
+    return x, t, h, next_index, samples, sample_outputs(post.L, post.L0, samples, post.c)
 
 
 class GeneralizedAlpha(Stepper):
@@ -414,12 +428,15 @@ class GeneralizedAlpha(Stepper):
         self.next_index = 1
         self.workspace = ga_workspace(problem.L, self.constants)
         self.status_record = new_status(settings.max_steps)
+        self.outputs = []
 
     def advance(self, t_stop: float) -> Samples:
         p, s, st = self.problem, self.state, self.settings
         x = GaState(s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam)
-        x, s.t, self.h, self.next_index, buf = ga_loop(p.L, self.constants, self.workspace, x, s.t, t_stop, self.h,
-                                                       self.next_index, p.refs, self.status_record, CHUNK)
+        x, s.t, self.h, self.next_index, buf, out = ga_loop(p.L, self.constants, self.workspace, x, s.t, t_stop,
+                                                            self.h, self.next_index, p.refs, self.status_record, CHUNK,
+                                                            p.post)
+        self.outputs.append(out)
         s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam = x
         record = self.status_record[0]
         code = int(record["code"])

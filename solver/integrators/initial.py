@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.equations.assemble import evaluate, evaluation_arrays
-from sidprep.solver.integrators.base import advance_pose, index1_accelerations, kkt_solve, restrict
+from sidprep.solver.integrators.base import advance_pose, evaluate, kkt_solve, restrict, state_equations
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -187,9 +186,12 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
 
 def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
     """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte;
-    base.index1_accelerations, lam the first guess of the multipliers, default zero)."""
-    lam = np.zeros(kept.size) if lam is None else lam
-    return index1_accelerations(L, evaluation_arrays(L), R, A, Q, u, t, refs, free, kept, 0.0, lam)
+    base.index1_accelerations through base.state_equations, lam the first guess of the kept
+    multipliers, default zero)."""
+    guess = np.zeros(int(L.joint_off[-1] + L.drv_joint.size))
+    if lam is not None:
+        guess[kept] = lam
+    return state_equations(L, R, A, Q, u, float(t), guess, refs, free, kept, True)[1:]
 
 
 def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate, every_marker, markers
+from sidprep.solver.equations.assemble import every_marker
 from sidprep.solver.equations.rotations import jit
-from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.integrators.base import advance_pose, evaluate
 
 #: relative size below which an out-of-plane coupling counts as zero
 PLANAR_TOL = 1e-9
@@ -44,7 +44,8 @@ AXES = "xyz"
 def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
-    AM = markers(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0).AM
+    AM = evaluate(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0,
+                  np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), np.zeros(L.joint_off.size - 1)).kin.AM
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):
