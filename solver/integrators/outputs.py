@@ -106,7 +106,8 @@ def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
     (stiffening_work.base_layout; L when c.stiffening is 0) and the PostConstants c.  (evaluate_into
     is called here, not through helpers: every compiled function that calls it compiles its
     whole call tree once more; docs/performance.md.)  One workspace per layout for the run
-    (assemble.evaluation_arrays): e at the sample, es for the stiffening work's evaluations."""
+    (assemble.evaluation_arrays): e at the sample, es for the stiffening work's evaluations (five
+    per sample: at +-RATE_STEP with L and with L0, and L0's at the sample; L's at the sample is e)."""
     nt, nmk = s.t.shape[0], L.mk_body.shape[0]
     out = empty_outputs(nt, nmk, c.c_driver.shape[0])
     e = evaluation_arrays(L)
@@ -143,7 +144,10 @@ def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
                     Rs, As, Qs = advance_pose(Lw, R, A, Q, sign * RATE_STEP * u)
                     evaluate_into(Lw, ew, Rs, As, Qs, u, t + sign * RATE_STEP, lam, refs)
                     side[i] = motion_energy(Lw, Rs, As, Qs, u, ew.M)
-                evaluate_into(Lw, ew, R, A, Q, u, t, lam, refs)
+                if which == 0:  # at the sample with L: the sample's own evaluation e
+                    ew = e
+                else:
+                    evaluate_into(Lw, ew, R, A, Q, u, t, lam, refs)
                 p = model_power(ew, u, lam, side[0], side[1])
                 out.power[k] += p if which == 0 else -p
         react = constraint_outputs(out, k, e, lam, c)
