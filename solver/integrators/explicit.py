@@ -92,7 +92,8 @@ def sample(L, t, y, params, refs):  # pragma: no cover - compiled
 @jit
 def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps, first, post):  # pragma: no cover
     """Fixed-step RK4 (runge_kutta.rk4_stage / rk4_combine around index1_rhs) from t to t_end
-    (the last step shortened to land on it) or until ``capacity`` samples; steps (2,) counts
+    (the last step shortened to land on it) or until ``capacity`` samples besides those of
+    ``first``; steps (2,) counts
     the steps (up to max_steps, steps[1]); refs (params[3]) follow the accepted steps.  Samples:
     the rows of the SampleBuffers ``first`` (the start on the first call, none after), then at
     next_index out_dt, (next_index + 1) out_dt, ... from the cubic Hermite interpolant of y
@@ -104,16 +105,18 @@ def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps, first,
     outputs)."""
     L, refs = params[0], params[3]
     R0, A0, Q0, u0 = unpack(L, y)
-    buf = sample_buffers(capacity, R0, Q0, u0, params[5], refs)
-    ns = first.t.shape[0]
-    for k in range(ns):
+    ns0 = first.t.shape[0]
+    room = capacity + ns0
+    buf = sample_buffers(room, R0, Q0, u0, params[5], refs)
+    ns = ns0
+    for k in range(ns0):
         store_sample(buf, k, first.t[k], first.R[k], first.A[k], first.Q[k], first.u[k], first.ud[k], first.lam[k],
                      first.refs[k], first.work[k])
     end_tol = 1e-12 * max(1.0, t_end)
     k1 = index1_rhs(t, y, params)
     while t < t_end - end_tol and steps[0] < steps[1]:
         step = min(h, t_end - t)
-        if out_dt > 0.0 and ns > 0 and ns + int(step / out_dt) + 2 > capacity:
+        if out_dt > 0.0 and ns > ns0 and ns + int(step / out_dt) + 2 > room:
             break  # the samples this step may give would not fit: the stepper resumes
         half = 0.5 * step
         k2 = index1_rhs(t + half, rk4_stage(y, half, k1), params)
@@ -142,7 +145,7 @@ def rk4_loop(t, y, t_end, h, out_dt, next_index, params, capacity, steps, first,
             ns += 1
         else:  # keep the angle references current between samples
             sample(L, t, y, params, refs)
-        if ns == capacity:
+        if ns == room:
             break
     samples = first_samples(buf, ns)
     return t, y, next_index, samples, sample_outputs(post.L, post.L0, samples, post.c)

@@ -214,7 +214,8 @@ def deflection_check(L, Q, c, status):  # pragma: no cover - compiled
 @jit
 def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post):  # pragma: no cover - compiled
     """Generalised-alpha steps of the GaState x from t until t_end or until ``capacity`` output
-    samples, with the run's GaConstants c and GaWorkspace ws; samples at next_index c.out_dt,
+    samples besides the start's (so that the stretches end at the same steps whether or not it is
+    recorded), with the run's GaConstants c and GaWorkspace ws; samples at next_index c.out_dt,
     (next_index + 1) c.out_dt, ... (dense_state; a sample at a step's end is that step's state),
     or after every step (c.out_dt <= 0), and at t_end; the first call records the start as the
     run's first sample.  The samples' outputs (outputs.sample_outputs with the PostSetup post)
@@ -229,11 +230,12 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
     coordinates of se3.py, in which x.a is kept.
     """
     first_call = not np.isfinite(ws.flows[0])
-    buf = sample_buffers(capacity, x.R, x.Q, x.u, x.lam, refs)
-    ns = 0
+    ns0 = 1 if first_call else 0  # the start's row, before the loop's own samples
+    room = capacity + ns0
+    buf = sample_buffers(room, x.R, x.Q, x.u, x.lam, refs)
+    ns = ns0
     if first_call:  # the start as given (inertial), before any conversion
         store_sample(buf, 0, t, x.R, x.A, x.Q, x.u, x.ud, x.lam, refs, ws.work)
-        ns = 1
     u_k = body_velocities(L, x.A, x.u)
     x = GaState(x.R, x.A, x.Q, u_k, body_accelerations(L, x.A, u_k, x.ud), x.a, x.lam)
     status = stats[0]
@@ -266,7 +268,7 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
             status.code = MAX_STEPS
             break
         h = min(h, t_end - t)
-        if c.out_dt > 0.0 and ns > 0 and ns + int(h / c.out_dt) + 2 > capacity:
+        if c.out_dt > 0.0 and ns > ns0 and ns + int(h / c.out_dt) + 2 > room:
             break  # the samples this step may give would not fit: the stepper resumes
         if h == h_prev:  # linear extrapolation predictor
             udn, lamn = 2.0 * x.ud - ud_prev, 2.0 * x.lam - lam_prev
@@ -400,7 +402,7 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
             h *= min(H_GROW, max(H_SHRINK, factor))
         elif h < c.h_nominal and status.steps % RECOVER_STEPS == 0:
             h = min(2.0 * h, c.h_nominal)
-        if ns == capacity and not final:
+        if ns == room and not final:
             break
     if t >= t_end - end_tol and status.code == RUNNING:
         status.code = FINISHED
