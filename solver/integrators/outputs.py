@@ -121,7 +121,7 @@ def sample_outputs(L, L0, s, c):  # pragma: no cover - compiled
         lam = expand(s.lam[k], c.kept, lam_all)
         evaluate_into(L, e, R, A, Q, u, t, lam, refs)
         if c.fixed.shape[0]:
-            if k == 0:  # the independent out-of-plane equations, once per run
+            if k == 0:  # the independent out-of-plane equations, once per call (a stretch of samples)
                 rows = independent_equations(out_of_plane_system(e, ud, lam, c.kept, c.dropped, c.fixed)[0])
             lam = out_of_plane_reactions(e, ud, lam, c.kept, c.dropped, c.fixed, rows)
             if friction:  # only friction reads the multipliers: the others' evaluation stands
