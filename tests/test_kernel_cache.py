@@ -62,6 +62,8 @@ def test_a_kernel_compiled_in_one_process_is_loaded_in_the_next(tmp_path):
     code = ("from sidprep.solver.equations.rotations import skew; import numpy as np; skew(np.ones(3)); "
             "print(len(skew.stats.cache_hits))")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    (tmp_path / kernel_cache.NAMESPACE).mkdir()
+    (tmp_path / kernel_cache.NAMESPACE / SEEDED_MARK).touch()  # not seeded: an install may ship skew's
     first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert (first.stdout.strip(), second.stdout.strip()) == ("0", "1")
