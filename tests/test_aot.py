@@ -144,13 +144,15 @@ def test_the_switch_turns_the_exports_off(small_extension, tmp_path):
     assert _aot_kernels_in_a_process(tmp_path, "0") == 0
 
 
-def test_the_prebuild_records_calls_from_python(monkeypatch):
+def test_the_prebuild_records_calls_from_python(with_exports, monkeypatch):
     monkeypatch.setattr(aot, "RECORDED", {})
     vector = np.array([0.1, 0.2, 0.3])
     exp_so3(vector)
     matmul(np.eye(3), np.eye(3)[:, :2])  # an A-layout argument: recorded as such
     assert aot.RECORDED[(exp_so3, _key(vector))] == (exp_so3.typeof_pyval(vector),)
     assert (matmul, _key(np.eye(3), np.eye(3)[:, :2])) in aot.RECORDED
+    # recorded calls run numba's overloads (the return types of the exports), not the exports
+    assert not exp_so3.exports.functions and exp_so3.overloads.get((exp_so3.typeof_pyval(vector),))
 
 
 #: a child process: run a scene, print how many exports ran, save every output array

@@ -204,15 +204,15 @@ RECORDED: dict | None = None
 
 class KernelDispatcher(registry.CPUDispatcher):
     """numba's CPU dispatcher of a kernel, whose calls from Python run the kernel's ahead-of-time
-    export when one was compiled for exactly these argument types (and are recorded while the
-    prebuild records)."""
+    export when one was compiled for exactly these argument types (while the prebuild records,
+    they are recorded and run by numba, so that a rebuild in a cache with a table is complete)."""
 
     exports: Exports | None = None
 
     def __call__(self, *args, **kwargs):
         if RECORDED is not None and not kwargs:
-            record(self, args)
-        if self.exports is not None and not kwargs:
+            record(self, args)  # and compiled by numba: its overload gives the export's return type
+        elif self.exports is not None and not kwargs:
             key = arguments_key(args)
             function = None if key is None else self.exports.get(key)
             if function is not None:
