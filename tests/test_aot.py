@@ -213,7 +213,7 @@ def test_an_installed_extension_is_the_one_tested():
 
 def test_kernels_stay_numba_dispatchers_to_their_callers():
     """numba types a kernel global as a Dispatcher and compiles calls to it into the caller."""
-    assert isinstance(numba.typeof(cross), numba.types.Dispatcher)
+    assert isinstance(numba.typeof(cross), numba.types.Dispatcher)  # through Kernel._numba_type_
     caller = numba.njit(lambda a, b: cross(a, b)[2] + exp_so3(a)[0, 0])
     a, b = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
     assert caller(a, b) == pytest.approx(1.0 + exp_so3.py_func(a)[0, 0], rel=AOT_RELATIVE)

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from sidprep.solver.equations import kernel_cache
-from sidprep.solver.equations.kernel_cache import SEEDED_MARK, KernelLocator, source_namespace
+from sidprep.solver.equations.kernel_cache import SEEDED_MARK, kernel_locator, source_namespace
 from sidprep.solver.equations.rotations import skew
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,6 +32,7 @@ def test_namespace_follows_the_source_text_not_its_place(tmp_path):
 
 
 def test_solver_kernels_are_located_in_the_namespace():
+    KernelLocator = kernel_locator()
     locator = KernelLocator.from_function(skew.py_func, skew.py_func.__code__.co_filename)
     expected = kernel_cache.KERNEL_CACHE / kernel_cache.NAMESPACE / "solver.equations"
     assert Path(locator.get_cache_path()) == expected

@@ -24,19 +24,22 @@ records.
 
 from __future__ import annotations
 
+import importlib
 import importlib.machinery
 import importlib.util
 import json
 import os
+import sys
 import warnings
+from contextlib import contextmanager
+from functools import update_wrapper
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
 from llvmlite import binding as llvm
-from numba.core import config, registry
 
-from sidprep.solver.equations.kernel_cache import KERNEL_CACHE, NAMESPACE, SOLVER_ROOT, install_kernel_cache
+from sidprep.solver.equations.kernel_cache import KERNEL_CACHE, NAMESPACE, SOLVER_ROOT, install_kernel_cache, seed_cache
 
 #: the extension module of the entry kernels, and its file's suffix (this interpreter's ABI)
 MODULE = "entry_kernels"
@@ -183,9 +186,14 @@ def read_table(folder: Path) -> dict[str, Exports]:
     return kernels
 
 
+def jit_disabled() -> bool:
+    """NUMBA_DISABLE_JIT=1: the kernels run as plain Python (read as numba's config reads it)."""
+    return int(os.environ.get("NUMBA_DISABLE_JIT") or 0) != 0
+
+
 def load_table() -> dict[str, Exports]:
     """The ahead-of-time exports of this process's kernels (none with SIDPREP_AOT=0)."""
-    if os.environ.get(SWITCH, "1") == "0" or config.DISABLE_JIT:
+    if os.environ.get(SWITCH, "1") == "0" or jit_disabled():
         return {}
     for folder in table_folders():
         kernels = read_table(folder)
@@ -194,41 +202,150 @@ def load_table() -> dict[str, Exports]:
     return {}
 
 
-install_kernel_cache()  # numba's cache of the kernels set up (and seeded) before any is declared
+seed_cache()  # the install's kernels (the extension with them) copied into the user's cache once
 #: kernel name -> Exports of this process
 AOT_TABLE = load_table()
-#: (dispatcher, argument key) -> numba argument types of every Python-level call, while the
+#: (kernel, argument key) -> numba argument types of every Python-level call, while the
 #: prebuild records (record_calls); None otherwise
 RECORDED: dict | None = None
+#: the listeners of numba's compile events (run.CompileNotice) while they watch (compile_events)
+WATCHING: list = []
+#: numba imported and the kernel cache installed (by the first numba_dispatcher call)
+NUMBA_SET_UP = False
 
 
-class KernelDispatcher(registry.CPUDispatcher):
-    """numba's CPU dispatcher of a kernel, whose calls from Python run the kernel's ahead-of-time
-    export when one was compiled for exactly these argument types (while the prebuild records,
-    they are recorded and run by numba, so that a rebuild in a cache with a table is complete)."""
+def numba_dispatcher(fn: Callable, cache: bool):
+    """numba's CPU dispatcher of ``fn`` (nopython; cached on disk if ``cache``); the first call
+    imports numba, installs the kernel cache and registers the watching listeners."""
+    global NUMBA_SET_UP
+    from numba.core import registry  # deferred: import numba 0.17 CPU s, only when a kernel is JIT-compiled
 
-    exports: Exports | None = None
+    if not NUMBA_SET_UP:
+        install_kernel_cache()
+        NUMBA_SET_UP = True
+        for listener in WATCHING:
+            register_listener(listener)
+    dispatcher = registry.CPUDispatcher(py_func=fn, locals={}, targetoptions={"nopython": True})
+    if cache:
+        dispatcher.enable_caching()
+    return dispatcher
+
+
+def register_listener(listener) -> None:
+    """Pass numba's compile events ("numba:compile") to ``listener.on_start`` / ``on_end``."""
+    from numba.core import event  # deferred: called once numba is set up (numba_dispatcher)
+
+    class CompileEvents(event.Listener):
+        def on_start(self, ev):
+            listener.on_start(ev)
+
+        def on_end(self, ev):
+            listener.on_end(ev)
+
+    listener.numba_adapter = CompileEvents()
+    event.register("numba:compile", listener.numba_adapter)
+
+
+@contextmanager
+def compile_events(listener):
+    """``listener.on_start(ev)`` / ``on_end(ev)`` for every kernel numba compiles in the block,
+    whether numba is set up already or a kernel's first JIT call sets it up inside the block."""
+    listener.numba_adapter = None
+    WATCHING.append(listener)
+    if NUMBA_SET_UP:
+        register_listener(listener)
+    try:
+        yield listener
+    finally:
+        WATCHING.remove(listener)
+        if listener.numba_adapter is not None:
+            from numba.core import event  # deferred: imported already (an adapter exists)
+
+            event.unregister("numba:compile", listener.numba_adapter)
+
+
+class Kernel:
+    """A solver kernel: its calls from Python run its ahead-of-time export when one was compiled
+    for exactly these argument types, else its numba dispatcher, made (and numba imported) on
+    the first such call; while the prebuild records, every call is recorded and run by numba.
+
+    numba types a kernel that another kernel calls through ``_numba_type_`` (its dispatcher's
+    type), so kernel-to-kernel calls compile as numba dispatcher calls; any other attribute
+    (``stats``, ``overloads``, ``signatures``, ``compile``, ...) is the dispatcher's."""
+
+    def __init__(self, fn: Callable, cache: bool = True):
+        update_wrapper(self, fn)
+        self.py_func = fn
+        self.cache = cache
+        self.exports = AOT_TABLE.get(kernel_name(fn)) if cache else None
+        self._dispatcher = None
+
+    @property
+    def dispatcher(self):
+        """numba's dispatcher of the kernel (made on first use)."""
+        if self._dispatcher is None:
+            self._dispatcher = numba_dispatcher(self.py_func, self.cache)
+        return self._dispatcher
+
+    @property
+    def _numba_type_(self):
+        return self.dispatcher._numba_type_
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(self.dispatcher, name)
+
+    def __reduce__(self):
+        return kernel_by_name, (self.py_func.__module__, self.py_func.__qualname__)
+
+    def __repr__(self):
+        return f"Kernel({kernel_name(self.py_func)})"
 
     def __call__(self, *args, **kwargs):
         if RECORDED is not None and not kwargs:
-            record(self, args)  # and compiled by numba: its overload gives the export's return type
+            record(self, args)  # and run by numba: its overload gives the export's return type
         elif self.exports is not None and not kwargs:
             key = arguments_key(args)
             function = None if key is None else self.exports.get(key)
             if function is not None:
                 return function(*args)
-        return super().__call__(*args, **kwargs)
+        return self.dispatcher(*args, **kwargs)
+
+
+def kernel_by_name(module: str, qualname: str) -> Kernel:
+    """The kernel ``module``.``qualname`` (unpickling)."""
+    value = importlib.import_module(module)
+    for part in qualname.split("."):
+        value = getattr(value, part)
+    return value
+
+
+class NumbaValue:
+    """A numba object a kernel reads as a global (e.g. a LAPACK binding), made by ``make()`` when
+    numba first types a kernel that reads it: numba types it through ``_numba_type_``."""
+
+    def __init__(self, make: Callable):
+        self.make = make
+        self.value = None
+
+    @property
+    def _numba_type_(self):
+        if self.value is None:
+            self.value = self.make()
+        return self.value
 
 
 def jit(fn: Callable) -> Callable:
-    """numba.njit(cache=True) with the ahead-of-time exports of ``fn`` (kernel_cache.py caches
-    the JIT code; with NUMBA_DISABLE_JIT=1 the same code runs as plain Python, for debugging)."""
-    if config.DISABLE_JIT:
-        return fn
-    dispatcher = KernelDispatcher(py_func=fn, locals={}, targetoptions={"nopython": True})
-    dispatcher.enable_caching()
-    dispatcher.exports = AOT_TABLE.get(kernel_name(fn))
-    return dispatcher
+    """A solver kernel: numba.njit(cache=True) with the ahead-of-time exports of ``fn``
+    (kernel_cache.py caches the JIT code; with NUMBA_DISABLE_JIT=1 the same code runs as plain
+    Python, for debugging)."""
+    return fn if jit_disabled() else Kernel(fn)
+
+
+def jit_uncached(fn: Callable) -> Callable:
+    """numba.njit(cache=False), made on first use: a kernel that takes another as an argument."""
+    return fn if jit_disabled() else Kernel(fn, cache=False)
 
 
 def record_calls() -> None:
@@ -237,16 +354,16 @@ def record_calls() -> None:
     RECORDED = {}
 
 
-def record(dispatcher: KernelDispatcher, args: tuple) -> None:
+def record(kernel: Kernel, args: tuple) -> None:
     """Note the call's argument key and numba types; a key seen with other numba types is an
     error of argument_key (it must be at least as fine as numba's typeof)."""
     key = arguments_key(args)
-    if key is None or "<locals>" in dispatcher.py_func.__qualname__:
+    if key is None or "<locals>" in kernel.py_func.__qualname__:
         return
-    numba_types = tuple(dispatcher.typeof_pyval(arg) for arg in args)
-    seen = RECORDED.setdefault((dispatcher, key), numba_types)
+    numba_types = tuple(kernel.dispatcher.typeof_pyval(arg) for arg in args)
+    seen = RECORDED.setdefault((kernel, key), numba_types)
     if seen != numba_types:
-        raise AssertionError(f"argument key {key} of {kernel_name(dispatcher.py_func)} "
+        raise AssertionError(f"argument key {key} of {kernel_name(kernel.py_func)} "
                              f"is both {seen} and {numba_types}")
 
 
@@ -254,9 +371,9 @@ def compile_entries(calls: dict, folder: Path) -> list[dict]:
     """Compile every recorded (kernel, argument types) of ``calls`` into the extension
     ``folder``/MODULE with numba.pycc and write its TABLE -> the table's entries.
 
-    calls : (dispatcher, argument key) -> tuple of numba argument types, as recorded; a call
-        whose types the dispatcher has no compiled overload of (a literal specialisation) is left
-        to the dispatcher."""
+    calls : (kernel, argument key) -> tuple of numba argument types, as recorded; a call whose
+        types the kernel's dispatcher has no compiled overload of (a literal specialisation) is
+        left to the dispatcher."""
     with warnings.catch_warnings():  # pycc is pending deprecation (docs/performance.md says the route)
         warnings.simplefilter("ignore")
         from numba.pycc import CC  # deferred: 0.17 CPU s (setuptools), and only the install compiles
@@ -265,13 +382,13 @@ def compile_entries(calls: dict, folder: Path) -> list[dict]:
     cc.target_cpu = "host"  # the JIT's target: built at install on the machine that runs it
     cc.verbose = False
     entries = []
-    for (dispatcher, key), numba_types in calls.items():
-        overload = dispatcher.overloads.get(numba_types)
+    for (kernel, key), numba_types in calls.items():
+        overload = kernel.dispatcher.overloads.get(numba_types)
         if overload is None:
             continue
         name = f"k{len(entries)}"
-        cc.export(name, overload.signature.return_type(*numba_types))(dispatcher.py_func)
-        entries.append({"export": name, "kernel": kernel_name(dispatcher.py_func), "key": key,
+        cc.export(name, overload.signature.return_type(*numba_types))(kernel.py_func)
+        entries.append({"export": name, "kernel": kernel_name(kernel.py_func), "key": key,
                         "types": [str(t) for t in numba_types]})
     folder.mkdir(parents=True, exist_ok=True)
     if entries:
