@@ -217,3 +217,30 @@ def test_kernels_stay_numba_dispatchers_to_their_callers():
     caller = numba.njit(lambda a, b: cross(a, b)[2] + exp_so3(a)[0, 0])
     a, b = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
     assert caller(a, b) == pytest.approx(1.0 + exp_so3.py_func(a)[0, 0], rel=AOT_RELATIVE)
+
+
+#: a child process: the solver imported without numba; a kernel's first JIT call inside a watched
+#: block imports numba and reports its compilation to the listener
+FIRST_JIT = """
+import sys
+import sidprep.solver.scene
+from sidprep.solver.equations import aot
+before = "numba" in sys.modules
+class Listener:
+    starts = 0
+    def on_start(self, ev):
+        self.starts += 1
+    def on_end(self, ev):
+        pass
+listener = Listener()
+with aot.compile_events(listener):
+    value = aot.jit_uncached(lambda x: x + 1.0)(1.0)
+print(before, listener.starts, value)
+"""
+
+
+def test_the_solver_imports_without_numba_and_reports_its_compilations(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", FIRST_JIT], env=env, capture_output=True, text=True, check=True)
+    before, starts, value = done.stdout.split()
+    assert before == "False" and int(starts) >= 1 and float(value) == 2.0
