@@ -24,6 +24,7 @@ records.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.machinery
 import importlib.util
@@ -37,7 +38,6 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
-from llvmlite import binding as llvm
 
 from sidprep.solver.equations.kernel_cache import KERNEL_CACHE, NAMESPACE, SOLVER_ROOT, install_kernel_cache, seed_cache
 
@@ -50,6 +50,10 @@ AOT_FOLDER = "aot"
 TABLE = "table.json"
 #: the environment variable that turns the ahead-of-time kernels off ("0") for comparisons
 SWITCH = "SIDPREP_AOT"
+#: the /proc/cpuinfo fields that name the CPU and its features (x86: vendor, family, model,
+#: stepping, flags; ARM: implementer, architecture, variant, part, Features)
+CPU_FIELDS = {"vendor_id", "cpu family", "model", "model name", "stepping", "flags", "CPU implementer",
+              "CPU architecture", "CPU variant", "CPU part", "Features"}
 #: Python ints numba types as int64 (larger ones go to numba's dispatcher)
 INT64_RANGE = (-(2 ** 63), 2 ** 63)
 
@@ -119,8 +123,38 @@ def kernel_name(fn: Callable) -> str:
 def host_target() -> dict:
     """The machine the exports are compiled for: LLVM's process triple, host CPU and features,
     and the interpreter's extension-module suffix (its version and ABI)."""
+    from llvmlite import binding as llvm  # deferred: 0.025-0.04 CPU s; cpu_fingerprint() serves on Linux
+
     return {"triple": llvm.get_process_triple(), "cpu": llvm.get_host_cpu_name(),
             "features": llvm.get_host_cpu_features().flatten(), "suffix": EXTENSION_SUFFIX}
+
+
+def cpu_fingerprint() -> str | None:
+    """sha256 of the machine's architecture, the interpreter's extension suffix and the CPU model
+    and feature flags of /proc/cpuinfo's first processor (CPU_FIELDS); None without /proc/cpuinfo.
+    The same CPU model and flags mean the same LLVM host CPU and features (both read cpuid)."""
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            lines = []
+            for line in cpuinfo:
+                if not line.strip():
+                    break
+                lines.append(line)
+    except OSError:
+        return None
+    fields = sorted(f"{key.strip()}:{value.strip()}" for key, _, value in (line.partition(":") for line in lines)
+                    if key.strip() in CPU_FIELDS)
+    text = "\n".join([os.uname().machine, EXTENSION_SUFFIX, *fields])
+    return hashlib.sha256(text.encode()).hexdigest() if fields else None
+
+
+def same_machine(table: dict) -> bool:
+    """Whether ``table`` was compiled for this machine and interpreter: by the CPU fingerprint
+    where both have one (no llvmlite import), else by LLVM's host target."""
+    fingerprint = cpu_fingerprint()
+    if fingerprint is not None and table.get("cpu_fingerprint") is not None:
+        return table["cpu_fingerprint"] == fingerprint
+    return table.get("target") == host_target()
 
 
 class EntryKernels:
@@ -177,7 +211,7 @@ def read_table(folder: Path) -> dict[str, Exports]:
         table = json.loads((folder / TABLE).read_text())
     except (OSError, ValueError):
         return {}
-    if table.get("target") != host_target():
+    if not same_machine(table):
         return {}
     extension = EntryKernels(folder)
     kernels: dict[str, Exports] = {}
@@ -393,7 +427,7 @@ def compile_entries(calls: dict, folder: Path) -> list[dict]:
     folder.mkdir(parents=True, exist_ok=True)
     if entries:
         cc.compile()
-    table = {"module": MODULE, "target": host_target(), "entries": entries}
+    table = {"module": MODULE, "target": host_target(), "cpu_fingerprint": cpu_fingerprint(), "entries": entries}
     (folder / TABLE).write_text(json.dumps(table, indent=1))
     return entries
 
