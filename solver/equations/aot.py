@@ -10,9 +10,11 @@ equals a recorded one exactly, else numba's dispatcher as before (it compiles or
 JIT cache): a scene no example covers, a function argument, ``SIDPREP_AOT=0``,
 ``NUMBA_DISABLE_JIT=1``, a checkout without an install.
 
-Calls between kernels never pass through here: each kernel is a numba dispatcher (a subclass
-whose Python-level ``__call__`` looks the table up first), so numba types kernel-to-kernel calls
-as before and compiles them into the caller.
+Each kernel is a ``Kernel``: its Python-level call looks the table up first, then calls its numba
+dispatcher, which is made (numba imported, the kernel cache installed) only when first needed, so
+a run whose entry calls the table covers never imports numba.  Calls between kernels never pass
+through here: numba types a kernel global through ``Kernel._numba_type_`` (its dispatcher's
+type) and compiles the callee into the caller, as for any numba dispatcher.
 
 The argument key is a finer classification than numba's own ``typeof`` of an argument (an array:
 dtype, ndim, C/F/A layout, read-only; a scalar: its Python or numpy type; tuples and namedtuples
