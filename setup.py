@@ -1,8 +1,12 @@
 """The install compiles the solver's kernels into the package, as a compiled core ships with its
-library (docs/performance.md, "First run"): the first ``sidprep simulate`` then loads them.
+library (docs/performance.md, "First run"): the JIT kernels of numba's cache, and the kernels
+called from Python ahead of time into one extension module (solver/equations/aot.py; it needs a C
+compiler and Python's headers, else the JIT kernels serve alone).  The first ``sidprep simulate``
+then loads them.
 
 Everything else about the package is in pyproject.toml.  ``SIDPREP_PREBUILD=0`` skips the
-compilation (the kernels then compile on first use); editable installs always skip it.
+compilation (the kernels then compile on first use), ``SIDPREP_AOT=0`` only the extension;
+editable installs always skip it.
 """
 
 import glob
@@ -18,7 +22,8 @@ from setuptools.command.build_py import build_py
 
 class BuildWithKernels(build_py):
     """build_py, then a few steps of every bundled example scene with every method, compiled
-    into build_lib/sidprep/solver/_kernels (sidprep.solver.prebuild)."""
+    into build_lib/sidprep/solver/_kernels (sidprep.solver.prebuild): numba's cache and the
+    entry-kernel extension, both under the kernel source's namespace."""
 
     def run(self):
         super().run()

@@ -21,6 +21,12 @@ With ``--cli`` each child is the command itself (``python -m sidprep.cli.main si
 results into a temporary folder) and the figure is its whole life in CPU s (user + system of the
 child, every thread: start-up, imports, scene, run, results file, the process's exit).
 
+With ``--installed PYTHON ...`` the children are those interpreters with the sidprep they have
+installed (no PYTHONPATH; e.g. two venvs, a wheel of this branch and one of main), so the
+install's compiled kernels are what is measured:
+
+    python benchmarks/process_cost.py examples/flexible_pendulum/scene.toml --cli --installed /tmp/a/bin/python /tmp/b/bin/python
+
 One process per checkout first fills the kernel cache (not counted); the load average is printed.
 """
 
@@ -115,23 +121,29 @@ STAGES = ("imports", "scene", "start", "kernel loading", "integration", "post", 
           "whole run / steps")
 
 
-def child_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:
-    """The stage costs of one fresh process importing sidprep from ``root``."""
-    env = {**os.environ, "PYTHONPATH": str(root)}
-    out = subprocess.run([sys.executable, "-c", CHILD, str(scene), output_dt, h], env=env, cwd=scene.parent,
+def child_env(root: Path | None) -> dict:
+    """The environment of a child importing sidprep from ``root`` (None: its installed one)."""
+    env = dict(os.environ)
+    env.pop("PYTHONPATH", None)
+    return env | ({"PYTHONPATH": str(root)} if root else {})
+
+
+def child_run(python: str, root: Path | None, scene: Path, output_dt: str, h: str) -> dict:
+    """The stage costs of one fresh process of ``python`` importing sidprep from ``root``."""
+    out = subprocess.run([python, "-c", CHILD, str(scene), output_dt, h], env=child_env(root), cwd=scene.parent,
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
-def command_run(root: Path, scene: Path, output_dt: str, h: str) -> dict:
-    """CPU s of one ``sidprep simulate`` process (the command of ``root``), user + system."""
-    env = {**os.environ, "PYTHONPATH": str(root)}
+def command_run(python: str, root: Path | None, scene: Path, output_dt: str, h: str) -> dict:
+    """CPU s of one ``sidprep simulate`` process (the command of ``root``, None: ``python``'s
+    installed one), user + system."""
     extra = (["--rate", repr(1.0 / float(output_dt))] if output_dt != "-" else []) + (
         ["--step", h] if h != "-" else [])
     with tempfile.TemporaryDirectory() as tmp:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([sys.executable, "-m", "sidprep.cli.main", "simulate", str(scene), "-q", "-o",
-                        str(Path(tmp) / "r.results.h5"), *extra], env=env, cwd=scene.parent, check=True,
+        subprocess.run([python, "-m", "sidprep.cli.main", "simulate", str(scene), "-q", "-o",
+                        str(Path(tmp) / "r.results.h5"), *extra], env=child_env(root), cwd=scene.parent, check=True,
                        capture_output=True)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return {"process": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)}
@@ -145,17 +157,23 @@ def main() -> None:
     parser.add_argument("--output-dt", default="-", help="output interval, s (default: the scene's)")
     parser.add_argument("--h", default="-", help="step, s (default: the scene's)")
     parser.add_argument("--cli", action="store_true", help="whole `sidprep simulate` processes instead of stages")
+    parser.add_argument("--installed", nargs="+", metavar="PYTHON",
+                        help="compare these interpreters' installed sidprep instead of checkouts")
     args = parser.parse_args()
     scene = args.scene.resolve()
-    roots = {"this": ROOT} | ({"before": args.before.resolve()} if args.before else {})
+    if args.installed:
+        roots = {python: (python, None) for python in args.installed}
+    else:
+        roots = {"this": (sys.executable, ROOT)} | (
+            {"before": (sys.executable, args.before.resolve())} if args.before else {})
     rows: dict[str, list[dict]] = {name: [] for name in roots}
     run, stages = (command_run, ("process",)) if args.cli else (child_run, STAGES)
-    for root in roots.values():  # warm-up: the kernel cache filled
-        run(root, scene, args.output_dt, args.h)
+    for python, root in roots.values():  # warm-up: the kernel cache filled
+        run(python, root, scene, args.output_dt, args.h)
     loads = [os.getloadavg()[0]]
     for _ in range(args.repeat):
-        for name, root in roots.items():
-            rows[name].append(run(root, scene, args.output_dt, args.h))
+        for name, (python, root) in roots.items():
+            rows[name].append(run(python, root, scene, args.output_dt, args.h))
         loads.append(os.getloadavg()[0])
     print(f"{scene.relative_to(ROOT) if scene.is_relative_to(ROOT) else scene}, output_dt {args.output_dt}, "
           f"h {args.h}, medians of {args.repeat} processes, load average {min(loads):.1f}-{max(loads):.1f}, CPU s")

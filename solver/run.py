@@ -17,13 +17,13 @@ from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
-from numba.core import event
 
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import path_marker_problems
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_warning, energy_balance
+from sidprep.solver.equations.aot import compile_events
 from sidprep.solver.equations.assemble import every_marker
 from sidprep.solver.equations.forces import FE_SPRING
 from sidprep.solver.integrators.base import Problem, Samples, State, evaluate
@@ -95,7 +95,7 @@ def numerical_cause(balance: dict, settings) -> str:
             f"instability of the integration ({settings.method}, {step}), not the scene; fix: {numerical_fix(settings)}")
 
 
-class CompileNotice(event.Listener):
+class CompileNotice:
     """Says on stderr, while numba compiles, which solver kernel it compiles and how many it has
     compiled (numba compiles a kernel on its first use after install, then reads it from the
     kernel cache; nothing is printed then)."""
@@ -122,7 +122,7 @@ class CompileNotice(event.Listener):
     @contextmanager
     def watching(self):
         """Report the compilations of the block."""
-        with event.install_listener("numba:compile", self):
+        with compile_events(self):
             yield self
 
 

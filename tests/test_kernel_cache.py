@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from sidprep.solver.equations import kernel_cache
-from sidprep.solver.equations.kernel_cache import SEEDED_MARK, KernelLocator, source_namespace
+from sidprep.solver.equations.kernel_cache import SEEDED_MARK, kernel_locator, source_namespace
 from sidprep.solver.equations.rotations import skew
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,6 +32,7 @@ def test_namespace_follows_the_source_text_not_its_place(tmp_path):
 
 
 def test_solver_kernels_are_located_in_the_namespace():
+    KernelLocator = kernel_locator()
     locator = KernelLocator.from_function(skew.py_func, skew.py_func.__code__.co_filename)
     expected = kernel_cache.KERNEL_CACHE / kernel_cache.NAMESPACE / "solver.equations"
     assert Path(locator.get_cache_path()) == expected
@@ -62,6 +63,8 @@ def test_a_kernel_compiled_in_one_process_is_loaded_in_the_next(tmp_path):
     code = ("from sidprep.solver.equations.rotations import skew; import numpy as np; skew(np.ones(3)); "
             "print(len(skew.stats.cache_hits))")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    (tmp_path / kernel_cache.NAMESPACE).mkdir()
+    (tmp_path / kernel_cache.NAMESPACE / SEEDED_MARK).touch()  # not seeded: an install may ship skew's
     first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert (first.stdout.strip(), second.stdout.strip()) == ("0", "1")

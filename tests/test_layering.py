@@ -38,7 +38,7 @@ MAX_FLAT_MODULES = 10
 #: solver/ from the first layer to the last (docs/solver.md): a module imports its own layer and
 #: the ones before it only
 SOLVER_LAYERS = (
-    ("geometry", ("sidprep.solver.equations.rotations", "sidprep.solver.equations.kernel_cache")),       # first match: before equations
+    ("geometry", ("sidprep.solver.equations.rotations", "sidprep.solver.equations.aot", "sidprep.solver.equations.kernel_cache")),       # first match: before equations
     ("model", ("sidprep.solver.model",)),
     ("equations", ("sidprep.solver.equations",)),
     ("compile", ("sidprep.solver.compile",)),

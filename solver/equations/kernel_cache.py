@@ -9,8 +9,10 @@ one *namespace*, the hash of all the solver's kernel files: the same code shares
 compiled kernels wherever it lies, and any edit of a kernel file compiles every kernel afresh.
 
 The install (``pip install .``, setup.py) compiles the kernels once into the package
-(``sidprep/solver/_kernels/<namespace>``); the first import of an installed solver copies them
-into the user's cache, so the first run loads instead of compiling.
+(``sidprep/solver/_kernels/<namespace>``), with the entry kernels compiled ahead of time
+(``aot/``, aot.py); the first import of an installed solver copies them into the user's cache,
+so the first run loads instead of compiling.  numba itself is imported only when a kernel is
+JIT-compiled or loaded (kernel_locator, install_kernel_cache).
 """
 
 from __future__ import annotations
@@ -21,7 +23,6 @@ import shutil
 from importlib import metadata
 from pathlib import Path
 
-from numba.core import caching, config
 
 #: the solver's source folder (solver/ in a checkout, sidprep/solver when installed)
 SOLVER_ROOT = Path(__file__).resolve().parents[1]
@@ -51,20 +52,28 @@ def source_namespace(root: Path = SOLVER_ROOT) -> str:
 NAMESPACE = source_namespace()
 
 
-class KernelLocator(caching.UserProvidedCacheLocator if hasattr(caching, "UserProvidedCacheLocator")
-                    else caching._UserProvidedCacheLocator):
-    """numba cache locator of the solver's kernels: KERNEL_CACHE / NAMESPACE / <module folder>."""
+def kernel_locator() -> type:
+    """numba's cache locator of the solver's kernels: KERNEL_CACHE / NAMESPACE / <module folder>
+    (a class made when numba is first needed: a run served by the ahead-of-time kernels never
+    imports numba, aot.py)."""
+    from numba.core import caching  # deferred: import numba 0.17 CPU s, only when a kernel is JIT-compiled
 
-    def __init__(self, py_func, py_file):
-        super().__init__(py_func, py_file)
-        folder = Path(py_file).resolve().parent.relative_to(SOLVER_ROOT)
-        self._cache_path = str(KERNEL_CACHE / NAMESPACE / ("solver." + ".".join(folder.parts)).rstrip("."))
+    base = caching.UserProvidedCacheLocator if hasattr(caching, "UserProvidedCacheLocator") \
+        else caching._UserProvidedCacheLocator
 
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        if not Path(py_file).resolve().is_relative_to(SOLVER_ROOT):
-            return None
-        return super().from_function(py_func, py_file)
+    class KernelLocator(base):
+        def __init__(self, py_func, py_file):
+            super().__init__(py_func, py_file)
+            folder = Path(py_file).resolve().parent.relative_to(SOLVER_ROOT)
+            self._cache_path = str(KERNEL_CACHE / NAMESPACE / ("solver." + ".".join(folder.parts)).rstrip("."))
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not Path(py_file).resolve().is_relative_to(SOLVER_ROOT):
+                return None
+            return super().from_function(py_func, py_file)
+
+    return KernelLocator
 
 
 def shipped_kernels() -> Path | None:
@@ -99,10 +108,14 @@ def seed_cache() -> None:
 
 
 def install_kernel_cache() -> None:
-    """Point numba's cache of the solver kernels at KERNEL_CACHE / NAMESPACE and seed it."""
+    """Point numba's cache of the solver kernels at KERNEL_CACHE / NAMESPACE (once per process,
+    before the first kernel's numba dispatcher is made); seed_cache() has run at import."""
+    from numba.core import caching, config  # deferred: import numba 0.17 CPU s, only when a kernel is JIT-compiled
+
     impl = caching.CacheImpl if hasattr(caching, "CacheImpl") else caching._CacheImpl
-    if KernelLocator not in impl._locator_classes:
-        impl._locator_classes.insert(0, KernelLocator)
-    if not config.CACHE_DIR:  # read by the locator's base class: set before any kernel is declared
+    if not any(getattr(locator, "solver_kernels", False) for locator in impl._locator_classes):
+        locator = kernel_locator()
+        locator.solver_kernels = True
+        impl._locator_classes.insert(0, locator)
+    if not config.CACHE_DIR:  # read by the locator's base class
         config.CACHE_DIR = str(KERNEL_CACHE)
-    seed_cache()

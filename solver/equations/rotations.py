@@ -1,5 +1,5 @@
 """Rotation kinematics (skew matrices, the SO(3) exponential map, quaternions) and the small
-loop helpers of the compiled kernels, and ``jit``, the one decorator of all of them: the geometry
+loop helpers of the compiled kernels (``jit``, the one decorator of all of them, is aot.py's): the geometry
 under both the descriptions (model/, e.g. ``as_rotation``) and the kernels (equations/).
 
 Rotation matrices A map body components to inertial components (sid-spec 5.1); angular
@@ -10,22 +10,14 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from sidprep.solver.equations.kernel_cache import install_kernel_cache
+from sidprep.solver.equations.aot import jit
 
 #: below this rotation angle (rad) the Rodrigues coefficients use their Taylor series
 SMALL_ANGLE = 1e-6
 #: ... and those of the SE(3) Jacobian (its (t - sin t)/t^3 loses digits sooner)
 SE3_SMALL_ANGLE = 1e-4
-install_kernel_cache()
-
-
-def jit(fn):
-    """numba.njit(cache=True): compiled by the install, cached on disk (kernel_cache.py; with
-    NUMBA_DISABLE_JIT=1 the same code runs as plain Python, for debugging)."""
-    return numba.njit(cache=True)(fn)
 
 
 @jit

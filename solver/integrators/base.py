@@ -17,11 +17,10 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import types
-from numba.np.linalg import _LAPACK
 
 from sidprep.solver.equations.assemble import evaluate_into, evaluation_arrays
 from sidprep.solver.equations.forces import FE_FRICTION
+from sidprep.solver.equations.aot import NumbaValue
 from sidprep.solver.equations.rotations import add, exp_so3, jit, matvec, put, put2, se3_jacobian
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
@@ -217,9 +216,17 @@ def advance_pose(L, R, A, Q, dx, body_frame=False):  # pragma: no cover - compil
     return R2, A2, Q2
 
 
+def dgetrf_binding():
+    """numba's own binding of LAPACK dgetrf (double precision)."""
+    from numba import types  # deferred: import numba 0.17 CPU s, only when lu_factor is JIT-compiled
+    from numba.np.linalg import _LAPACK
+
+    return _LAPACK().numba_xxgetrf(types.float64)
+
+
 #: LAPACK dgetrf through numba's own binding (cacheable): from ~40 unknowns on twice as fast as
-#: loops, about as fast below
-_DGETRF = _LAPACK().numba_xxgetrf(types.float64)
+#: loops, about as fast below; made when numba first types a kernel that calls it
+_DGETRF = NumbaValue(dgetrf_binding)
 _REAL = ord("d")
 
 

@@ -15,9 +15,9 @@ solutions that are polynomials of degree <= 4 in t.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from sidprep.solver.equations.aot import jit_uncached
 from sidprep.solver.equations.rotations import jit
 
 
@@ -42,7 +42,7 @@ def hermite(theta):  # pragma: no cover - compiled
 
 # not cached: a jitted ``rhs`` argument is a new type in every process, so a disk cache would
 # only grow, never hit
-@numba.njit(cache=False)
+@jit_uncached
 def rk4_step(rhs, t, y, h, params):
     """One classic RK4 step.
 
@@ -66,7 +66,7 @@ def rk4_step(rhs, t, y, h, params):
     return rk4_combine(y, h, k1, k2, k3, k4)
 
 
-@numba.njit(cache=False)
+@jit_uncached
 def rk4_fixed(rhs, t0, y0, h, n_steps, every, params):
     """``n_steps`` fixed RK4 steps of size ``h`` from ``(t0, y0)``, sampled every ``every`` steps.
 
