@@ -45,7 +45,7 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import factorize, single_threaded_blas
+from sidprep.fe.linalg import CholmodFactorization, cholmod_available, factorize, single_threaded_blas
 from sidprep.fe.mesh import _face_table
 from sidprep.fe.pardiso import ldlt_inertia
 from sidprep.progress import peak_memory_mb
@@ -191,22 +191,62 @@ def part_static_schur(part: PartModel) -> np.ndarray:
         return ldlt_inertia(part.K, part.boundary).schur
 
 
-def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
-    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``,
-    row by row into the sparsity pattern of the sum (the union of the blocks' index sets): the peak is
-    the result and the blocks, not the triplets (24 bytes an entry) of every block at once."""
-    sizes = [len(pos) for pos in positions]
-    incidence = sp.csr_matrix((np.ones(sum(sizes), dtype=np.float32),
-                               (np.concatenate(positions), np.repeat(np.arange(len(sizes)), sizes))),
-                              shape=(n, len(sizes)))
-    S = (incidence @ incidence.T).tocsr()
-    S.sort_indices()
-    S.data = np.zeros(S.nnz)
-    for pos, B in zip(positions, blocks):
-        for i, r in enumerate(pos):
-            start = S.indptr[r]
-            S.data[start + np.searchsorted(S.indices[start:S.indptr[r + 1]], pos)] += B[i]
+def summed_blocks(positions, blocks, n: int, upper: bool = False) -> sp.csr_matrix:
+    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``
+    (-1: that row and column dropped), row by row into the sparsity pattern of the sum (the union of
+    the blocks' index sets): the peak is the result and the blocks, not the triplets (24 bytes an
+    entry) of every block at once.  ``upper``: only the upper triangle of the (symmetric) sum, sorted
+    (what the sparse LDL^T and Cholesky read).  ``blocks`` (a list) is consumed: each block is dropped
+    from it once added (the exact coarse Schur complements' blocks are as large as their sum)."""
+    kept = [np.flatnonzero(np.asarray(pos) >= 0) for pos in positions]
+    S = sum_pattern([np.asarray(pos)[k] for pos, k in zip(positions, kept)], n, upper)
+    for p, (pos, k) in enumerate(zip(positions, kept)):
+        B, blocks[p] = blocks[p], None
+        cols = np.asarray(pos)[k]
+        for i in k:
+            r = pos[i]
+            start, stop = S.indptr[r], S.indptr[r + 1]
+            at = cols >= r if upper else slice(None)
+            S.data[start + np.searchsorted(S.indices[start:stop], cols[at])] += B[i, k][at]
+        del B
     return S
+
+
+def sum_pattern(positions, n: int, upper: bool) -> sp.csr_matrix:
+    """The zero (n, n) csr matrix (sorted indices) with the pattern of sum_p P_p^T B_p P_p: row r holds
+    the union of the positions of the parts that hold r (its upper part with ``upper``).  Rows held
+    by the same parts share that union (a cut), so no product of index sets is formed."""
+    sizes = [len(pos) for pos in positions]
+    owners = sp.csr_matrix((np.ones(sum(sizes), dtype=np.int8),
+                            (np.concatenate(positions), np.repeat(np.arange(len(sizes)), sizes))),
+                           shape=(n, len(sizes)))
+    keys = [owners.indices[owners.indptr[r]:owners.indptr[r + 1]].tobytes() for r in range(n)]
+    union = {key: np.unique(np.concatenate([positions[p] for p in np.frombuffer(key, dtype=owners.indices.dtype)]
+                                           or [np.zeros(0, np.int64)])) for key in set(keys)}
+    start = [np.searchsorted(union[key], r) if upper else 0 for r, key in enumerate(keys)]
+    counts = np.array([len(union[key]) - s0 for key, s0 in zip(keys, start)], dtype=np.int64)
+    indptr = np.r_[0, np.cumsum(counts)]
+    index_type = np.int32 if indptr[-1] < 2**31 else np.int64
+    indices = np.empty(indptr[-1], dtype=index_type)
+    for r, (key, s0) in enumerate(zip(keys, start)):
+        indices[indptr[r]:indptr[r + 1]] = union[key][s0:]
+    S = sp.csr_matrix((np.zeros(len(indices)), indices, indptr.astype(index_type)), shape=(n, n))
+    S.has_sorted_indices = True
+    return S
+
+
+def upper_factor(U: sp.csr_matrix):
+    """The factor of the SPD matrix of upper triangle U (sorted CSR): CHOLMOD reads U as it is,
+    SuperLU (without CHOLMOD) gets both triangles."""
+    if cholmod_available():
+        return CholmodFactorization(U, upper=True)
+    return factorize(U + sp.triu(U, 1).T)
+
+
+def symmetric_block(U: sp.csr_matrix, rows: np.ndarray) -> np.ndarray:
+    """The dense symmetric block A[rows][:, rows] of A from its upper triangle U (rows ascending)."""
+    B = U[rows][:, rows].toarray()
+    return B + np.triu(B, 1).T
 
 
 def cut_groups(local, n_coarse: int, fixed: np.ndarray) -> list[np.ndarray]:
@@ -272,22 +312,25 @@ class CoarseSpace:
 
 def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interface: int):
     """The coarse space of ``parts`` from their exact static Schur complements ``schurs``
-    (``part_static_schur``): b kept, every cut reduced to its ``n_interface`` lowest interface modes;
-    returns (CoarseSpace, the factor of the exact Schur complement S on G \\ b for the substructured
-    solve: S itself is not kept)."""
+    (``part_static_schur``, a list: consumed); b kept, every cut reduced to its ``n_interface``
+    lowest interface modes; returns (CoarseSpace, the factor of the exact Schur complement S on
+    G \\ b for the substructured solve).  S is formed once, as its upper triangle on G \\ b, and
+    dropped once factored."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
-    S = summed_blocks(local, schurs, len(coarse))
+    free = np.setdiff1d(np.arange(len(coarse)), b)
+    slot = np.full(len(coarse), -1)
+    slot[free] = np.arange(len(free))
+    S = summed_blocks([slot[pos] for pos in local], schurs, len(free), upper=True)
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
     for g in cut_groups(local, len(coarse), b):
         with single_threaded_blas():                      # 3x faster than two threads on the shared machine
-            phi = interface_modes(S[g][:, g].toarray(), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
+            phi = interface_modes(symmetric_block(S, slot[g]), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
     space = CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
-    free = space.free
-    return space, (factorize(S[free][:, free]) if len(free) else None)
+    return space, (upper_factor(S) if len(free) else None)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -373,6 +416,11 @@ def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assem
                     space, offsets)
 
 
+def in_process(fn, args: list) -> list:
+    """fn, [args per part] -> [fn(*args) per part], here (without an executor)."""
+    return [fn(*a) for a in args]
+
+
 def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
     """Eigenvalues below ``sigma`` of the whole model with the DOFs ``held`` removed: Sylvester's law of
     inertia with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative
@@ -380,25 +428,27 @@ def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None
     complements on G (``part_dynamic_schur``: on ``tasks`` when given, a function fn, [args per part] ->
     [results], else here), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a pivot was perturbed."""
 
-    args = [(part, sigma) for part in parts]
-    schurs = tasks(part_dynamic_schur, args) if tasks is not None else [part_dynamic_schur(*x) for x in args]
+    schurs = (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts])
     if any(schur is None for schur in schurs):
         return None
     below = sum(schur[0] for schur in schurs)
-    S = summed_blocks(local, [schur[1] for schur in schurs], len(coarse))
+    blocks = [schur[1] for schur in schurs]
     del schurs
     keep = ~np.isin(coarse, [] if held is None else held)
-    coarse_count = coarse_inertia(S if keep.all() else S[keep][:, keep])     # no copy for a free body
+    slot = np.full(len(coarse), -1)
+    slot[keep] = np.arange(int(keep.sum()))
+    coarse_count = coarse_inertia(summed_blocks([slot[pos] for pos in local], blocks, int(keep.sum()), upper=True))
     if coarse_count is None:
         return None
     return int(below + coarse_count)
 
 
-def coarse_inertia(S: sp.csr_matrix) -> int | None:
-    """Negative eigenvalues of the symmetric sparse coarse matrix S by LDL^T, or None (a perturbed pivot)."""
-    if S.shape[0] == 0:
+def coarse_inertia(U: sp.csr_matrix) -> int | None:
+    """Negative eigenvalues of the symmetric sparse coarse matrix of upper triangle U by LDL^T, or None
+    (a perturbed pivot)."""
+    if U.shape[0] == 0:
         return 0
-    inertia = ldlt_inertia(S)                            # symmetric: PARDISO's blocks are
+    inertia = ldlt_inertia(U, upper=True)
     return None if inertia.n_perturbed else inertia.n_negative
 
 
@@ -412,13 +462,42 @@ def part_dynamic_schur(part: PartModel, sigma: float):
     return None if inertia.n_perturbed else (inertia.n_negative, inertia.schur)
 
 
+def interior_factor(part: PartModel):
+    """The factor of the part's K_II (its own DOFs)."""
+    own = part.interior
+    return factorize(part.K[own][:, own])
+
+
+def part_coarse_load(part: PartModel, r: np.ndarray) -> np.ndarray:
+    """K_BI K_II^-1 r (nb_p, k): the part's share of the coarse right-hand side, r (ni_p, k) on its own
+    DOFs; the factor is built here and dropped (the driver holds none).  A task."""
+    own = part.interior
+    with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
+        y = np.asarray(interior_factor(part).solve(r)).reshape(r.shape)
+        return part.K[part.boundary][:, own] @ y
+
+
+def part_interior_solve(part: PartModel, r: np.ndarray | None, u_B: np.ndarray) -> np.ndarray:
+    """K_II^-1 (r - K_IB u_B) (ni_p, k): the part's own DOFs given its coarse DOFs u_B (nb_p, k) and the
+    load r (ni_p, k) on its own DOFs (None: no load); the factor is built here and dropped.  A task."""
+    own = part.interior
+    rhs = -(part.K[own][:, part.boundary] @ u_B)
+    if r is not None:
+        rhs += r
+    with single_threaded_blas():
+        return np.asarray(interior_factor(part).solve(rhs)).reshape(rhs.shape)
+
+
 class SubstructuredSolver:
     """Exact solves with K_ii of the whole model (i = every model DOF but the boundary b) from the
-    parts' interior factors and ``coarse_factor``, the factor of the exact static Schur complement S
-    on the coarse DOFs G \\ b (``coarse_space``):
+    parts and ``coarse_factor``, the factor of the exact static Schur complement S on the coarse DOFs
+    G \\ b (``coarse_space``):
 
-        y_p = K_II^-1 r_p,   S x_G = r_G - sum_p K_GI y_p,   x_p = y_p - K_II^-1 K_IG x_G
+        g = r_G - sum_p K_GI K_II^-1 r_p,   S x_G = g,   x_p = K_II^-1 (r_p - K_IG x_G)
 
+    two rounds of part tasks (``part_coarse_load``, ``part_interior_solve`` on ``tasks``, a function
+    fn, [args per part] -> [results]; default here) around the coarse solve: every task factors its
+    part's K_II again (seconds for a part of 30-60k DOF), so the driver holds no part factor.
     It is the ``interior_factor`` of the parts' ReducedModel (``solve``), recovers every model DOF
     from coarse coordinates and modal coordinates (``recover``) and counts eigenvalues over the
     parts (``eigenvalue_count``).
@@ -426,55 +505,53 @@ class SubstructuredSolver:
 
     def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, coarse_factor, tasks=None):
 
-        self.parts, self.reductions, self.assembly, self.tasks = parts, reductions, assembly, tasks
+        self.parts, self.reductions, self.assembly = parts, reductions, assembly
+        self.tasks = tasks or in_process
         self.space = assembly.space
         self.boundary = np.asarray(boundary, dtype=np.int64)
         interior = np.ones(n_model, bool)
         interior[self.boundary] = False
         self.row = np.cumsum(interior) - 1                 # model DOF -> row of K_ii
         self.free_coarse = self.space.free
-        self.factors, self.K_IB = [], []
-        for part in parts:
-            own = part.interior
-            self.factors.append(factorize(part.K[own][:, own]))
-            self.K_IB.append(part.K[own][:, part.boundary].tocsc())
         self.schur = coarse_factor
 
-    def _part_solve(self, p: int, rhs: np.ndarray) -> np.ndarray:
-        return np.asarray(self.factors[p].solve(rhs)).reshape(rhs.shape)
+    def own_rows(self, p: int) -> np.ndarray:
+        """Rows of K_ii of part p's own DOFs."""
+        part = self.parts[p]
+        return self.row[part.dofs[part.interior]]
 
     def solve(self, r: np.ndarray) -> np.ndarray:
         """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending)."""
         shape = np.shape(r)
         r = np.asarray(r, dtype=float).reshape(shape[0], -1)
-        coarse = self.space.coarse
+        coarse, n = self.space.coarse, len(self.parts)
         slot = np.full(len(coarse), -1)
         slot[self.free_coarse] = np.arange(len(self.free_coarse))
+        cols = [slot[self.space.local[p]] for p in range(n)]
         g = r[self.row[coarse[self.free_coarse]]].copy()
-        y, cols = [], []
-        for p, part in enumerate(self.parts):
-            y.append(self._part_solve(p, r[self.row[part.dofs[part.interior]]]))
-            cols.append(slot[self.space.local[p]])
+        for p, load in enumerate(self.tasks(part_coarse_load, [(part, r[self.own_rows(p)]) for p, part in enumerate(self.parts)])):
             keep = cols[p] >= 0
-            g[cols[p][keep]] -= self.K_IB[p][:, keep].T @ y[p]
+            g[cols[p][keep]] -= load[keep]
         x = np.empty_like(r)
         x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None else g
         x[self.row[coarse[self.free_coarse]]] = x_G
-        for p, part in enumerate(self.parts):
-            u_B = np.where((cols[p] >= 0)[:, None], x_G[np.maximum(cols[p], 0)], 0.0)
-            x[self.row[part.dofs[part.interior]]] = y[p] - self._part_solve(p, self.K_IB[p] @ u_B)
+        u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
+        own = self.tasks(part_interior_solve, [(part, r[self.own_rows(p)], u_B[p]) for p, part in enumerate(self.parts)])
+        for p, x_p in enumerate(own):
+            x[self.own_rows(p)] = x_p
         return x.reshape(shape)
 
     def recover(self, U: np.ndarray, n_model: int) -> np.ndarray:
         """Model-DOF vectors (n_model, k) from assembly vectors U (n_asm, k): u_G = R c, each part's
-        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4)."""
+        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4; one round of part tasks)."""
         a, space = self.assembly, self.space
         out = np.zeros((n_model, U.shape[1]))
         u_G = space.R @ U[:space.R.shape[1]]
         out[space.coarse] = u_G
+        static = self.tasks(part_interior_solve, [(part, None, u_G[space.local[p]]) for p, part in enumerate(self.parts)])
         for p, part in enumerate(self.parts):
             q = U[a.offsets[p]:a.offsets[p + 1]]
-            out[part.dofs[part.interior]] = self.reductions[p].modes @ q - self._part_solve(p, self.K_IB[p] @ u_G[space.local[p]])
+            out[part.dofs[part.interior]] = self.reductions[p].modes @ q + static[p]
         return out
 
     def constraint_modes(self, K_model) -> np.ndarray:
