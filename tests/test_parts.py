@@ -94,7 +94,7 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     b = im.master_dofs.ravel()
     labels = rp.partition_cells(mesh.cells, 8)
     parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    space, coarse_factor = rp.coarse_space(parts, coarse, b, [rp.part_static_schur(p) for p in parts], M, n_interface=24)
+    space, coarse_factor = rp.coarse_space(parts, coarse, b, rp.static_schur(parts, coarse, b), M, n_interface=24)
     reductions = [rp.reduce_part(p, space.part_map(k), n_modes=40) for k, p in enumerate(parts)]
     assembly = rp.assemble_parts(reductions, space)
     solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor)

@@ -24,7 +24,7 @@ from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.reduction.parts import (PART_CUTOFF, assemble_parts, coarse_space, count_below, part_models,
-    part_positions, part_static_schur, partition_cells, parts_reduced_model, reduce_part, second_level, short_parts)
+    partition_cells, parts_reduced_model, reduce_part, second_level, short_parts, static_schur)
 
 
 #: times a part is run again after its worker was lost
@@ -139,13 +139,11 @@ def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_mo
     the factor of the exact coarse Schur complement)."""
 
     tasks = on_pools(pools, settings, parts)
-    schurs = tasks(part_static_schur, [(part,) for part in parts])
     wanted = n_modes
     if fmax is not None:                                # the whole model's fixed-interface modes below fmax
-        wanted = count_below(parts, part_positions(parts, coarse), coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
-    space, coarse_factor = coarse_space(parts, coarse, boundary, schurs, M_model,
-                         max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
-    del schurs
+        wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
+    space, coarse_factor = coarse_space(parts, coarse, boundary, static_schur(parts, coarse, boundary, tasks), M_model,
+                                        max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
 
     reductions: dict = {}
 
@@ -176,12 +174,23 @@ def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_mo
 def on_pools(pools: list, settings: PartsSettings, parts):
     """fn, [args per part] -> [fn(*args) per part], as tasks on ``pools[0]`` (lost workers: run again)."""
 
-    def run(fn, args: list) -> list:
-        results: dict = {}
+    def run(fn, args: list, consume=None) -> list | None:
+        """With ``consume``: consume(p, result) as each part's result arrives (none kept), and None."""
+        results = Consumed(consume) if consume is not None else {}
         run_part_tasks(pools, settings, parts, fn, dict(enumerate(args)), results)
-        return [results[p] for p in range(len(args))]
+        return None if consume is not None else [results[p] for p in range(len(args))]
 
     return run
+
+
+class Consumed:
+    """The ``results`` of ``run_part_tasks`` handed to consume(p, result) as they arrive."""
+
+    def __init__(self, consume):
+        self.consume = consume
+
+    def __setitem__(self, p: int, result) -> None:
+        self.consume(p, result)
 
 
 class PartTasks:
@@ -195,10 +204,10 @@ class PartTasks:
         self.pools = [task_pool(settings.scheduler, settings.workers)]
         weakref.finalize(self, close_pools, self.pools)
 
-    def __call__(self, fn, args: list) -> list:
+    def __call__(self, fn, args: list, consume=None) -> list | None:
         if not self.pools:
             self.pools.append(task_pool(self.settings.scheduler, self.settings.workers))
-        return on_pools(self.pools, self.settings, self.parts)(fn, args)
+        return on_pools(self.pools, self.settings, self.parts)(fn, args, consume)
 
     def close(self) -> None:
         close_pools(self.pools)

@@ -47,7 +47,7 @@ from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
 from sidprep.fe.linalg import CholmodFactorization, cholmod_available, factorize, single_threaded_blas
 from sidprep.fe.mesh import _face_table
-from sidprep.fe.pardiso import ldlt_inertia
+from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
 
@@ -184,32 +184,34 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
 # the coarse space: exact static Schur complements, interface modes of the cuts
 # ---------------------------------------------------------------------------------------------
 
-def part_static_schur(part: PartModel) -> np.ndarray:
-    """The part's exact static Schur complement K_BB - K_BI K_II^-1 K_IB (nb_p, nb_p) on its coarse DOFs,
-    from one sparse partial LDL^T (sidprep.fe.pardiso; no constraint mode is formed).  A task."""
-    with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
-        return ldlt_inertia(part.K, part.boundary).schur
+class BlockSum:
+    """sum_p P_p^T B_p P_p (n, n) csr (``S``), the dense blocks B_p (len(pos), len(pos)) added at
+    ``positions`` (-1: that row and column dropped) as they arrive (``add``), row by row into the
+    sparsity pattern of the sum (``sum_pattern``): the peak is the sum and the blocks in flight, not
+    every block at once (the exact coarse Schur complements' blocks are as large as their sum) nor
+    their triplets (24 bytes an entry).  ``upper``: only the upper triangle of the (symmetric) sum,
+    sorted (what the sparse LDL^T and Cholesky read)."""
 
+    def __init__(self, positions, n: int, upper: bool = False):
+        self.kept = [np.flatnonzero(np.asarray(pos) >= 0) for pos in positions]
+        self.cols = [np.asarray(pos)[k] for pos, k in zip(positions, self.kept)]
+        self.upper = upper
+        self.S = sum_pattern(self.cols, n, upper)
 
-def summed_blocks(positions, blocks, n: int, upper: bool = False) -> sp.csr_matrix:
-    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``
-    (-1: that row and column dropped), row by row into the sparsity pattern of the sum (the union of
-    the blocks' index sets): the peak is the result and the blocks, not the triplets (24 bytes an
-    entry) of every block at once.  ``upper``: only the upper triangle of the (symmetric) sum, sorted
-    (what the sparse LDL^T and Cholesky read).  ``blocks`` (a list) is consumed: each block is dropped
-    from it once added (the exact coarse Schur complements' blocks are as large as their sum)."""
-    kept = [np.flatnonzero(np.asarray(pos) >= 0) for pos in positions]
-    S = sum_pattern([np.asarray(pos)[k] for pos, k in zip(positions, kept)], n, upper)
-    for p, (pos, k) in enumerate(zip(positions, kept)):
-        B, blocks[p] = blocks[p], None
-        cols = np.asarray(pos)[k]
-        for i in k:
-            r = pos[i]
+    def add(self, p: int, B: np.ndarray) -> None:
+        S, k, cols = self.S, self.kept[p], self.cols[p]
+        for i, r in zip(k, cols):
             start, stop = S.indptr[r], S.indptr[r + 1]
-            at = cols >= r if upper else slice(None)
+            at = cols >= r if self.upper else slice(None)
             S.data[start + np.searchsorted(S.indices[start:stop], cols[at])] += B[i, k][at]
-        del B
-    return S
+
+
+def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
+    """sum_p P_p^T B_p P_p (n, n) csr of the dense blocks B_p at ``positions`` (``BlockSum``)."""
+    total = BlockSum(positions, n)
+    for p, B in enumerate(blocks):
+        total.add(p, B)
+    return total.S
 
 
 def sum_pattern(positions, n: int, upper: bool) -> sp.csr_matrix:
@@ -310,19 +312,17 @@ class CoarseSpace:
         return self.R[self.local[p]][:, self.columns(p)].tocsr()
 
 
-def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interface: int):
-    """The coarse space of ``parts`` from their exact static Schur complements ``schurs``
-    (``part_static_schur``, a list: consumed); b kept, every cut reduced to its ``n_interface``
-    lowest interface modes; returns (CoarseSpace, the factor of the exact Schur complement S on
-    G \\ b for the substructured solve).  S is formed once, as its upper triangle on G \\ b, and
-    dropped once factored."""
+def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int):
+    """The coarse space of ``parts`` from the upper triangle S of the whole model's exact static Schur
+    complement on G \\ b (``coarse_schur`` at sigma 0 with b held): b kept, every cut reduced to its
+    ``n_interface`` lowest interface modes; returns (CoarseSpace, the factor of S for the substructured
+    solve; S is not kept)."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
     free = np.setdiff1d(np.arange(len(coarse)), b)
     slot = np.full(len(coarse), -1)
     slot[free] = np.arange(len(free))
-    S = summed_blocks([slot[pos] for pos in local], schurs, len(free), upper=True)
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
     for g in cut_groups(local, len(coarse), b):
         with single_threaded_blas():                      # 3x faster than two threads on the shared machine
@@ -416,31 +416,55 @@ def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assem
                     space, offsets)
 
 
-def in_process(fn, args: list) -> list:
-    """fn, [args per part] -> [fn(*args) per part], here (without an executor)."""
-    return [fn(*a) for a in args]
+def in_process(fn, args: list, consume=None) -> list | None:
+    """fn, [args per part] -> [fn(*args) per part], here (without an executor); with ``consume``,
+    consume(p, fn(*args[p])) instead, and None."""
+    if consume is None:
+        return [fn(*a) for a in args]
+    for p, a in enumerate(args):
+        consume(p, fn(*a))
+    return None
 
 
-def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
-    """Eigenvalues below ``sigma`` of the whole model with the DOFs ``held`` removed: Sylvester's law of
-    inertia with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative
-    pivots of every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur
-    complements on G (``part_dynamic_schur``: on ``tasks`` when given, a function fn, [args per part] ->
-    [results], else here), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a pivot was perturbed."""
+def coarse_schur(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> tuple[sp.csr_matrix, int, int]:
+    """The whole model's exact dynamic Schur complement on the coarse DOFs G without ``held``: the sum of
+    the parts' (``part_dynamic_schur`` on ``tasks``, a function fn, [args per part], consume ->
+    [results], or here), each added as it arrives (``BlockSum``); (its upper triangle csr, the
+    negative pivots of all parts' (K - sigma M)_II, their perturbed pivots)."""
 
-    schurs = (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts])
-    if any(schur is None for schur in schurs):
-        return None
-    below = sum(schur[0] for schur in schurs)
-    blocks = [schur[1] for schur in schurs]
-    del schurs
     keep = ~np.isin(coarse, [] if held is None else held)
     slot = np.full(len(coarse), -1)
     slot[keep] = np.arange(int(keep.sum()))
-    coarse_count = coarse_inertia(summed_blocks([slot[pos] for pos in local], blocks, int(keep.sum()), upper=True))
-    if coarse_count is None:
+    total = BlockSum([slot[pos] for pos in part_positions(parts, coarse)], int(keep.sum()), upper=True)
+    below = perturbed = 0
+
+    def add(p: int, inertia: Inertia) -> None:
+        nonlocal below, perturbed
+        below, perturbed = below + inertia.n_negative, perturbed + inertia.n_perturbed
+        total.add(p, inertia.schur)
+
+    (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts], add)
+    return total.S, below, perturbed
+
+
+def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> sp.csr_matrix:
+    """The upper triangle of the whole model's exact static Schur complement on G \\ b (``coarse_schur``
+    at sigma 0, b held): for ``coarse_space``."""
+    return coarse_schur(parts, coarse, boundary, 0.0, tasks)[0]
+
+
+def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
+    """Eigenvalues below ``sigma`` of the whole model with the DOFs ``held`` removed: Sylvester's law of
+    inertia with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative
+    pivots of every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur
+    complements on G (``coarse_schur``), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a
+    pivot was perturbed."""
+
+    S, below, perturbed = coarse_schur(parts, coarse, held, sigma, tasks)
+    if perturbed:
         return None
-    return int(below + coarse_count)
+    coarse_count = coarse_inertia(S)
+    return None if coarse_count is None else int(below + coarse_count)
 
 
 def coarse_inertia(U: sp.csr_matrix) -> int | None:
@@ -452,14 +476,14 @@ def coarse_inertia(U: sp.csr_matrix) -> int | None:
     return None if inertia.n_perturbed else inertia.n_negative
 
 
-def part_dynamic_schur(part: PartModel, sigma: float):
-    """(#{eigenvalues of the part's (K, M)_II below sigma}, the part's exact dynamic Schur complement
-    (K - sigma M)_BB - (K - sigma M)_BI (K - sigma M)_II^-1 (K - sigma M)_IB (nb_p, nb_p) on its coarse
-    DOFs), both from one sparse LDL^T of the part's K - sigma M; None when a pivot was perturbed.  A task."""
+def part_dynamic_schur(part: PartModel, sigma: float) -> Inertia:
+    """The Inertia of the part's (K - sigma M)_II (#{its eigenvalues below sigma}, perturbed pivots) with
+    the part's exact dynamic Schur complement (K - sigma M)_BB - (K - sigma M)_BI (K - sigma M)_II^-1
+    (K - sigma M)_IB (nb_p, nb_p) on its coarse DOFs, from one sparse LDL^T of K - sigma M.  A task."""
 
     with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
-        inertia = ldlt_inertia((part.K - sigma * part.M).tocsr(), part.boundary)
-    return None if inertia.n_perturbed else (inertia.n_negative, inertia.schur)
+        K = (part.K - sigma * part.M).tocsr() if sigma else part.K
+        return ldlt_inertia(K, part.boundary)
 
 
 def interior_factor(part: PartModel):
@@ -562,7 +586,7 @@ class SubstructuredSolver:
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
         """Eigenvalues of the whole model below ``sigma`` (held DOFs removed), over the parts (``count_below``)."""
-        return count_below(self.parts, self.space.local, self.space.coarse, red.held, sigma, self.tasks)
+        return count_below(self.parts, self.space.coarse, red.held, sigma, self.tasks)
 
 
 def second_level(assembly: Assembly, n_modes=None, fmax=None):
