@@ -77,16 +77,15 @@ def _int(value: int) -> np.ndarray:
     return np.array([value], dtype=np.int32)
 
 
-def ldlt_inertia(A: sp.spmatrix, schur_rows=None, upper: bool = False) -> Inertia:
+def ldlt_inertia(A: sp.spmatrix, schur_rows=None) -> Inertia:
     """Inertia of the symmetric sparse ``A`` (n, n) by LDL^T; with ``schur_rows`` (nb,) ascending
-    row indices B, the inertia of A_II (I the other rows) and the dense Schur complement on B.
-    ``upper``: A holds only its upper triangle, CSR with sorted indices (no copy of it is made)."""
+    row indices B, the inertia of A_II (I the other rows) and the dense Schur complement on B."""
 
     fn = _pardiso()
     if fn is None:
         raise RuntimeError("PARDISO needs the PyPI wheel 'mkl' (pip install mkl)")
     n = A.shape[0]
-    U = A if upper else upper_triangle(A)
+    U = upper_triangle(A)
     if np.any(np.diff(U.indptr) == 0) or np.any(U.indices[U.indptr[:-1]] != np.arange(n)):
         U = with_diagonal(U)
     if U.nnz > MAX_INDEX:

@@ -8,7 +8,8 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
     K = sum_p T_p^T K_p T_p,     K_p = [[K_II, K_IB], [K_BI, K_BB]]  (B_p = part p's DOFs in G)
 
 1. each part's exact static Schur complement S_p = K_BB - K_BI K_II^-1 K_IB on B_p (a task: one sparse
-   partial LDL^T, sidprep.fe.pardiso); their sum S on G is the whole model's exact Schur complement;
+   partial LDL^T, sidprep.fe.pardiso); their sum S on G is the whole model's exact Schur complement
+   (summed as the parts' blocks arrive, its upper triangle only: ``BlockSum``);
 2. the coarse space (``coarse_space``): b kept; every cut (the coarse DOFs shared by one set of parts)
    reduced to its lowest interface modes, eigenvectors of S and M on the cut (characteristic
    constraint modes; Castanier, Tan & Pierre 2001): u_G = R c;
@@ -20,7 +21,8 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
    cut-off and the interface modes rise;
 5. every model DOF recovered from the parts (``SubstructuredSolver.recover``), which gives the
    same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
-   substructuring (the parts' factors and the factor of the exact S) - the static columns are the
+   substructuring (part tasks that factor K_II again around the factor of the exact S in the
+   driver, which holds no part factor) - the static columns are the
    whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a certified eigenvalue count
    (Wittrick-Williams over the parts, each part's inertia and dynamic Schur complement from one
    sparse LDL^T, the coarse sum's inertia from another), so the checks of
@@ -426,54 +428,121 @@ def in_process(fn, args: list, consume=None) -> list | None:
     return None
 
 
-def coarse_schur(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> tuple[sp.csr_matrix, int, int]:
-    """The whole model's exact dynamic Schur complement on the coarse DOFs G without ``held``: the sum of
-    the parts' (``part_dynamic_schur`` on ``tasks``, a function fn, [args per part], consume ->
-    [results], or here), each added as it arrives (``BlockSum``); (its upper triangle csr, the
-    negative pivots of all parts' (K - sigma M)_II, their perturbed pivots)."""
-
-    keep = ~np.isin(coarse, [] if held is None else held)
-    slot = np.full(len(coarse), -1)
-    slot[keep] = np.arange(int(keep.sum()))
-    total = BlockSum([slot[pos] for pos in part_positions(parts, coarse)], int(keep.sum()), upper=True)
-    below = perturbed = 0
-
-    def add(p: int, inertia: Inertia) -> None:
-        nonlocal below, perturbed
-        below, perturbed = below + inertia.n_negative, perturbed + inertia.n_perturbed
-        total.add(p, inertia.schur)
-
-    (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts], add)
-    return total.S, below, perturbed
-
-
 def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> sp.csr_matrix:
-    """The upper triangle of the whole model's exact static Schur complement on G \\ b (``coarse_schur``
-    at sigma 0, b held): for ``coarse_space``."""
-    return coarse_schur(parts, coarse, boundary, 0.0, tasks)[0]
+    """The upper triangle of the whole model's exact static Schur complement on G \\ b: the sum of the
+    parts' (``part_dynamic_schur`` at sigma 0 on ``tasks``, a function fn, [args per part], consume ->
+    [results], or here), each added as it arrives (``BlockSum``): for ``coarse_space``."""
+
+    slot = np.full(len(coarse), -1)
+    free = ~np.isin(coarse, boundary)
+    slot[free] = np.arange(int(free.sum()))
+    total = BlockSum([slot[pos] for pos in part_positions(parts, coarse)], int(free.sum()), upper=True)
+    (tasks or in_process)(part_dynamic_schur, [(part, 0.0) for part in parts], lambda p, inertia: total.add(p, inertia.schur))
+    return total.S
 
 
 def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
     """Eigenvalues below ``sigma`` of the whole model with the DOFs ``held`` removed: Sylvester's law of
     inertia with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative
-    pivots of every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur
-    complements on G (``coarse_schur``), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a
-    pivot was perturbed."""
+    pivots of every part's (K - sigma M)_II (a sparse LDL^T, sidprep.fe.pardiso) plus those of the
+    sum of their exact dynamic Schur complements on G (``part_dynamic_schur`` on ``tasks``, see
+    ``static_schur``), held as dense blocks between the cuts as the parts' blocks arrive and
+    eliminated cut by cut (``CutBlocks``).  None when a pivot was perturbed or is zero."""
 
-    S, below, perturbed = coarse_schur(parts, coarse, held, sigma, tasks)
-    if perturbed:
-        return None
-    coarse_count = coarse_inertia(S)
+    local = part_positions(parts, coarse)
+    held_at = np.flatnonzero(np.isin(coarse, [] if held is None else held))
+    blocks = CutBlocks(cut_groups(local, len(coarse), held_at), len(coarse))
+    below = perturbed = 0
+
+    def add(p: int, inertia: Inertia) -> None:
+        nonlocal below, perturbed
+        below, perturbed = below + inertia.n_negative, perturbed + inertia.n_perturbed
+        blocks.add(local[p], inertia.schur)
+
+    (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts], add)
+    coarse_count = None if perturbed else blocks.negative_pivots()
     return None if coarse_count is None else int(below + coarse_count)
 
 
-def coarse_inertia(U: sp.csr_matrix) -> int | None:
-    """Negative eigenvalues of the symmetric sparse coarse matrix of upper triangle U by LDL^T, or None
-    (a perturbed pivot)."""
-    if U.shape[0] == 0:
-        return 0
-    inertia = ldlt_inertia(U, upper=True)
-    return None if inertia.n_perturbed else inertia.n_negative
+class CutBlocks:
+    """A symmetric matrix on the coarse DOFs as dense blocks between groups of them (the cuts,
+    ``cut_groups``): block (i, j), i <= j, exists when a part holds DOFs of both.  The parts' Schur
+    complements are added as they arrive (``add``); ``negative_pivots`` eliminates the groups one by
+    one (fewest neighbours first), so the memory is the blocks of the sum (for a chain of parts,
+    two cuts per part) - no sparse factor with its symbolic analysis of the whole coarse matrix."""
+
+    def __init__(self, groups: list[np.ndarray], n: int):
+        self.sizes = [len(g) for g in groups]
+        self.group = np.full(n, -1)
+        self.offset = np.zeros(n, dtype=np.int64)
+        for k, g in enumerate(groups):
+            self.group[g], self.offset[g] = k, np.arange(len(g))
+        self.blocks: dict = {}
+
+    def add(self, pos: np.ndarray, B: np.ndarray) -> None:
+        """Add the dense block B (len(pos), len(pos)) at the coarse positions ``pos`` (held ones dropped)."""
+        g = self.group[pos]
+        rows = {k: np.flatnonzero(g == k) for k in np.unique(g[g >= 0])}
+        for i, ri in rows.items():
+            for j, rj in rows.items():
+                if i <= j:
+                    block = self.blocks.setdefault((i, j), np.zeros((self.sizes[i], self.sizes[j])))
+                    block[np.ix_(self.offset[pos[ri]], self.offset[pos[rj]])] += B[np.ix_(ri, rj)]
+
+    def negative_pivots(self) -> int | None:
+        """Negative eigenvalues of the matrix (Sylvester: the pivots of a block LDL^T, Haynsworth's
+        inertia additivity over the eliminated groups), or None when a pivot is zero.  Consumes it."""
+        blocks = self.blocks
+        neighbours = {k: set() for k in range(len(self.sizes))}
+        for i, j in blocks:
+            if i != j:
+                neighbours[i].add(j)
+                neighbours[j].add(i)
+        negative = 0
+        while neighbours:
+            k = min(neighbours, key=lambda g: (len(neighbours[g]), self.sizes[g]))
+            near = sorted(neighbours.pop(k))
+            factor, ipiv, info = sla.lapack.dsytrf(blocks.pop((k, k)), lower=1)
+            count = pivot_signs(factor, ipiv)
+            if info != 0 or count is None:
+                return None
+            negative += count
+            if not near:
+                continue
+            A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
+            X, _ = sla.lapack.dsytrs(factor, ipiv, A, lower=1)                                   # A_kk^-1 A_k,near
+            at = np.cumsum([0] + [self.sizes[i] for i in near])
+            for a, i in enumerate(near):
+                neighbours[i].discard(k)
+                for b, j in enumerate(near[a:], start=a):
+                    update = A[:, at[a]:at[a + 1]].T @ X[:, at[b]:at[b + 1]]
+                    if (i, j) in blocks:
+                        blocks[(i, j)] -= update
+                    else:
+                        blocks[(i, j)] = -update
+                    if i != j:
+                        neighbours[i].add(j)
+                        neighbours[j].add(i)
+        return negative
+
+
+def pivot_signs(factor: np.ndarray, ipiv: np.ndarray) -> int | None:
+    """Negative eigenvalues of the block-diagonal D of a Bunch-Kaufman LDL^T (LAPACK dsytrf, lower;
+    ipiv 1-based: a negative pair marks a 2 x 2 block), or None when D is singular."""
+    negative, k, n = 0, 0, len(ipiv)
+    while k < n:
+        if ipiv[k] > 0:
+            d = factor[k, k]
+            if d == 0:
+                return None
+            negative, k = negative + int(d < 0), k + 1
+        else:                                            # 2 x 2 block: det < 0 -> one of each sign
+            a, b, c = factor[k, k], factor[k + 1, k], factor[k + 1, k + 1]
+            det = a * c - b * b
+            if det == 0:
+                return None
+            negative, k = negative + (1 if det < 0 else 2 * int(a < 0)), k + 2
+    return negative
 
 
 def part_dynamic_schur(part: PartModel, sigma: float) -> Inertia:
