@@ -94,7 +94,7 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     b = im.master_dofs.ravel()
     labels = rp.partition_cells(mesh.cells, 8)
     parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    space, coarse_factor = rp.coarse_space(parts, coarse, b, [rp.part_static_schur(p) for p in parts], M, n_interface=24)
+    space, coarse_factor = rp.coarse_space(parts, coarse, b, rp.static_schur(parts, coarse, b), M, n_interface=24)
     reductions = [rp.reduce_part(p, space.part_map(k), n_modes=40) for k, p in enumerate(parts)]
     assembly = rp.assemble_parts(reductions, space)
     solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor)
@@ -113,6 +113,24 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     for k in (7, 10, 14):                                   # between full-model modes k-1 and k
         sigma = (2 * np.pi) ** 2 * f[k - 1] * f[k]
         assert solver.eigenvalue_count(held, sigma) == k
+
+
+def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whole_matrix():
+    # a symmetric indefinite matrix on 5 groups coupled like the cuts of parts (a chain and a triple
+    # junction), summed from "part" blocks; its negative eigenvalues from a dense eigen solve
+    rng = np.random.default_rng(3)
+    groups = [np.arange(0, 7), np.arange(7, 12), np.arange(12, 20), np.arange(20, 23), np.arange(23, 30)]
+    parts = [np.r_[groups[0], groups[1]], np.r_[groups[1], groups[2], groups[3]], np.r_[groups[3], groups[4]],
+             np.r_[groups[2], groups[4]]]
+    for shift in (-2.0, 0.5, 3.0):
+        blocks = rp.CutBlocks(groups, 30)
+        A = np.zeros((30, 30))
+        for pos in parts:
+            B = rng.standard_normal((len(pos), len(pos)))
+            B = B + B.T - shift * np.eye(len(pos))
+            A[np.ix_(pos, pos)] += B
+            blocks.add(pos, B)
+        assert blocks.negative_pivots() == int(np.sum(np.linalg.eigvalsh(A) < 0))
 
 
 def test_piston_rod_in_4_parts_on_the_local_pool_matches_the_monolithic_reduction():

@@ -91,7 +91,7 @@ def ldlt_inertia(A: sp.spmatrix, schur_rows=None) -> Inertia:
     if U.nnz > MAX_INDEX:
         raise MemoryError(f"PARDISO (LP64): {U.nnz} stored entries exceed 2^31 - 1")
     a = np.ascontiguousarray(U.data, dtype=np.float64)
-    ia, ja = U.indptr.astype(np.int32), U.indices.astype(np.int32)
+    ia, ja = U.indptr.astype(np.int32, copy=False), U.indices.astype(np.int32, copy=False)
     rows = np.asarray([] if schur_rows is None else schur_rows, dtype=np.int64)
     perm = np.zeros(n, dtype=np.int32)
     perm[rows] = 1

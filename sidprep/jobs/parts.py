@@ -14,6 +14,7 @@ driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduct
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +24,7 @@ from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.reduction.parts import (PART_CUTOFF, assemble_parts, coarse_space, count_below, part_models,
-    part_positions, part_static_schur, partition_cells, parts_reduced_model, reduce_part, second_level, short_parts)
+    partition_cells, parts_reduced_model, reduce_part, second_level, short_parts, static_schur)
 
 
 #: times a part is run again after its worker was lost
@@ -138,13 +139,11 @@ def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_mo
     the factor of the exact coarse Schur complement)."""
 
     tasks = on_pools(pools, settings, parts)
-    schurs = tasks(part_static_schur, [(part,) for part in parts])
     wanted = n_modes
     if fmax is not None:                                # the whole model's fixed-interface modes below fmax
-        wanted = count_below(parts, part_positions(parts, coarse), coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
-    space, coarse_factor = coarse_space(parts, coarse, boundary, schurs, M_model,
-                         max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
-    del schurs
+        wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
+    space, coarse_factor = coarse_space(parts, coarse, boundary, static_schur(parts, coarse, boundary, tasks), M_model,
+                                        max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
 
     reductions: dict = {}
 
@@ -175,26 +174,49 @@ def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_mo
 def on_pools(pools: list, settings: PartsSettings, parts):
     """fn, [args per part] -> [fn(*args) per part], as tasks on ``pools[0]`` (lost workers: run again)."""
 
-    def run(fn, args: list) -> list:
-        results: dict = {}
+    def run(fn, args: list, consume=None) -> list | None:
+        """With ``consume``: consume(p, result) as each part's result arrives (none kept), and None."""
+        results = Consumed(consume) if consume is not None else {}
         run_part_tasks(pools, settings, parts, fn, dict(enumerate(args)), results)
-        return [results[p] for p in range(len(args))]
+        return None if consume is not None else [results[p] for p in range(len(args))]
 
     return run
 
 
-def part_tasks(settings: PartsSettings, parts):
-    """As ``on_pools``, on a fresh pool per call: the per-part work of the checks
-    (sidprep.reduction.parts.SubstructuredSolver.eigenvalue_count)."""
+class Consumed:
+    """The ``results`` of ``run_part_tasks`` handed to consume(p, result) as they arrive."""
 
-    def run(fn, args: list) -> list:
-        pools = [task_pool(settings.scheduler, settings.workers)]
-        try:
-            return on_pools(pools, settings, parts)(fn, args)
-        finally:
-            pools[0].close()
+    def __init__(self, consume):
+        self.consume = consume
 
-    return run
+    def __setitem__(self, p: int, result) -> None:
+        self.consume(p, result)
+
+
+class PartTasks:
+    """fn, [args per part] -> [fn(*args) per part] as tasks (``on_pools``: lost workers run again) on
+    one pool kept from the parts' reductions to the checks: the substructured solves and the
+    certified count (sidprep.reduction.parts.SubstructuredSolver) run after the reducer returned.
+    The pool is closed with ``close`` or when this object is garbage-collected."""
+
+    def __init__(self, settings: PartsSettings, parts):
+        self.settings, self.parts = settings, parts
+        self.pools = [task_pool(settings.scheduler, settings.workers)]
+        weakref.finalize(self, close_pools, self.pools)
+
+    def __call__(self, fn, args: list, consume=None) -> list | None:
+        if not self.pools:
+            self.pools.append(task_pool(self.settings.scheduler, self.settings.workers))
+        return on_pools(self.pools, self.settings, self.parts)(fn, args, consume)
+
+    def close(self) -> None:
+        close_pools(self.pools)
+
+
+def close_pools(pools: list) -> None:
+    """Close and forget the pool of ``pools`` (PartTasks)."""
+    while pools:
+        pools.pop().close()
 
 
 def sent_mb(items) -> float:
@@ -216,14 +238,15 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
     def reducer(im, K_model, M_model, boundary, n_modes=None, fmax=None):
 
         parts, coarse = part_models(mesh, material, labels, im, boundary, names)
-        pools = [task_pool(settings.scheduler, settings.workers)]
+        tasks = PartTasks(settings, parts)
         try:
-            memory = worker_memory_bytes(pools[0])
+            memory = worker_memory_bytes(tasks.pools[0])
             check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
-            ordered, assembly, level2, coarse_factor = reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory,
-                                                     n_modes, fmax)
-        finally:
-            pools[0].close()
+            ordered, assembly, level2, coarse_factor = reduce_parts(tasks.pools, settings, parts, coarse, boundary,
+                                                                    M_model, memory, n_modes, fmax)
+        except BaseException:
+            tasks.close()
+            raise
         if notes is not None:
             notes.append(f"reduced in {len(parts)} {'components' if names else 'parts'} of "
                          f"{min(len(p.dofs) for p in parts)}-"
@@ -233,7 +256,6 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
                          f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
                          f"{sent_mb(parts):.0f} MiB sent to the workers, {sent_mb(ordered):.0f} MiB back")
-        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor,
-                                   tasks=part_tasks(settings, parts))
+        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor, tasks)
 
     return reducer

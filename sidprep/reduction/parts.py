@@ -8,7 +8,8 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
     K = sum_p T_p^T K_p T_p,     K_p = [[K_II, K_IB], [K_BI, K_BB]]  (B_p = part p's DOFs in G)
 
 1. each part's exact static Schur complement S_p = K_BB - K_BI K_II^-1 K_IB on B_p (a task: one sparse
-   partial LDL^T, sidprep.fe.pardiso); their sum S on G is the whole model's exact Schur complement;
+   partial LDL^T, sidprep.fe.pardiso); their sum S on G is the whole model's exact Schur complement
+   (summed as the parts' blocks arrive, its upper triangle only: ``BlockSum``);
 2. the coarse space (``coarse_space``): b kept; every cut (the coarse DOFs shared by one set of parts)
    reduced to its lowest interface modes, eigenvectors of S and M on the cut (characteristic
    constraint modes; Castanier, Tan & Pierre 2001): u_G = R c;
@@ -20,7 +21,8 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
    cut-off and the interface modes rise;
 5. every model DOF recovered from the parts (``SubstructuredSolver.recover``), which gives the
    same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
-   substructuring (the parts' factors and the factor of the exact S) - the static columns are the
+   substructuring (part tasks that factor K_II again around the factor of the exact S in the
+   driver, which holds no part factor) - the static columns are the
    whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a certified eigenvalue count
    (Wittrick-Williams over the parts, each part's inertia and dynamic Schur complement from one
    sparse LDL^T, the coarse sum's inertia from another), so the checks of
@@ -45,9 +47,9 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import factorize, single_threaded_blas
+from sidprep.fe.linalg import CholmodFactorization, cholmod_available, factorize, single_threaded_blas
 from sidprep.fe.mesh import _face_table
-from sidprep.fe.pardiso import ldlt_inertia
+from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
 
@@ -184,29 +186,71 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
 # the coarse space: exact static Schur complements, interface modes of the cuts
 # ---------------------------------------------------------------------------------------------
 
-def part_static_schur(part: PartModel) -> np.ndarray:
-    """The part's exact static Schur complement K_BB - K_BI K_II^-1 K_IB (nb_p, nb_p) on its coarse DOFs,
-    from one sparse partial LDL^T (sidprep.fe.pardiso; no constraint mode is formed).  A task."""
-    with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
-        return ldlt_inertia(part.K, part.boundary).schur
+class BlockSum:
+    """sum_p P_p^T B_p P_p (n, n) csr (``S``), the dense blocks B_p (len(pos), len(pos)) added at
+    ``positions`` (-1: that row and column dropped) as they arrive (``add``), row by row into the
+    sparsity pattern of the sum (``sum_pattern``): the peak is the sum and the blocks in flight, not
+    every block at once (the exact coarse Schur complements' blocks are as large as their sum) nor
+    their triplets (24 bytes an entry).  ``upper``: only the upper triangle of the (symmetric) sum,
+    sorted (what the sparse LDL^T and Cholesky read)."""
+
+    def __init__(self, positions, n: int, upper: bool = False):
+        self.kept = [np.flatnonzero(np.asarray(pos) >= 0) for pos in positions]
+        self.cols = [np.asarray(pos)[k] for pos, k in zip(positions, self.kept)]
+        self.upper = upper
+        self.S = sum_pattern(self.cols, n, upper)
+
+    def add(self, p: int, B: np.ndarray) -> None:
+        S, k, cols = self.S, self.kept[p], self.cols[p]
+        for i, r in zip(k, cols):
+            start, stop = S.indptr[r], S.indptr[r + 1]
+            at = cols >= r if self.upper else slice(None)
+            S.data[start + np.searchsorted(S.indices[start:stop], cols[at])] += B[i, k][at]
 
 
 def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
-    """sum_p P_p^T B_p P_p (n, n) csr: the dense blocks B_p (len(pos), len(pos)) added at ``positions``,
-    row by row into the sparsity pattern of the sum (the union of the blocks' index sets): the peak is
-    the result and the blocks, not the triplets (24 bytes an entry) of every block at once."""
+    """sum_p P_p^T B_p P_p (n, n) csr of the dense blocks B_p at ``positions`` (``BlockSum``)."""
+    total = BlockSum(positions, n)
+    for p, B in enumerate(blocks):
+        total.add(p, B)
+    return total.S
+
+
+def sum_pattern(positions, n: int, upper: bool) -> sp.csr_matrix:
+    """The zero (n, n) csr matrix (sorted indices) with the pattern of sum_p P_p^T B_p P_p: row r holds
+    the union of the positions of the parts that hold r (its upper part with ``upper``).  Rows held
+    by the same parts share that union (a cut), so no product of index sets is formed."""
     sizes = [len(pos) for pos in positions]
-    incidence = sp.csr_matrix((np.ones(sum(sizes), dtype=np.float32),
-                               (np.concatenate(positions), np.repeat(np.arange(len(sizes)), sizes))),
-                              shape=(n, len(sizes)))
-    S = (incidence @ incidence.T).tocsr()
-    S.sort_indices()
-    S.data = np.zeros(S.nnz)
-    for pos, B in zip(positions, blocks):
-        for i, r in enumerate(pos):
-            start = S.indptr[r]
-            S.data[start + np.searchsorted(S.indices[start:S.indptr[r + 1]], pos)] += B[i]
+    owners = sp.csr_matrix((np.ones(sum(sizes), dtype=np.int8),
+                            (np.concatenate(positions), np.repeat(np.arange(len(sizes)), sizes))),
+                           shape=(n, len(sizes)))
+    keys = [owners.indices[owners.indptr[r]:owners.indptr[r + 1]].tobytes() for r in range(n)]
+    union = {key: np.unique(np.concatenate([positions[p] for p in np.frombuffer(key, dtype=owners.indices.dtype)]
+                                           or [np.zeros(0, np.int64)])) for key in set(keys)}
+    start = [np.searchsorted(union[key], r) if upper else 0 for r, key in enumerate(keys)]
+    counts = np.array([len(union[key]) - s0 for key, s0 in zip(keys, start)], dtype=np.int64)
+    indptr = np.r_[0, np.cumsum(counts)]
+    index_type = np.int32 if indptr[-1] < 2**31 else np.int64
+    indices = np.empty(indptr[-1], dtype=index_type)
+    for r, (key, s0) in enumerate(zip(keys, start)):
+        indices[indptr[r]:indptr[r + 1]] = union[key][s0:]
+    S = sp.csr_matrix((np.zeros(len(indices)), indices, indptr.astype(index_type)), shape=(n, n))
+    S.has_sorted_indices = True
     return S
+
+
+def upper_factor(U: sp.csr_matrix):
+    """The factor of the SPD matrix of upper triangle U (sorted CSR): CHOLMOD reads U as it is,
+    SuperLU (without CHOLMOD) gets both triangles."""
+    if cholmod_available():
+        return CholmodFactorization(U, upper=True)
+    return factorize(U + sp.triu(U, 1).T)
+
+
+def symmetric_block(U: sp.csr_matrix, rows: np.ndarray) -> np.ndarray:
+    """The dense symmetric block A[rows][:, rows] of A from its upper triangle U (rows ascending)."""
+    B = U[rows][:, rows].toarray()
+    return B + np.triu(B, 1).T
 
 
 def cut_groups(local, n_coarse: int, fixed: np.ndarray) -> list[np.ndarray]:
@@ -270,24 +314,25 @@ class CoarseSpace:
         return self.R[self.local[p]][:, self.columns(p)].tocsr()
 
 
-def coarse_space(parts, coarse: np.ndarray, boundary, schurs, M_model, n_interface: int):
-    """The coarse space of ``parts`` from their exact static Schur complements ``schurs``
-    (``part_static_schur``): b kept, every cut reduced to its ``n_interface`` lowest interface modes;
-    returns (CoarseSpace, the factor of the exact Schur complement S on G \\ b for the substructured
-    solve: S itself is not kept)."""
+def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int):
+    """The coarse space of ``parts`` from the upper triangle S of the whole model's exact static Schur
+    complement on G \\ b (``coarse_schur`` at sigma 0 with b held): b kept, every cut reduced to its
+    ``n_interface`` lowest interface modes; returns (CoarseSpace, the factor of S for the substructured
+    solve; S is not kept)."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
-    S = summed_blocks(local, schurs, len(coarse))
+    free = np.setdiff1d(np.arange(len(coarse)), b)
+    slot = np.full(len(coarse), -1)
+    slot[free] = np.arange(len(free))
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
     for g in cut_groups(local, len(coarse), b):
         with single_threaded_blas():                      # 3x faster than two threads on the shared machine
-            phi = interface_modes(S[g][:, g].toarray(), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
+            phi = interface_modes(symmetric_block(S, slot[g]), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
     space = CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
-    free = space.free
-    return space, (factorize(S[free][:, free]) if len(free) else None)
+    return space, (upper_factor(S) if len(free) else None)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -373,52 +418,179 @@ def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assem
                     space, offsets)
 
 
-def count_below(parts, local, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
+def in_process(fn, args: list, consume=None) -> list | None:
+    """fn, [args per part] -> [fn(*args) per part], here (without an executor); with ``consume``,
+    consume(p, fn(*args[p])) instead, and None."""
+    if consume is None:
+        return [fn(*a) for a in args]
+    for p, a in enumerate(args):
+        consume(p, fn(*a))
+    return None
+
+
+def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> sp.csr_matrix:
+    """The upper triangle of the whole model's exact static Schur complement on G \\ b: the sum of the
+    parts' (``part_dynamic_schur`` at sigma 0 on ``tasks``, a function fn, [args per part], consume ->
+    [results], or here), each added as it arrives (``BlockSum``): for ``coarse_space``."""
+
+    slot = np.full(len(coarse), -1)
+    free = ~np.isin(coarse, boundary)
+    slot[free] = np.arange(int(free.sum()))
+    total = BlockSum([slot[pos] for pos in part_positions(parts, coarse)], int(free.sum()), upper=True)
+    (tasks or in_process)(part_dynamic_schur, [(part, 0.0) for part in parts], lambda p, inertia: total.add(p, inertia.schur))
+    return total.S
+
+
+def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
     """Eigenvalues below ``sigma`` of the whole model with the DOFs ``held`` removed: Sylvester's law of
     inertia with every part's own DOFs eliminated (Wittrick-Williams over the parts) - the negative
-    pivots of every part's (K - sigma M)_II plus those of the sum of their exact dynamic Schur
-    complements on G (``part_dynamic_schur``: on ``tasks`` when given, a function fn, [args per part] ->
-    [results], else here), both by a sparse LDL^T (sidprep.fe.pardiso).  None when a pivot was perturbed."""
+    pivots of every part's (K - sigma M)_II (a sparse LDL^T, sidprep.fe.pardiso) plus those of the
+    sum of their exact dynamic Schur complements on G (``part_dynamic_schur`` on ``tasks``, see
+    ``static_schur``), held as dense blocks between the cuts as the parts' blocks arrive and
+    eliminated cut by cut (``CutBlocks``).  None when a pivot was perturbed or is zero."""
 
-    args = [(part, sigma) for part in parts]
-    schurs = tasks(part_dynamic_schur, args) if tasks is not None else [part_dynamic_schur(*x) for x in args]
-    if any(schur is None for schur in schurs):
-        return None
-    below = sum(schur[0] for schur in schurs)
-    S = summed_blocks(local, [schur[1] for schur in schurs], len(coarse))
-    del schurs
-    keep = ~np.isin(coarse, [] if held is None else held)
-    coarse_count = coarse_inertia(S if keep.all() else S[keep][:, keep])     # no copy for a free body
-    if coarse_count is None:
-        return None
-    return int(below + coarse_count)
+    local = part_positions(parts, coarse)
+    held_at = np.flatnonzero(np.isin(coarse, [] if held is None else held))
+    blocks = CutBlocks(cut_groups(local, len(coarse), held_at), len(coarse))
+    below = perturbed = 0
 
+    def add(p: int, inertia: Inertia) -> None:
+        nonlocal below, perturbed
+        below, perturbed = below + inertia.n_negative, perturbed + inertia.n_perturbed
+        blocks.add(local[p], inertia.schur)
 
-def coarse_inertia(S: sp.csr_matrix) -> int | None:
-    """Negative eigenvalues of the symmetric sparse coarse matrix S by LDL^T, or None (a perturbed pivot)."""
-    if S.shape[0] == 0:
-        return 0
-    inertia = ldlt_inertia(S)                            # symmetric: PARDISO's blocks are
-    return None if inertia.n_perturbed else inertia.n_negative
+    (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts], add)
+    coarse_count = None if perturbed else blocks.negative_pivots()
+    return None if coarse_count is None else int(below + coarse_count)
 
 
-def part_dynamic_schur(part: PartModel, sigma: float):
-    """(#{eigenvalues of the part's (K, M)_II below sigma}, the part's exact dynamic Schur complement
-    (K - sigma M)_BB - (K - sigma M)_BI (K - sigma M)_II^-1 (K - sigma M)_IB (nb_p, nb_p) on its coarse
-    DOFs), both from one sparse LDL^T of the part's K - sigma M; None when a pivot was perturbed.  A task."""
+class CutBlocks:
+    """A symmetric matrix on the coarse DOFs as dense blocks between groups of them (the cuts,
+    ``cut_groups``): block (i, j), i <= j, exists when a part holds DOFs of both.  The parts' Schur
+    complements are added as they arrive (``add``); ``negative_pivots`` eliminates the groups one by
+    one (fewest neighbours first), so the memory is the blocks of the sum (for a chain of parts,
+    two cuts per part) - no sparse factor with its symbolic analysis of the whole coarse matrix."""
+
+    def __init__(self, groups: list[np.ndarray], n: int):
+        self.sizes = [len(g) for g in groups]
+        self.group = np.full(n, -1)
+        self.offset = np.zeros(n, dtype=np.int64)
+        for k, g in enumerate(groups):
+            self.group[g], self.offset[g] = k, np.arange(len(g))
+        self.blocks: dict = {}
+
+    def add(self, pos: np.ndarray, B: np.ndarray) -> None:
+        """Add the dense block B (len(pos), len(pos)) at the coarse positions ``pos`` (held ones dropped)."""
+        g = self.group[pos]
+        rows = {k: np.flatnonzero(g == k) for k in np.unique(g[g >= 0])}
+        for i, ri in rows.items():
+            for j, rj in rows.items():
+                if i <= j:
+                    block = self.blocks.setdefault((i, j), np.zeros((self.sizes[i], self.sizes[j])))
+                    block[np.ix_(self.offset[pos[ri]], self.offset[pos[rj]])] += B[np.ix_(ri, rj)]
+
+    def negative_pivots(self) -> int | None:
+        """Negative eigenvalues of the matrix (Sylvester: the pivots of a block LDL^T, Haynsworth's
+        inertia additivity over the eliminated groups), or None when a pivot is zero.  Consumes it."""
+        blocks = self.blocks
+        neighbours = {k: set() for k in range(len(self.sizes))}
+        for i, j in blocks:
+            if i != j:
+                neighbours[i].add(j)
+                neighbours[j].add(i)
+        negative = 0
+        while neighbours:
+            k = min(neighbours, key=lambda g: (len(neighbours[g]), self.sizes[g]))
+            near = sorted(neighbours.pop(k))
+            factor, ipiv, info = sla.lapack.dsytrf(blocks.pop((k, k)), lower=1)
+            count = pivot_signs(factor, ipiv)
+            if info != 0 or count is None:
+                return None
+            negative += count
+            if not near:
+                continue
+            A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
+            X, _ = sla.lapack.dsytrs(factor, ipiv, A, lower=1)                                   # A_kk^-1 A_k,near
+            at = np.cumsum([0] + [self.sizes[i] for i in near])
+            for a, i in enumerate(near):
+                neighbours[i].discard(k)
+                for b, j in enumerate(near[a:], start=a):
+                    update = A[:, at[a]:at[a + 1]].T @ X[:, at[b]:at[b + 1]]
+                    if (i, j) in blocks:
+                        blocks[(i, j)] -= update
+                    else:
+                        blocks[(i, j)] = -update
+                    if i != j:
+                        neighbours[i].add(j)
+                        neighbours[j].add(i)
+        return negative
+
+
+def pivot_signs(factor: np.ndarray, ipiv: np.ndarray) -> int | None:
+    """Negative eigenvalues of the block-diagonal D of a Bunch-Kaufman LDL^T (LAPACK dsytrf, lower;
+    ipiv 1-based: a negative pair marks a 2 x 2 block), or None when D is singular."""
+    negative, k, n = 0, 0, len(ipiv)
+    while k < n:
+        if ipiv[k] > 0:
+            d = factor[k, k]
+            if d == 0:
+                return None
+            negative, k = negative + int(d < 0), k + 1
+        else:                                            # 2 x 2 block: det < 0 -> one of each sign
+            a, b, c = factor[k, k], factor[k + 1, k], factor[k + 1, k + 1]
+            det = a * c - b * b
+            if det == 0:
+                return None
+            negative, k = negative + (1 if det < 0 else 2 * int(a < 0)), k + 2
+    return negative
+
+
+def part_dynamic_schur(part: PartModel, sigma: float) -> Inertia:
+    """The Inertia of the part's (K - sigma M)_II (#{its eigenvalues below sigma}, perturbed pivots) with
+    the part's exact dynamic Schur complement (K - sigma M)_BB - (K - sigma M)_BI (K - sigma M)_II^-1
+    (K - sigma M)_IB (nb_p, nb_p) on its coarse DOFs, from one sparse LDL^T of K - sigma M.  A task."""
 
     with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
-        inertia = ldlt_inertia((part.K - sigma * part.M).tocsr(), part.boundary)
-    return None if inertia.n_perturbed else (inertia.n_negative, inertia.schur)
+        K = (part.K - sigma * part.M).tocsr() if sigma else part.K
+        return ldlt_inertia(K, part.boundary)
+
+
+def interior_factor(part: PartModel):
+    """The factor of the part's K_II (its own DOFs)."""
+    own = part.interior
+    return factorize(part.K[own][:, own])
+
+
+def part_coarse_load(part: PartModel, r: np.ndarray) -> np.ndarray:
+    """K_BI K_II^-1 r (nb_p, k): the part's share of the coarse right-hand side, r (ni_p, k) on its own
+    DOFs; the factor is built here and dropped (the driver holds none).  A task."""
+    own = part.interior
+    with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
+        y = np.asarray(interior_factor(part).solve(r)).reshape(r.shape)
+        return part.K[part.boundary][:, own] @ y
+
+
+def part_interior_solve(part: PartModel, r: np.ndarray | None, u_B: np.ndarray) -> np.ndarray:
+    """K_II^-1 (r - K_IB u_B) (ni_p, k): the part's own DOFs given its coarse DOFs u_B (nb_p, k) and the
+    load r (ni_p, k) on its own DOFs (None: no load); the factor is built here and dropped.  A task."""
+    own = part.interior
+    rhs = -(part.K[own][:, part.boundary] @ u_B)
+    if r is not None:
+        rhs += r
+    with single_threaded_blas():
+        return np.asarray(interior_factor(part).solve(rhs)).reshape(rhs.shape)
 
 
 class SubstructuredSolver:
     """Exact solves with K_ii of the whole model (i = every model DOF but the boundary b) from the
-    parts' interior factors and ``coarse_factor``, the factor of the exact static Schur complement S
-    on the coarse DOFs G \\ b (``coarse_space``):
+    parts and ``coarse_factor``, the factor of the exact static Schur complement S on the coarse DOFs
+    G \\ b (``coarse_space``):
 
-        y_p = K_II^-1 r_p,   S x_G = r_G - sum_p K_GI y_p,   x_p = y_p - K_II^-1 K_IG x_G
+        g = r_G - sum_p K_GI K_II^-1 r_p,   S x_G = g,   x_p = K_II^-1 (r_p - K_IG x_G)
 
+    two rounds of part tasks (``part_coarse_load``, ``part_interior_solve`` on ``tasks``, a function
+    fn, [args per part] -> [results]; default here) around the coarse solve: every task factors its
+    part's K_II again (seconds for a part of 30-60k DOF), so the driver holds no part factor.
     It is the ``interior_factor`` of the parts' ReducedModel (``solve``), recovers every model DOF
     from coarse coordinates and modal coordinates (``recover``) and counts eigenvalues over the
     parts (``eigenvalue_count``).
@@ -426,55 +598,53 @@ class SubstructuredSolver:
 
     def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, coarse_factor, tasks=None):
 
-        self.parts, self.reductions, self.assembly, self.tasks = parts, reductions, assembly, tasks
+        self.parts, self.reductions, self.assembly = parts, reductions, assembly
+        self.tasks = tasks or in_process
         self.space = assembly.space
         self.boundary = np.asarray(boundary, dtype=np.int64)
         interior = np.ones(n_model, bool)
         interior[self.boundary] = False
         self.row = np.cumsum(interior) - 1                 # model DOF -> row of K_ii
         self.free_coarse = self.space.free
-        self.factors, self.K_IB = [], []
-        for part in parts:
-            own = part.interior
-            self.factors.append(factorize(part.K[own][:, own]))
-            self.K_IB.append(part.K[own][:, part.boundary].tocsc())
         self.schur = coarse_factor
 
-    def _part_solve(self, p: int, rhs: np.ndarray) -> np.ndarray:
-        return np.asarray(self.factors[p].solve(rhs)).reshape(rhs.shape)
+    def own_rows(self, p: int) -> np.ndarray:
+        """Rows of K_ii of part p's own DOFs."""
+        part = self.parts[p]
+        return self.row[part.dofs[part.interior]]
 
     def solve(self, r: np.ndarray) -> np.ndarray:
         """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending)."""
         shape = np.shape(r)
         r = np.asarray(r, dtype=float).reshape(shape[0], -1)
-        coarse = self.space.coarse
+        coarse, n = self.space.coarse, len(self.parts)
         slot = np.full(len(coarse), -1)
         slot[self.free_coarse] = np.arange(len(self.free_coarse))
+        cols = [slot[self.space.local[p]] for p in range(n)]
         g = r[self.row[coarse[self.free_coarse]]].copy()
-        y, cols = [], []
-        for p, part in enumerate(self.parts):
-            y.append(self._part_solve(p, r[self.row[part.dofs[part.interior]]]))
-            cols.append(slot[self.space.local[p]])
+        for p, load in enumerate(self.tasks(part_coarse_load, [(part, r[self.own_rows(p)]) for p, part in enumerate(self.parts)])):
             keep = cols[p] >= 0
-            g[cols[p][keep]] -= self.K_IB[p][:, keep].T @ y[p]
+            g[cols[p][keep]] -= load[keep]
         x = np.empty_like(r)
         x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None else g
         x[self.row[coarse[self.free_coarse]]] = x_G
-        for p, part in enumerate(self.parts):
-            u_B = np.where((cols[p] >= 0)[:, None], x_G[np.maximum(cols[p], 0)], 0.0)
-            x[self.row[part.dofs[part.interior]]] = y[p] - self._part_solve(p, self.K_IB[p] @ u_B)
+        u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
+        own = self.tasks(part_interior_solve, [(part, r[self.own_rows(p)], u_B[p]) for p, part in enumerate(self.parts)])
+        for p, x_p in enumerate(own):
+            x[self.own_rows(p)] = x_p
         return x.reshape(shape)
 
     def recover(self, U: np.ndarray, n_model: int) -> np.ndarray:
         """Model-DOF vectors (n_model, k) from assembly vectors U (n_asm, k): u_G = R c, each part's
-        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4)."""
+        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4; one round of part tasks)."""
         a, space = self.assembly, self.space
         out = np.zeros((n_model, U.shape[1]))
         u_G = space.R @ U[:space.R.shape[1]]
         out[space.coarse] = u_G
+        static = self.tasks(part_interior_solve, [(part, None, u_G[space.local[p]]) for p, part in enumerate(self.parts)])
         for p, part in enumerate(self.parts):
             q = U[a.offsets[p]:a.offsets[p + 1]]
-            out[part.dofs[part.interior]] = self.reductions[p].modes @ q - self._part_solve(p, self.K_IB[p] @ u_G[space.local[p]])
+            out[part.dofs[part.interior]] = self.reductions[p].modes @ q + static[p]
         return out
 
     def constraint_modes(self, K_model) -> np.ndarray:
@@ -485,7 +655,7 @@ class SubstructuredSolver:
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
         """Eigenvalues of the whole model below ``sigma`` (held DOFs removed), over the parts (``count_below``)."""
-        return count_below(self.parts, self.space.local, self.space.coarse, red.held, sigma, self.tasks)
+        return count_below(self.parts, self.space.coarse, red.held, sigma, self.tasks)
 
 
 def second_level(assembly: Assembly, n_modes=None, fmax=None):
