@@ -7,6 +7,7 @@ import os
 import shutil
 import subprocess
 import sys
+from importlib import metadata
 from pathlib import Path
 
 from sidprep.solver.equations import kernel_cache
@@ -32,6 +33,7 @@ def test_namespace_follows_the_source_text_not_its_place(tmp_path):
 
 
 def test_solver_kernels_are_located_in_the_namespace():
+    kernel_cache.install_kernel_cache()  # what the first JIT compilation does (NUMBA_CACHE_DIR unset)
     KernelLocator = kernel_locator()
     locator = KernelLocator.from_function(skew.py_func, skew.py_func.__code__.co_filename)
     expected = kernel_cache.KERNEL_CACHE / kernel_cache.NAMESPACE / "solver.equations"
@@ -69,3 +71,16 @@ def test_a_kernel_compiled_in_one_process_is_loaded_in_the_next(tmp_path):
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert (first.stdout.strip(), second.stdout.strip()) == ("0", "1")
     assert list((tmp_path / kernel_cache.NAMESPACE / "solver.equations").glob("rotations.skew-*.nbi"))
+
+
+def test_the_install_kernels_are_found_beside_a_checkouts_own_egg_info(tmp_path, monkeypatch):
+    """`pip install .` leaves sidprep.egg-info in the checkout, found first from there (CI's case):
+    the installed distribution's kernels are still the ones found."""
+    installed = tmp_path / "site-packages"
+    (installed / kernel_cache.SHIPPED / kernel_cache.NAMESPACE).mkdir(parents=True)
+    checkout = metadata.PathDistribution(tmp_path / "checkout" / "sidprep.egg-info")
+    site = metadata.PathDistribution(installed / "sidprep-0.1.0.dist-info")
+    monkeypatch.setattr(metadata, "distributions", lambda name=None: iter([checkout, site]))
+    assert kernel_cache.shipped_kernels() == installed / kernel_cache.SHIPPED / kernel_cache.NAMESPACE
+    monkeypatch.setattr(metadata, "distributions", lambda name=None: iter([checkout]))
+    assert kernel_cache.shipped_kernels() is None

@@ -77,12 +77,14 @@ def kernel_locator() -> type:
 
 
 def shipped_kernels() -> Path | None:
-    """The installed distribution's compiled kernels of this NAMESPACE, if it has them."""
-    try:
-        folder = Path(metadata.distribution("sidprep").locate_file(SHIPPED)) / NAMESPACE
-    except metadata.PackageNotFoundError:
-        return None
-    return folder if folder.is_dir() else None
+    """The installed distribution's compiled kernels of this NAMESPACE, if it has them.  Every
+    distribution named sidprep is asked: a checkout that was installed from (``pip install .``, as
+    CI does) keeps a ``sidprep.egg-info`` of its own, found first from the checkout's folder."""
+    for dist in metadata.distributions(name="sidprep"):
+        folder = Path(dist.locate_file(SHIPPED)) / NAMESPACE
+        if folder.is_dir():
+            return folder
+    return None
 
 
 def seed_cache() -> None:
