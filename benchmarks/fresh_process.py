@@ -14,9 +14,12 @@ as a script of its Python API ("sidprep API", the same calls as ``simulate.py``,
 ``sidprep simulate`` does to its process: cli/options.py ``process_setup``) and as its command
 on a scene file of the same pendulum ("sidprep simulate": parsing, the results file, the command's
 exit); the Exudyn child is a plain user script.  With ``--before`` another checkout's sidprep runs too,
-the children alternating so that they share the machine's load.
+the children alternating so that they share the machine's load.  With ``--installed PYTHON``
+that interpreter's installed sidprep runs too (no checkout on its path: the install's compiled
+kernels, ahead-of-time ones included, are what is measured).
 
     python benchmarks/fresh_process.py --exudyn-python /tmp/venv-exu/bin/python
+    python benchmarks/fresh_process.py --exudyn-python /tmp/venv-exu/bin/python --installed /tmp/venv/bin/python
     python benchmarks/fresh_process.py --exudyn-python /tmp/venv-exu/bin/python --before /work/main --repeat 7
 
 (``python -m venv --system-site-packages /tmp/venv-exu && /tmp/venv-exu/bin/pip install
@@ -118,8 +121,10 @@ def write_inputs(body: Body, folder: Path, h: float) -> tuple[Path, Path, Path]:
 
 def child_cost(argv: list[str], source: Path, folder: Path) -> dict:
     """Whole-process CPU s (user + system of the child) and, from a script child (``-c``), its
-    pendulum angle at t_end and integration CPU s (NaN for the command)."""
-    env = {**os.environ, "PYTHONPATH": str(source)}
+    pendulum angle at t_end and integration CPU s (NaN for the command); ``source`` None: the
+    interpreter's installed sidprep."""
+    env = {**os.environ, "PYTHONPATH": str(source)} if source else \
+        {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     out = subprocess.run(argv, env=env, check=True, capture_output=True, text=True, cwd=folder).stdout
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -137,6 +142,7 @@ def main() -> None:
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--exudyn-python", default=sys.executable, help="a Python with exudyn==1.13.6 installed")
     p.add_argument("--before", type=Path, help="another checkout's sidprep, run side by side (e.g. /work/main)")
+    p.add_argument("--installed", help="a Python whose installed sidprep runs side by side (a venv of a wheel)")
     args = p.parse_args()
     body = reduced_bar(args.mesh, args.modes)
     with tempfile.TemporaryDirectory() as tmp:
@@ -147,6 +153,9 @@ def main() -> None:
         cli = [sys.executable, "-m", "sidprep.cli.main", "simulate", str(scene), "-q", "-o", "r.results.h5"]
         runs = {f"sidprep API{tag}": (api, source) for tag, source in checkouts.items()}
         runs |= {f"sidprep simulate{tag}": (cli, source) for tag, source in checkouts.items()}
+        if args.installed:
+            runs["sidprep API (installed)"] = ([args.installed, *api[1:]], None)
+            runs["sidprep simulate (installed)"] = ([args.installed, *cli[1:]], None)
         runs["Exudyn"] = ([args.exudyn_python, "-c", EXUDYN_CHILD, str(BENCHMARKS), str(npz), repr(args.h)], ROOT)
         for argv, source in runs.values():  # warm-up: kernel caches filled, files in the page cache
             child_cost(argv, source, folder)
