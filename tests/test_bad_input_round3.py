@@ -581,7 +581,8 @@ def test_stale_lock_is_taken_over_and_part_files_removed(tmp_path):
 def test_simulate_sigterm_exits_143_without_traceback_or_part_file(tmp_path):
     import time
 
-    scene = pendulum(tmp_path)
+    # 1000 s of pendulum (~40 CPU s): the signal arrives mid-run however fast the run starts
+    scene = pendulum(tmp_path, {"t_end = 1.0 ": "t_end = 1000.0 "})
     proc = subprocess.Popen([sys.executable, "-m", "sidprep.cli.main", "simulate", str(scene), "-o",
                              str(tmp_path / "r.h5")], env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
