@@ -12,9 +12,11 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import sysconfig
+import time
 from pathlib import Path
 
 import numba
@@ -250,3 +252,22 @@ def test_the_solver_imports_without_numba_and_reports_its_compilations(tmp_path)
     done = subprocess.run([sys.executable, "-c", FIRST_JIT], env=env, capture_output=True, text=True, check=True)
     before, starts, value = done.stdout.split()
     assert before == "False" and int(starts) >= 1 and float(value) == 2.0
+
+
+def test_a_signal_during_an_export_is_handled_after_it_returns():
+    """A pycc export that boxes a namedtuple runs Python code inside the compiled call; a handler
+    raising there crashed the process (SIGTERM to `sidprep simulate` ended in a segmentation
+    fault).  run_export holds the handlers back: the call finishes, then the handler runs."""
+    finished = []
+
+    def export():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the interpreter runs pending handlers here: the noted one, which returns
+        finished.append(True)
+        return "result"
+
+    with pytest.raises(KeyboardInterrupt):
+        aot.run_export(export, ())
+    assert finished == [True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert aot.run_export(lambda a, b: a + b, (1, 2)) == 3

@@ -32,7 +32,9 @@ import importlib.machinery
 import importlib.util
 import json
 import os
+import signal
 import sys
+import threading
 import warnings
 from contextlib import contextmanager
 from functools import update_wrapper
@@ -345,8 +347,36 @@ class Kernel:
             key = arguments_key(args)
             function = None if key is None else self.exports.get(key)
             if function is not None:
-                return function(*args)
+                return run_export(function, args)
         return self.dispatcher(*args, **kwargs)
+
+
+#: signals whose Python handlers wait until an export returns (``run_export``)
+HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def run_export(function: Callable, args: tuple):
+    """``function(*args)`` with the Python handlers of HELD_SIGNALS run after it returns.  A pycc
+    export boxes a namedtuple result by unpickling its class: Python code inside the compiled call,
+    where a pending signal's handler runs; a handler that raises there (Ctrl-C's KeyboardInterrupt,
+    the command's SIGTERM) hands the boxing a NULL it does not check: a segmentation fault.  Held
+    back, the signal is noted there and its handler runs on return (main thread only: Python runs
+    handlers nowhere else)."""
+    if threading.current_thread() is not threading.main_thread():
+        return function(*args)
+    noted, handlers = [], {}
+    for number in HELD_SIGNALS:
+        handler = signal.getsignal(number)
+        if callable(handler):
+            handlers[number] = handler
+            signal.signal(number, lambda signum, frame: noted.append((signum, frame)))
+    try:
+        return function(*args)
+    finally:
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        for signum, frame in noted:
+            handlers[signum](signum, frame)
 
 
 def kernel_by_name(module: str, qualname: str) -> Kernel:
