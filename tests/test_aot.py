@@ -147,7 +147,7 @@ def _aot_kernels_in_a_process(cache: Path, switch: str) -> int:
 def test_the_switch_turns_the_exports_off(small_extension, tmp_path):
     namespace = tmp_path / kernel_cache.NAMESPACE
     shutil.copytree(small_extension, namespace / aot.AOT_FOLDER)
-    (namespace / kernel_cache.SEEDED_MARK).touch()
+    kernel_cache.mark_seeded(namespace, kernel_cache.shipped_kernels())
     assert _aot_kernels_in_a_process(tmp_path, "1") == 3
     assert _aot_kernels_in_a_process(tmp_path, "0") == 0
 
@@ -216,7 +216,9 @@ def test_an_installed_extension_is_the_one_tested():
         pytest.skip("no installed package compiled from this source (or SIDPREP_AOT=0)")
     assert (shipped / aot.AOT_FOLDER / aot.TABLE).exists(), (
         "the install compiled no ahead-of-time kernels: a C compiler and Python's headers (python3-dev)?")
-    assert aot.AOT_TABLE, "the installed extension is not reached by the tests"
+    assert aot.AOT_TABLE, (f"the installed extension is not reached by the tests: tables looked for in "
+                           f"{aot.table_folders()}, the cache's seed mark "
+                           f"{(kernel_cache.KERNEL_CACHE / kernel_cache.NAMESPACE / kernel_cache.SEEDED_MARK)}")
 
 
 def test_kernels_stay_numba_dispatchers_to_their_callers():

@@ -61,12 +61,36 @@ def test_seed_copies_the_install_kernels_once_and_keeps_the_users(tmp_path, monk
     assert not list(cache.rglob("*.part"))
 
 
+def test_a_cache_first_used_from_a_checkout_is_seeded_by_a_later_install(tmp_path, monkeypatch):
+    """The cache of a namespace run from a checkout is marked with nothing to seed; installing the
+    same code later seeds it: the JIT files it lacks, and the install's ahead-of-time folder."""
+    shipped, cache = tmp_path / "shipped", tmp_path / "cache"
+    (shipped / kernel_cache.AOT_FOLDER).mkdir(parents=True)
+    (shipped / kernel_cache.AOT_FOLDER / "table.json").write_text("install")
+    (shipped / "solver.equations").mkdir()
+    (shipped / "solver.equations" / "body.f-1.nbi").write_bytes(b"install")
+    monkeypatch.setattr(kernel_cache, "KERNEL_CACHE", cache)
+    monkeypatch.setattr(kernel_cache, "shipped_kernels", lambda: None)
+    kernel_cache.seed_cache()  # a checkout's run: nothing installed
+    namespace = cache / kernel_cache.NAMESPACE
+    (namespace / "solver.equations").mkdir()
+    (namespace / "solver.equations" / "body.f-1.nbi").write_bytes(b"user")
+    (namespace / kernel_cache.AOT_FOLDER).mkdir()
+    (namespace / kernel_cache.AOT_FOLDER / "table.json").write_text("another build")
+    monkeypatch.setattr(kernel_cache, "shipped_kernels", lambda: shipped)
+    kernel_cache.seed_cache()
+    assert (namespace / kernel_cache.AOT_FOLDER / "table.json").read_text() == "install"
+    assert (namespace / "solver.equations" / "body.f-1.nbi").read_bytes() == b"user"
+    assert (namespace / SEEDED_MARK).read_text() == str(shipped)
+
+
 def test_a_kernel_compiled_in_one_process_is_loaded_in_the_next(tmp_path):
     code = ("from sidprep.solver.equations.rotations import skew; import numpy as np; skew(np.ones(3)); "
             "print(len(skew.stats.cache_hits))")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
     (tmp_path / kernel_cache.NAMESPACE).mkdir()
-    (tmp_path / kernel_cache.NAMESPACE / SEEDED_MARK).touch()  # not seeded: an install may ship skew's
+    # marked as seeded from this process's install: nothing copied (an install may ship skew's)
+    kernel_cache.mark_seeded(tmp_path / kernel_cache.NAMESPACE, kernel_cache.shipped_kernels())
     first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     second = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert (first.stdout.strip(), second.stdout.strip()) == ("0", "1")

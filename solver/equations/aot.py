@@ -43,13 +43,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.solver.equations.kernel_cache import KERNEL_CACHE, NAMESPACE, SOLVER_ROOT, install_kernel_cache, seed_cache
+from sidprep.solver.equations.kernel_cache import (AOT_FOLDER, KERNEL_CACHE, NAMESPACE, install_kernel_cache, seed_cache,
+                                                   shipped_kernels)
 
 #: the extension module of the entry kernels, and its file's suffix (this interpreter's ABI)
 MODULE = "entry_kernels"
 EXTENSION_SUFFIX = importlib.machinery.EXTENSION_SUFFIXES[0]
-#: the folder of the extension and its table inside a namespace folder
-AOT_FOLDER = "aot"
 #: the table of the exports: export name <-> kernel <-> argument key
 TABLE = "table.json"
 #: the environment variable that turns the ahead-of-time kernels off ("0") for comparisons
@@ -204,8 +203,9 @@ class Exports:
 
 def table_folders() -> list[Path]:
     """Where a table may lie: the user's kernel cache (seeded from the install), then the
-    package's own folder (an installed package whose cache could not be written)."""
-    return [KERNEL_CACHE / NAMESPACE / AOT_FOLDER, SOLVER_ROOT / "_kernels" / NAMESPACE / AOT_FOLDER]
+    installed package's own folder (a cache that could not be written)."""
+    shipped = shipped_kernels()
+    return [KERNEL_CACHE / NAMESPACE / AOT_FOLDER] + ([] if shipped is None else [shipped / AOT_FOLDER])
 
 
 def read_table(folder: Path) -> dict[str, Exports]:

@@ -31,8 +31,10 @@ KERNEL_CACHE = Path(os.environ.get("NUMBA_CACHE_DIR") or Path(
     os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sidprep" / "numba")
 #: the folder, inside the installed package, of the kernels compiled by the install
 SHIPPED = "sidprep/solver/_kernels"
-#: written into a namespace folder once it has been seeded (or found nothing to seed)
+#: written into a namespace folder once it has been seeded: the install folder it was seeded from
 SEEDED_MARK = ".seeded"
+#: the folder of the ahead-of-time entry kernels inside a namespace folder (aot.py)
+AOT_FOLDER = "aot"
 
 
 def source_namespace(root: Path = SOLVER_ROOT) -> str:
@@ -87,24 +89,43 @@ def shipped_kernels() -> Path | None:
     return None
 
 
+def seed_label(source: Path | None) -> str:
+    """What a namespace's SEEDED_MARK holds: the install folder it was seeded from ('' for none)."""
+    return "" if source is None else str(source)
+
+
+def mark_seeded(target: Path, source: Path | None) -> None:
+    """Write ``target``'s SEEDED_MARK: seeded from ``source`` (None: nothing was installed)."""
+    (target / SEEDED_MARK).write_text(seed_label(source))
+
+
 def seed_cache() -> None:
-    """Copy the install's compiled kernels into KERNEL_CACHE / NAMESPACE once (files the cache
-    already has are kept); a no-op after the first time (one stat)."""
+    """Copy the install's compiled kernels into KERNEL_CACHE / NAMESPACE once per install folder.
+
+    The mark names the folder it was seeded from, so a cache first used from a checkout (nothing
+    to seed) is seeded when the same code is installed later.  JIT files the cache already has
+    are kept (the user's own compilations); the ahead-of-time folder is the install's build and
+    replaces the cache's.  One stat and one metadata lookup (~0.2 ms) once seeded.
+    """
     target = KERNEL_CACHE / NAMESPACE
-    if (target / SEEDED_MARK).exists():
-        return
     source = shipped_kernels()
+    try:
+        if (target / SEEDED_MARK).read_text() == seed_label(source):
+            return
+    except OSError:
+        pass
     try:
         target.mkdir(parents=True, exist_ok=True)
         if source is not None:
             for path in source.rglob("*"):
-                dest = target / path.relative_to(source)
-                if path.is_file() and not dest.exists():
+                relative = path.relative_to(source)
+                dest = target / relative
+                if path.is_file() and (relative.parts[0] == AOT_FOLDER or not dest.exists()):
                     dest.parent.mkdir(parents=True, exist_ok=True)
                     part = dest.with_name(dest.name + f".{os.getpid()}.part")
                     shutil.copyfile(path, part)
                     os.replace(part, dest)
-        (target / SEEDED_MARK).touch()
+        mark_seeded(target, source)
     except OSError:  # a read-only cache: numba compiles in memory, as without a cache
         pass
 
