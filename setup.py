@@ -16,8 +16,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-from setuptools import setup
+from setuptools import Distribution, setup
 from setuptools.command.build_py import build_py
+
+
+def prebuild_enabled() -> bool:
+    """Whether the install compiles the kernels (SIDPREP_PREBUILD=0 skips it)."""
+    return os.environ.get("SIDPREP_PREBUILD", "1") != "0"
 
 
 class BuildWithKernels(build_py):
@@ -27,7 +32,7 @@ class BuildWithKernels(build_py):
 
     def run(self):
         super().run()
-        if getattr(self, "editable_mode", False) or os.environ.get("SIDPREP_PREBUILD", "1") == "0":
+        if getattr(self, "editable_mode", False) or not prebuild_enabled():
             return
         lib = Path(self.build_lib).resolve()
         kernels = lib / "sidprep" / "solver" / "_kernels"
@@ -45,4 +50,12 @@ class BuildWithKernels(build_py):
                   file=sys.stderr)
 
 
-setup(cmdclass={"build_py": BuildWithKernels})
+class KernelDistribution(Distribution):
+    """A wheel with compiled kernels holds machine code for this interpreter and platform: it is
+    tagged as such (e.g. cp311-cp311-linux_x86_64), not as a pure-Python py3-none-any wheel."""
+
+    def has_ext_modules(self):
+        return prebuild_enabled()
+
+
+setup(cmdclass={"build_py": BuildWithKernels}, distclass=KernelDistribution)
