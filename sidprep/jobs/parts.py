@@ -14,6 +14,7 @@ driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduct
 
 from __future__ import annotations
 
+import threading
 import uuid
 import weakref
 from collections import OrderedDict
@@ -101,30 +102,34 @@ class NotHeld(LookupError):
     """A part task reached a worker that does not hold the part (a new or evicted one): send it again."""
 
 
-#: per worker process: (run id, part index) -> HeldPart, least recently used first
+#: per worker process: (run id, part index) -> HeldPart, least recently used first; its lock (a Dask
+#: worker runs tasks in threads)
 _HELD: OrderedDict = OrderedDict()
+_HELD_LOCK = threading.Lock()
 
 
 def held_task(key: tuple, part, budget: float, fn, *args):
     """``fn(HeldPart, *args)`` in a worker with the part ``key`` it holds; ``part`` (a PartModel, or None
     when the worker should hold it already: NotHeld otherwise) is held from now on, the least recently
     used other parts dropped while the estimated bytes held exceed ``budget``."""
-    held = _HELD.get(key)
-    if held is None:
-        if part is None:
-            raise NotHeld(key)
-        held = HeldPart(part)
-        while _HELD and sum(h.held_bytes for h in _HELD.values()) + held.held_bytes > budget:
-            _HELD.popitem(last=False)
-        _HELD[key] = held
-    _HELD.move_to_end(key)
+    with _HELD_LOCK:
+        held = _HELD.get(key)
+        if held is None:
+            if part is None:
+                raise NotHeld(key)
+            held = HeldPart(part)
+            while _HELD and sum(h.held_bytes for h in _HELD.values()) + held.held_bytes > budget:
+                _HELD.popitem(last=False)
+            _HELD[key] = held
+        _HELD.move_to_end(key)
     return fn(held, *args)
 
 
 def release_run(run: str) -> None:
     """Drop every part of the run ``run`` this worker holds."""
-    for key in [k for k in _HELD if k[0] == run]:
-        del _HELD[key]
+    with _HELD_LOCK:
+        for key in [k for k in _HELD if k[0] == run]:
+            del _HELD[key]
 
 
 def homes(parts, slots: list) -> list:
