@@ -7,9 +7,13 @@ driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduct
 * Memory: before any part starts, each part's reduction peak is estimated
   (sidprep.reduction.craig_bampton.reduction_peak_bytes) against one worker's memory; a part that does
   not fit is refused with the ``parts`` that would fit.
-* Faults: a task whose worker is lost (killed, out of memory) is run again on a fresh pool, up to
-  PART_RETRIES times; then the run stops with one line naming the part.  No result is assembled
-  from a part that did not finish.
+* Parts held where they are reduced (``PartTasks``): each part is pinned to one worker, which holds
+  its matrices (sent once) and its K_II factor (made once) for the whole run; later tasks send
+  right-hand sides only.
+* Faults: a task whose worker is lost (killed, out of memory) is run again - its part sent and
+  factored again - on the restarted slot (local pool) or another worker (Dask), up to PART_RETRIES
+  times; then the run stops with one line naming the part.  No result is assembled from a part
+  that did not finish.
 """
 
 from __future__ import annotations

@@ -23,10 +23,10 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
    the same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
    substructuring (part tasks around the factor of the exact S in the driver; each part's K_II
    factor is made once and kept where the part is held, ``HeldPart``, the driver holds none) - the
-   static columns are the whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a certified eigenvalue count
-   (Wittrick-Williams over the parts, each part's inertia and dynamic Schur complement from one
-   sparse LDL^T, the coarse sum's inertia from another), so the checks of
-   sidprep.reduction.fe_checks hold against the full model unchanged;
+   static columns are the whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a
+   certified eigenvalue count (Wittrick-Williams over the parts, each part's inertia and dynamic
+   Schur complement from one sparse LDL^T, the coarse sum's inertia from another), so the checks
+   of sidprep.reduction.fe_checks hold against the full model unchanged;
 6. the fixed-interface modes X refined by one block inverse iteration with that exact K_ii^-1:
    Rayleigh-Ritz of K_ii, M_ii on span[X, K_ii^-1 M_ii X] (``refined_modes``; a subspace-iteration
    step divides each mode's error by about the square of (its frequency / the parts' cut-off)).
