@@ -30,8 +30,8 @@ from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
-from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below,
-    part_models, partition_cells, parts_reduced_model, reduce_part, second_level, short_parts, static_schur)
+from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below, part_models,
+    partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts, static_schur)
 
 
 #: times a part is run again after its worker was lost
@@ -166,9 +166,10 @@ class PartTasks:
         self.sent_mb = 0.0
         self.budget = float("inf")
 
-    def __call__(self, fn, args, consume=None) -> list | None:
+    def __call__(self, fn, args, consume=None, meanwhile=None) -> list | None:
         """``args``: a list (every part) or {part index: args} (those parts; results in its order).  With
-        ``consume``: consume(p, result) as each part's result arrives (none kept), and None."""
+        ``consume``: consume(p, result) as each part's result arrives (none kept), and None.
+        ``meanwhile()``: the driver's own work, run once the tasks are handed out (while they run)."""
         args = args if isinstance(args, dict) else dict(enumerate(args))
         results: dict = {}
         lost = dict.fromkeys(args, 0)
@@ -182,6 +183,9 @@ class PartTasks:
                 except Exception as exc:                    # its slot broke while the tasks were handed out
                     self.lose(p, exc, lost)
                     todo.append(p)
+            if meanwhile is not None:
+                meanwhile()
+                meanwhile = None
             while running:
                 for fut in self.pool.wait(list(running)):
                     p = running.pop(fut)
@@ -243,14 +247,20 @@ def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_m
     wanted = n_modes
     if fmax is not None:                                # the whole model's fixed-interface modes below fmax
         wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
-    space, coarse_factor = coarse_space(parts, coarse, boundary, static_schur(parts, coarse, boundary, tasks), M_model,
-                                        max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
+    schur = [static_schur(parts, coarse, boundary, tasks)]
+    space = coarse_space(parts, coarse, boundary, schur[0], M_model,
+                         max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
+    factor: list = []
+
+    def factor_schur() -> None:
+        """The coarse Schur complement factored (and dropped) while the first reductions run."""
+        factor.append(schur_factor(schur.pop()))
 
     reductions: dict = {}
 
-    def run_round(requests: dict) -> None:
+    def run_round(requests: dict, meanwhile=None) -> None:
         order = sorted(requests)
-        done = tasks(reduce_part, {p: (space.part_map(p), *requests[p], memory) for p in order})
+        done = tasks(reduce_part, {p: (space.part_map(p), *requests[p], memory) for p in order}, meanwhile=meanwhile)
         reductions.update(zip(order, done))
 
     if fmax is not None:
@@ -258,7 +268,7 @@ def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_m
     else:
         count = max(PART_MIN_MODES, int(np.ceil(PART_FIRST_ROUND * PART_CUTOFF ** 2 * n_modes / len(parts))))
         first = dict.fromkeys(range(len(parts)), (count, None))
-    run_round(first)
+    run_round(first, factor_schur)
     asked = {p: f for p, (_, f) in first.items() if f is not None}
     while True:
         ordered = [reductions[p] for p in range(len(parts))]
@@ -270,7 +280,7 @@ def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_m
             break
         asked.update(dict.fromkeys(short, needed))
         run_round(dict.fromkeys(short, (None, needed)))
-    return ordered, assembly, level2, coarse_factor
+    return ordered, assembly, level2, factor[0]
 
 
 def sent_mb(items) -> float:

@@ -230,9 +230,12 @@ class InProcess:
     def __init__(self, parts):
         self.held = [HeldPart(part) for part in parts]
 
-    def __call__(self, fn, args, consume=None) -> list | None:
-        """``args``: a list (every part) or {part index: args} (those parts; results in its order)."""
+    def __call__(self, fn, args, consume=None, meanwhile=None) -> list | None:
+        """``args``: a list (every part) or {part index: args} (those parts; results in its order);
+        ``meanwhile()`` first (the executor runs it while the tasks run)."""
         args = args if isinstance(args, dict) else dict(enumerate(args))
+        if meanwhile is not None:
+            meanwhile()
         if consume is None:
             return [fn(self.held[p], *a) for p, a in args.items()]
         for p, a in args.items():
@@ -372,11 +375,10 @@ class CoarseSpace:
         return self.R[self.local[p]][:, self.columns(p)].tocsr()
 
 
-def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int):
+def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int) -> CoarseSpace:
     """The coarse space of ``parts`` from the upper triangle S of the whole model's exact static Schur
-    complement on G \\ b (``coarse_schur`` at sigma 0 with b held): b kept, every cut reduced to its
-    ``n_interface`` lowest interface modes; returns (CoarseSpace, the factor of S for the substructured
-    solve; S is not kept)."""
+    complement on G \\ b (``static_schur``): b kept, every cut reduced to its ``n_interface`` lowest
+    interface modes (S itself is factored for the substructured solve by ``schur_factor``)."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
@@ -389,8 +391,13 @@ def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model,
             phi = interface_modes(symmetric_block(S, slot[g]), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
-    space = CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
-    return space, (upper_factor(S) if len(free) else None)
+    return CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
+
+
+def schur_factor(S: sp.csr_matrix):
+    """The factor of the exact static Schur complement on G \\ b from its upper triangle S
+    (``static_schur``), for the substructured solve; None when G \\ b is empty."""
+    return upper_factor(S) if S.shape[0] else None
 
 
 # ---------------------------------------------------------------------------------------------
