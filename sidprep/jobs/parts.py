@@ -215,7 +215,7 @@ class PartTasks:
             self.sent_mb += sent_mb([part])
         return self.pool.run_on(self.home[p], held_task, (self.run, p), part, self.budget, fn, *args)
 
-    def lose(self, p: int, exc: Exception, lost: list) -> None:
+    def lose(self, p: int, exc: Exception, lost: dict) -> None:
         """Part p's worker was lost: its slot's parts are sent again (PartLost after PART_RETRIES)."""
         lost[p] += 1
         if lost[p] > PART_RETRIES:
