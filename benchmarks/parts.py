@@ -5,8 +5,10 @@ The tet10 bar of benchmarks/scale.py (1.0 x 0.05 x 0.08 m, RBE2 masters on both 
 modes + FRMs, all checks), meshed once to a binary .msh for the DOF target; then, alternating,
 ``sidprep reduce MESH`` and ``sidprep reduce MESH --parts P --workers W``, each in a fresh process
 with one BLAS thread.  Columns: wall time (median), the driver's peak RSS (the JSON summary's
-peak_memory_mb), the largest worker peak (the parts note), the largest relative difference of the
-eigen-mode frequencies to the monolithic run, and whether the checks passed; then each variant's
+peak_memory_mb), the largest worker peak (the parts note: at the end of a part's reduction; and the
+largest worker RSS sampled every second over the whole run, the parts the workers hold included),
+the largest relative difference of the eigen-mode frequencies to the monolithic run, and whether
+the checks passed; then each variant's
 wall time per phase (the last run).  The machine is
 shared: quote the ratios measured side by side.
 
@@ -25,10 +27,41 @@ import re
 import statistics
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
+
+
+#: seconds between samples of the workers' RSS
+SAMPLE_S = 1.0
+
+
+class WorkerPeaks:
+    """The largest RSS (MiB) of any pool worker (a spawned child) of this process tree, sampled every
+    SAMPLE_S while the ``with`` block runs: the workers' peak over the whole run, held parts included."""
+
+    def __enter__(self):
+        self.peak, self.stop = 0.0, threading.Event()
+        self.thread = threading.Thread(target=self.sample, daemon=True)
+        self.thread.start()
+        return self
+
+    def sample(self) -> None:
+        import psutil
+
+        while not self.stop.wait(SAMPLE_S):
+            for child in psutil.Process().children(recursive=True):
+                try:
+                    if "spawn_main" in " ".join(child.cmdline()):
+                        self.peak = max(self.peak, child.memory_info().rss / 2.0**20)
+                except psutil.Error:
+                    pass
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        self.thread.join()
 
 
 def run(mesh: Path, work: Path, parts: int | None, workers: int) -> dict:
@@ -38,13 +71,14 @@ def run(mesh: Path, work: Path, parts: int | None, workers: int) -> dict:
            "free_end", "--modes", "30", "-q", "--json", "-o", str(work / "out.sid.h5"), "--no-obj", "--no-sid-fem"]
     if parts:
         cmd += ["--parts", str(parts), "--workers", str(workers)]
-    out, err, wall, rss = timed(cmd, work)
+    with WorkerPeaks() as sampled:
+        out, err, wall, rss = timed(cmd, work)
     summary = json.loads(out)
     note = next((n for n in summary["notes"] if "parts" in n), "")
     worker = re.search(r"worker peak (\d+) MiB", note)
     eigen = [f for f, k in zip(read_frequencies(work / "out.sid.h5"), summary["kinds"]) if k == "eigen"]
     return {"wall_s": wall, "driver_mb": summary["peak_memory_mb"], "tree_mb": rss,
-            "worker_mb": float(worker.group(1)) if worker else None, "passed": summary["checks"]["passed"],
+            "worker_mb": float(worker.group(1)) if worker else None, "worker_sampled_mb": sampled.peak, "passed": summary["checks"]["passed"],
             "dof": summary["dof"], "eigen_hz": eigen, "note": note, "phases": summary["timings_s"]}
 
 
@@ -74,14 +108,16 @@ def main(argv=None) -> int:
             for parts in ([] if args.no_monolithic else [None]) + args.parts:
                 rows.setdefault(parts, []).append(run(mesh, tmp, parts, args.workers))
     mono = rows[None][0]["eigen_hz"] if None in rows else None
-    print("| DOF | run | wall s (median) | driver peak MiB | worker peak MiB | max rel. eigen freq. diff | checks |")
+    print("| DOF | run | wall s (median) | driver peak MiB | worker peak MiB (note / sampled) | max rel. eigen freq. diff "
+          "| checks |")
     print("|---|---|---|---|---|---|---|")
     for parts, rs in rows.items():
         diff = max(abs(a / b - 1) for r in rs for a, b in zip(r["eigen_hz"], mono)) if mono else float("nan")
         worker = max((r["worker_mb"] or 0) for r in rs)
+        sampled = max(r["worker_sampled_mb"] for r in rs)
         print(f"| {rs[0]['dof']} | {'monolithic' if parts is None else f'{parts} parts, {args.workers} workers'} "
               f"| {statistics.median(r['wall_s'] for r in rs):.1f} | {max(r['driver_mb'] for r in rs):.0f} "
-              f"| {worker:.0f} | {diff:.1e} | {'passed' if all(r['passed'] for r in rs) else 'FAILED'} |")
+              f"| {worker:.0f} / {sampled:.0f} | {diff:.1e} | {'passed' if all(r['passed'] for r in rs) else 'FAILED'} |")
     for parts, rs in rows.items():
         phases = ", ".join(f"{k} {v:.1f}" for k, v in rs[-1]["phases"].items())
         print(f"{'monolithic' if parts is None else f'parts {parts}'}: wall s per phase: {phases}")

@@ -26,7 +26,8 @@ from sidprep.fe.linalg import MEMORY_HEADROOM, eigen_modes
 from sidprep.fe.material import material_from_options
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
-from sidprep.jobs.parts import PART_RETRIES, PartLost, check_parts_fit
+from sidprep.jobs import parts as jp
+from sidprep.jobs.parts import PART_RETRIES, PartLost, PartsSettings, check_parts_fit, parts_reducer
 from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
@@ -94,10 +95,12 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     b = im.master_dofs.ravel()
     labels = rp.partition_cells(mesh.cells, 8)
     parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    space, coarse_factor = rp.coarse_space(parts, coarse, b, rp.static_schur(parts, coarse, b), M, n_interface=24)
-    reductions = [rp.reduce_part(p, space.part_map(k), n_modes=40) for k, p in enumerate(parts)]
+    S = rp.static_schur(parts, coarse, b)
+    space, coarse_factor = rp.coarse_space(parts, coarse, b, S, M, n_interface=24), rp.schur_factor(S)
+    tasks = rp.InProcess(parts)
+    reductions = tasks(rp.reduce_part, [(space.part_map(k), 40) for k in range(len(parts))])
     assembly = rp.assemble_parts(reductions, space)
-    solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor)
+    solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor, tasks)
     interior = np.ones(K.shape[0], bool)
     interior[b] = False
     r = np.random.default_rng(1).standard_normal((interior.sum(), 3))
@@ -106,7 +109,9 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     # the cuts are reduced (24 interface modes each), the constraint modes of b stay exact
     assert space.R.shape[1] < len(coarse)
     psi_ref = -spla.spsolve(K[interior][:, interior].tocsc(), K[interior][:, b].toarray())
-    assert np.abs(solver.constraint_modes(K) - psi_ref).max() < SOLVE_RTOL * np.abs(psi_ref).max()
+    assert np.abs(solver.constraint_modes_and_recovery(K, None)[0] - psi_ref).max() < SOLVE_RTOL * np.abs(psi_ref).max()
+    # each part's K_II was factored once (by its Craig-Bampton reduction), for three solves
+    assert tasks(rp.part_factorisations, [()] * len(parts)) == [1] * len(parts)
     # the count over the parts against a full-model eigen solve (free body: 6 rigid modes first)
     f = eigen_modes(K, M, count=12, backend="cholmod").frequencies_hz
     held = type("Red", (), {"held": None})()
@@ -279,3 +284,42 @@ def test_a_workers_peak_is_its_own_not_the_spawning_drivers():
     with multiprocessing.get_context("spawn").Pool(1) as pool:
         peak = pool.apply(peak_memory_mb)
     assert peak < 0.5 * ballast.nbytes / 2**20              # numpy + scipy + sidprep: ~100-200 MiB
+
+
+def test_each_part_is_factored_once_where_it_is_held_and_a_worker_killed_after_it_held_parts_gives_the_same_solve():
+    mesh, material, im, K, M = full_model(BAR)
+    b = im.master_dofs.ravel()
+    red = parts_reducer(mesh, material, PartsSettings(4, workers=2))(im, K, M, b, n_modes=4)
+    solver, tasks = red.interior_factor, red.interior_factor.tasks
+    try:
+        interior = np.ones(K.shape[0], bool)
+        interior[b] = False
+        r = np.random.default_rng(2).standard_normal((interior.sum(), 2))
+        x_ref = spla.spsolve(K[interior][:, interior].tocsc(), r)
+        made = tasks(rp.part_factorisations, [()] * 4)      # by the parts' reductions (a second round: 2)
+        sent = tasks.sent_mb
+        for _ in range(3):                                  # later solves send right-hand sides only
+            assert np.abs(solver.solve(r) - x_ref).max() < SOLVE_RTOL * np.abs(x_ref).max()
+        assert tasks(rp.part_factorisations, [()] * 4) == made and tasks.sent_mb == sent
+        victim = pool_workers()[0]
+        victim.kill()
+        victim.wait(10)
+        assert np.abs(solver.solve(r) - x_ref).max() < SOLVE_RTOL * np.abs(x_ref).max()
+        after = tasks(rp.part_factorisations, [()] * 4)
+        again = [p for p in range(4) if after[p] != made[p]]
+        assert tasks.sent_mb > sent and all(after[p] == 1 for p in again)   # re-sent, factored once more
+    finally:
+        tasks.close()
+
+
+def test_a_worker_holds_parts_within_its_budget_and_asks_for_an_evicted_part_again():
+    mesh, material, im, K, M = full_model(ROD)
+    parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
+    budget = 1.5 * max(rp.held_part_bytes(p) for p in parts)   # room for one part at a time
+    for p, part in enumerate(parts):
+        assert jp.held_task(("run", p), part, budget, rp.part_factorisations) == 0
+    assert [key for key in jp._HELD if key[0] == "run"] == [("run", 2)]
+    with pytest.raises(jp.NotHeld):
+        jp.held_task(("run", 0), None, budget, rp.part_factorisations)
+    jp.release_run("run")
+    assert not [key for key in jp._HELD if key[0] == "run"]

@@ -55,11 +55,51 @@ class _LocalPool:
         if getattr(self.pool, "_broken", False):
             # a worker died: waiting for the pool's internals can hang on its dead pipes (seen in
             # CPython 3.11's terminate_broken), so the remaining workers are killed and not waited for
-            for process in list(getattr(self.pool, "_processes", {}).values()):
+            for process in list((getattr(self.pool, "_processes", None) or {}).values()):
                 process.kill()
             self.pool.shutdown(wait=False, cancel_futures=True)
         else:
             self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _PinnedLocalPool:
+    """``workers`` single-process pools, one per slot: a task given a slot (``run_on``) runs in that
+    slot's process, so what a task leaves there (sidprep.jobs.parts: a part and its factor) is found
+    by the next task sent to the same slot.  A slot whose process died is started afresh (``renew``)."""
+
+    def __init__(self, workers: int):
+        self.pools = [_LocalPool(1) for _ in range(workers)]
+        self.workers = workers
+
+    @property
+    def slots(self) -> list:
+        return list(range(self.workers))
+
+    def run_on(self, slot, fn, *args):
+        """A task on the process of ``slot``."""
+        return self.pools[slot].run(fn, *args)
+
+    def wait(self, futures):
+        return wait(futures, return_when=FIRST_COMPLETED).done
+
+    def renew(self, slot) -> bool:
+        """Start ``slot``'s process afresh if it died; whether it had."""
+        if not getattr(self.pools[slot].pool, "_broken", False):
+            return False
+        self.pools[slot].close()
+        self.pools[slot] = _LocalPool(1)
+        return True
+
+    def stop(self, futures):
+        for pool in self.pools:
+            pool.stop(futures)
+
+    def clear(self, fn, *args) -> None:
+        """Nothing: what a task left in a slot's process ends with it (``close``)."""
+
+    def close(self):
+        while self.pools:
+            self.pools.pop().close()
 
 
 class _DaskPool:
@@ -84,6 +124,23 @@ class _DaskPool:
         """Any task (a top-level function and its picklable arguments) on the cluster."""
         return self.client.submit(fn, *args, pure=False)
 
+    @property
+    def slots(self) -> list:
+        """The workers' addresses (those alive now)."""
+        return sorted(self.client.scheduler_info()["workers"])
+
+    def run_on(self, slot, fn, *args):
+        """A task on the worker ``slot`` (its address) while it lives; on another when it is gone."""
+        return self.client.submit(fn, *args, pure=False, workers=[slot], allow_other_workers=True)
+
+    def renew(self, slot) -> bool:
+        """Dask replaces lost workers itself: whether ``slot`` is gone."""
+        return slot not in self.slots
+
+    def clear(self, fn, *args) -> None:
+        """``fn(*args)`` on every worker (they outlive ``close``: clear what the tasks left there)."""
+        self.client.run(fn, *args, on_error="ignore")     # a worker that died holds nothing
+
     def wait(self, futures):
         from distributed import wait  # deferred: 1.5 s import, Dask only
         return wait(list(futures), return_when="FIRST_COMPLETED").done
@@ -96,9 +153,11 @@ class _DaskPool:
             self.client.close()
 
 
-def task_pool(scheduler=None, workers: int | None = None, client=None):
+def task_pool(scheduler=None, workers: int | None = None, client=None, pinned: bool = False):
     """The executor of batches and of reductions in parts: a Dask cluster (``client`` or the
-    ``scheduler`` address) or, without either, a local process pool of ``workers`` (default: cores)."""
+    ``scheduler`` address) or, without either, a local process pool of ``workers`` (default: cores);
+    ``pinned``: a task can be sent to one worker (``slots``, ``run_on``, ``renew``)."""
     if client or scheduler:
         return _DaskPool(client or scheduler, workers)
-    return _LocalPool(workers or os.cpu_count() or 1)
+    n = workers or os.cpu_count() or 1
+    return _PinnedLocalPool(n) if pinned else _LocalPool(n)

@@ -7,14 +7,21 @@ driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduct
 * Memory: before any part starts, each part's reduction peak is estimated
   (sidprep.reduction.craig_bampton.reduction_peak_bytes) against one worker's memory; a part that does
   not fit is refused with the ``parts`` that would fit.
-* Faults: a task whose worker is lost (killed, out of memory) is run again on a fresh pool, up to
-  PART_RETRIES times; then the run stops with one line naming the part.  No result is assembled
-  from a part that did not finish.
+* Parts held where they are reduced (``PartTasks``): each part is pinned to one worker, which holds
+  its matrices (sent once) and its K_II factor (made once) for the whole run; later tasks send
+  right-hand sides only.
+* Faults: a task whose worker is lost (killed, out of memory) is run again - its part sent and
+  factored again - on the restarted slot (local pool) or another worker (Dask), up to PART_RETRIES
+  times; then the run stops with one line naming the part.  No result is assembled from a part
+  that did not finish.
 """
 
 from __future__ import annotations
 
+import threading
+import uuid
 import weakref
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,8 +30,8 @@ from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
-from sidprep.reduction.parts import (PART_CUTOFF, assemble_parts, coarse_space, count_below, part_models,
-    partition_cells, parts_reduced_model, reduce_part, second_level, short_parts, static_schur)
+from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below, part_models,
+    partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts, static_schur)
 
 
 #: times a part is run again after its worker was lost
@@ -72,15 +79,16 @@ def worker_memory_bytes(pool) -> float:
     return available_memory_bytes() / max(pool.workers, 1)
 
 
-def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) -> None:
+def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) -> float:
     """InputError before any part starts when a part's estimated reduction peak exceeds ``memory``
     (bytes, one worker), naming the ``parts`` that would fit (``components``: an assembly's, whose
-    split is the user's)."""
+    split is the user's).  Returns the bytes a worker may spend on the other parts it holds (their
+    matrices and K_II factors, ``held_task``) beside the largest reduction: the held parts' bound."""
 
     need = [reduction_peak_bytes(len(p.dofs), p.K.nnz, p.extent) for p in parts]
     worst = int(np.argmax(need))
     if need[worst] <= MEMORY_HEADROOM * memory:
-        return
+        return MEMORY_HEADROOM * memory - need[worst]
     n = len(parts)
     size = len(parts[worst].dofs)
     fits = next((m for m in range(n + 1, MAX_SUGGESTED_PARTS + 1)
@@ -94,69 +102,173 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) 
                      f"needs ~{need[worst] / gb:.2f} GB, a worker has {memory / gb:.2f} GB; {advice}")
 
 
-def run_part_tasks(pools: list, settings: PartsSettings, parts, fn, requests: dict, results: dict) -> None:
-    """Run ``fn(*requests[i])`` for every part index i of ``requests`` as tasks on ``pools[0]`` into
-    ``results[i]``; after a lost worker, the part runs again on a fresh pool (replacing ``pools[0]``;
-    module docstring)."""
+class NotHeld(LookupError):
+    """A part task reached a worker that does not hold the part (a new or evicted one): send it again."""
 
-    lost = dict.fromkeys(requests, 0)
 
-    def lose(i: int, exc: Exception) -> None:
-        lost[i] += 1
-        if lost[i] > PART_RETRIES:
-            raise PartLost(f"{parts[i].name}: its worker was lost {lost[i]} times ({type(exc).__name__}); no SID "
-                           "written - check the workers' memory and logs, or use more parts") from None
-        todo.append(i)
+#: per worker process: (run id, part index) -> HeldPart, least recently used first; its lock (a Dask
+#: worker runs tasks in threads)
+_HELD: OrderedDict = OrderedDict()
+_HELD_LOCK = threading.Lock()
 
-    todo = list(requests)
-    while todo:
-        pending, todo, running = todo, [], {}
-        for i in pending:
-            try:
-                running[pools[0].run(fn, *requests[i])] = i
-            except InputError:
-                raise
-            except Exception as exc:                    # the pool broke while the tasks were handed out
-                lose(i, exc)
-        while running:
-            for fut in pools[0].wait(list(running)):
-                i = running.pop(fut)
+
+def held_task(key: tuple, part, budget: float, fn, *args):
+    """``fn(HeldPart, *args)`` in a worker with the part ``key`` it holds; ``part`` (a PartModel, or None
+    when the worker should hold it already: NotHeld otherwise) is held from now on, the least recently
+    used other parts dropped while the estimated bytes held exceed ``budget``."""
+    with _HELD_LOCK:
+        held = _HELD.get(key)
+        if held is None:
+            if part is None:
+                raise NotHeld(key)
+            held = HeldPart(part)
+            while _HELD and sum(h.held_bytes for h in _HELD.values()) + held.held_bytes > budget:
+                _HELD.popitem(last=False)
+            _HELD[key] = held
+        _HELD.move_to_end(key)
+    return fn(held, *args)
+
+
+def release_run(run: str) -> None:
+    """Drop every part of the run ``run`` this worker holds."""
+    with _HELD_LOCK:
+        for key in [k for k in _HELD if k[0] == run]:
+            del _HELD[key]
+
+
+def homes(parts, slots: list) -> list:
+    """Each part's worker: the largest parts first, each to the slot holding the fewest DOFs."""
+    load = dict.fromkeys(slots, 0)
+    home = [None] * len(parts)
+    for p in sorted(range(len(parts)), key=lambda p: -len(parts[p].dofs)):
+        home[p] = min(slots, key=lambda s: load[s])
+        load[home[p]] += len(parts[p].dofs)
+    return home
+
+
+class PartTasks:
+    """fn, [args per part] -> [fn(HeldPart of part p, *args[p]) per part] as tasks, each part pinned to
+    one worker of one pool kept from the parts' reductions to the checks (the substructured solves
+    and the certified count, sidprep.reduction.parts.SubstructuredSolver, run after the reducer
+    returned).  A part's matrices are sent once, with its first task; its worker holds it and its
+    K_II factor (``held_task``, bounded by ``budget`` bytes) so later tasks send right-hand sides only.
+    A part whose worker was lost (killed, out of memory) is sent again with its task, to the fresh
+    process of its slot (or another Dask worker), up to PART_RETRIES times; then PartLost.
+    The pool is closed with ``close`` or when this object is garbage-collected."""
+
+    def __init__(self, settings: PartsSettings, parts):
+        self.settings, self.parts = settings, parts
+        self.pool = task_pool(settings.scheduler, settings.workers, pinned=True)
+        weakref.finalize(self, self.pool.close)
+        self.run = uuid.uuid4().hex
+        self.home = homes(parts, self.pool.slots)
+        self.sent: set = set()
+        self.sent_mb = 0.0
+        self.budget = float("inf")
+
+    def __call__(self, fn, args, consume=None, meanwhile=None) -> list | None:
+        """``args``: a list (every part) or {part index: args} (those parts; results in its order).  With
+        ``consume``: consume(p, result) as each part's result arrives (none kept), and None.
+        ``meanwhile()``: the driver's own work, run once the tasks are handed out (while they run)."""
+        args = args if isinstance(args, dict) else dict(enumerate(args))
+        results: dict = {}
+        lost = dict.fromkeys(args, 0)
+        todo = list(args)
+        while todo:
+            running = {}
+            pending, todo = todo, []
+            for p in pending:
                 try:
-                    results[i] = fut.result()
-                except InputError:
-                    raise
-                except Exception as exc:                # the worker died (killed, out of memory)
-                    lose(i, exc)
-        if todo:                                        # a local pool is broken once a worker died
-            pools[0].close()
-            pools[0] = task_pool(settings.scheduler, settings.workers)
+                    running[self.submit(p, fn, args[p])] = p
+                except Exception as exc:                    # its slot broke while the tasks were handed out
+                    self.lose(p, exc, lost)
+                    todo.append(p)
+            if meanwhile is not None:
+                meanwhile()
+                meanwhile = None
+            while running:
+                for fut in self.pool.wait(list(running)):
+                    p = running.pop(fut)
+                    try:
+                        result = fut.result()
+                    except (InputError, PartLost):
+                        raise
+                    except NotHeld:                         # a fresh or evicted holder: send the part again
+                        self.sent.discard(p)
+                        todo.append(p)
+                        continue
+                    except Exception as exc:                # the worker died (killed, out of memory)
+                        self.lose(p, exc, lost)
+                        todo.append(p)
+                        continue
+                    self.sent.add(p)
+                    if consume is None:
+                        results[p] = result
+                    else:
+                        consume(p, result)
+        return None if consume is not None else [results[p] for p in args]
+
+    def submit(self, p: int, fn, args: tuple):
+        """Part p's task on its worker, with the part's matrices unless the worker holds them."""
+        part = None if p in self.sent else self.parts[p]
+        if part is not None:
+            self.sent_mb += sent_mb([part])
+        return self.pool.run_on(self.home[p], held_task, (self.run, p), part, self.budget, fn, *args)
+
+    def lose(self, p: int, exc: Exception, lost: dict) -> None:
+        """Part p's worker was lost: its slot's parts are sent again (PartLost after PART_RETRIES)."""
+        lost[p] += 1
+        if lost[p] > PART_RETRIES:
+            raise PartLost(f"{self.parts[p].name}: its worker was lost {lost[p]} times ({type(exc).__name__}); no SID "
+                           "written - check the workers' memory and logs, or use more parts") from None
+        slot = self.home[p]
+        self.pool.renew(slot)
+        gone = slot not in self.pool.slots
+        for q, home in enumerate(self.home):
+            if home == slot:
+                self.sent.discard(q)
+                if gone:
+                    self.home[q] = self.pool.slots[q % len(self.pool.slots)]
+
+    def close(self) -> None:
+        """Close the pool (its workers drop the parts they hold)."""
+        try:
+            self.pool.clear(release_run, self.run)
+        finally:
+            self.pool.close()
 
 
-def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None):
+def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None):
     """The coarse space from the parts' exact static Schur complements (one round of tasks), then rounds
     of part reductions until every part's modes reach PART_CUTOFF x the second level's highest
     fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel,
     the factor of the exact coarse Schur complement)."""
 
-    tasks = on_pools(pools, settings, parts)
     wanted = n_modes
     if fmax is not None:                                # the whole model's fixed-interface modes below fmax
         wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
-    space, coarse_factor = coarse_space(parts, coarse, boundary, static_schur(parts, coarse, boundary, tasks), M_model,
-                                        max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
+    schur = [static_schur(parts, coarse, boundary, tasks)]
+    space = coarse_space(parts, coarse, boundary, schur[0], M_model,
+                         max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
+    factor: list = []
+
+    def factor_schur() -> None:
+        """The coarse Schur complement factored (and dropped) while the first reductions run."""
+        factor.append(schur_factor(schur.pop()))
 
     reductions: dict = {}
 
-    def run_round(requests: dict) -> None:
-        run_part_tasks(pools, settings, parts, reduce_part,
-                       {p: (parts[p], space.part_map(p), *request, memory) for p, request in requests.items()}, reductions)
+    def run_round(requests: dict, meanwhile=None) -> None:
+        order = sorted(requests)
+        done = tasks(reduce_part, {p: (space.part_map(p), *requests[p], memory) for p in order}, meanwhile=meanwhile)
+        reductions.update(zip(order, done))
 
     if fmax is not None:
         first = {p: (None, PART_CUTOFF * fmax) for p in range(len(parts))}
     else:
         count = max(PART_MIN_MODES, int(np.ceil(PART_FIRST_ROUND * PART_CUTOFF ** 2 * n_modes / len(parts))))
         first = dict.fromkeys(range(len(parts)), (count, None))
-    run_round(first)
+    run_round(first, factor_schur)
     asked = {p: f for p, (_, f) in first.items() if f is not None}
     while True:
         ordered = [reductions[p] for p in range(len(parts))]
@@ -168,55 +280,7 @@ def reduce_parts(pools, settings, parts, coarse, boundary, M_model, memory, n_mo
             break
         asked.update(dict.fromkeys(short, needed))
         run_round(dict.fromkeys(short, (None, needed)))
-    return ordered, assembly, level2, coarse_factor
-
-
-def on_pools(pools: list, settings: PartsSettings, parts):
-    """fn, [args per part] -> [fn(*args) per part], as tasks on ``pools[0]`` (lost workers: run again)."""
-
-    def run(fn, args: list, consume=None) -> list | None:
-        """With ``consume``: consume(p, result) as each part's result arrives (none kept), and None."""
-        results = Consumed(consume) if consume is not None else {}
-        run_part_tasks(pools, settings, parts, fn, dict(enumerate(args)), results)
-        return None if consume is not None else [results[p] for p in range(len(args))]
-
-    return run
-
-
-class Consumed:
-    """The ``results`` of ``run_part_tasks`` handed to consume(p, result) as they arrive."""
-
-    def __init__(self, consume):
-        self.consume = consume
-
-    def __setitem__(self, p: int, result) -> None:
-        self.consume(p, result)
-
-
-class PartTasks:
-    """fn, [args per part] -> [fn(*args) per part] as tasks (``on_pools``: lost workers run again) on
-    one pool kept from the parts' reductions to the checks: the substructured solves and the
-    certified count (sidprep.reduction.parts.SubstructuredSolver) run after the reducer returned.
-    The pool is closed with ``close`` or when this object is garbage-collected."""
-
-    def __init__(self, settings: PartsSettings, parts):
-        self.settings, self.parts = settings, parts
-        self.pools = [task_pool(settings.scheduler, settings.workers)]
-        weakref.finalize(self, close_pools, self.pools)
-
-    def __call__(self, fn, args: list, consume=None) -> list | None:
-        if not self.pools:
-            self.pools.append(task_pool(self.settings.scheduler, self.settings.workers))
-        return on_pools(self.pools, self.settings, self.parts)(fn, args, consume)
-
-    def close(self) -> None:
-        close_pools(self.pools)
-
-
-def close_pools(pools: list) -> None:
-    """Close and forget the pool of ``pools`` (PartTasks)."""
-    while pools:
-        pools.pop().close()
+    return ordered, assembly, level2, factor[0]
 
 
 def sent_mb(items) -> float:
@@ -240,10 +304,10 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
         parts, coarse = part_models(mesh, material, labels, im, boundary, names)
         tasks = PartTasks(settings, parts)
         try:
-            memory = worker_memory_bytes(tasks.pools[0])
-            check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
-            ordered, assembly, level2, coarse_factor = reduce_parts(tasks.pools, settings, parts, coarse, boundary,
-                                                                    M_model, memory, n_modes, fmax)
+            memory = worker_memory_bytes(tasks.pool)
+            tasks.budget = check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
+            ordered, assembly, level2, coarse_factor = reduce_parts(tasks, parts, coarse, boundary, M_model, memory,
+                                                                    n_modes, fmax)
         except BaseException:
             tasks.close()
             raise
@@ -255,7 +319,7 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
                          f"{sum(len(r.frequencies_hz) for r in ordered)} part modes up to "
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
                          f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
-                         f"{sent_mb(parts):.0f} MiB sent to the workers, {sent_mb(ordered):.0f} MiB back")
+                         f"{tasks.sent_mb:.0f} MiB of parts sent to the workers, {sent_mb(ordered):.0f} MiB back")
         return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor, tasks)
 
     return reducer

@@ -19,14 +19,14 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
 4. the reduced parts assembled on [c, q_1 .. q_N] (``assemble_parts``) and a second Craig-Bampton of
    that assembly on b: its fixed-interface modes approximate the monolithic ones as the parts'
    cut-off and the interface modes rise;
-5. every model DOF recovered from the parts (``SubstructuredSolver.recover``), which gives the
-   same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
-   substructuring (part tasks that factor K_II again around the factor of the exact S in the
-   driver, which holds no part factor) - the static columns are the
-   whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a certified eigenvalue count
-   (Wittrick-Williams over the parts, each part's inertia and dynamic Schur complement from one
-   sparse LDL^T, the coarse sum's inertia from another), so the checks of
-   sidprep.reduction.fe_checks hold against the full model unchanged;
+5. every model DOF recovered from the parts (``SubstructuredSolver.solve_and_recover``), which gives
+   the same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
+   substructuring (part tasks around the factor of the exact S in the driver; each part's K_II
+   factor is made once and kept where the part is held, ``HeldPart``, the driver holds none) - the
+   static columns are the whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a
+   certified eigenvalue count (Wittrick-Williams over the parts, each part's inertia and dynamic
+   Schur complement from one sparse LDL^T, the coarse sum's inertia from another), so the checks
+   of sidprep.reduction.fe_checks hold against the full model unchanged;
 6. the fixed-interface modes X refined by one block inverse iteration with that exact K_ii^-1:
    Rayleigh-Ritz of K_ii, M_ii on span[X, K_ii^-1 M_ii X] (``refined_modes``; a subspace-iteration
    step divides each mode's error by about the square of (its frequency / the parts' cut-off)).
@@ -47,7 +47,8 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import CholmodFactorization, cholmod_available, factorize, single_threaded_blas
+from sidprep.fe.linalg import (CholmodFactorization, cholmod_available, estimate_peak_memory, factorize,
+    single_threaded_blas)
 from sidprep.fe.mesh import _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
@@ -182,6 +183,66 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
     return parts, G
 
 
+class HeldPart:
+    """A part as the worker that holds it for a whole run sees it: its PartModel and the factor of its
+    K_II (its own DOFs), made on first use - or kept from its Craig-Bampton reduction, which factors
+    the same K_II - and reused by every later substructured solve (only right-hand sides travel).
+    ``factorisations`` counts the factors made."""
+
+    def __init__(self, part: PartModel):
+        self.part = part
+        self._factor = None
+        self.factorisations = 0
+
+    def factor(self):
+        """The factor of K_II (made here on first use)."""
+        if self._factor is None:
+            self.keep(interior_factor(self.part))
+        return self._factor
+
+    def keep(self, factor) -> None:
+        """Hold ``factor``, a factor of this part's K_II just made."""
+        self._factor = factor
+        self.factorisations += 1
+
+    @property
+    def held_bytes(self) -> float:
+        """Estimated bytes held: the part's matrices and its factor (sidprep.fe.linalg.estimate_peak_memory)."""
+        return held_part_bytes(self.part)
+
+
+def part_factorisations(held: HeldPart) -> int:
+    """The factors of K_II made for the part where it is held (a part task)."""
+    return held.factorisations
+
+
+def held_part_bytes(part: PartModel) -> float:
+    """Estimated bytes a worker holds for ``part``: its K, M and the factor of its K_II."""
+    matrices = sum(a.nbytes for m in (part.K, part.M) for a in (m.data, m.indices, m.indptr))
+    return matrices + estimate_peak_memory(len(part.interior), part.K.nnz, part.extent).factor_bytes
+
+
+class InProcess:
+    """Part tasks here (without an executor): fn, [args per part] -> [fn(HeldPart of part p, *args[p])],
+    each part's HeldPart kept across calls (its K_II factored once); with ``consume``,
+    consume(p, result) instead, and None.  The executor's counterpart: sidprep.jobs.parts.PartTasks."""
+
+    def __init__(self, parts):
+        self.held = [HeldPart(part) for part in parts]
+
+    def __call__(self, fn, args, consume=None, meanwhile=None) -> list | None:
+        """``args``: a list (every part) or {part index: args} (those parts; results in its order);
+        ``meanwhile()`` first (the executor runs it while the tasks run)."""
+        args = args if isinstance(args, dict) else dict(enumerate(args))
+        if meanwhile is not None:
+            meanwhile()
+        if consume is None:
+            return [fn(self.held[p], *a) for p, a in args.items()]
+        for p, a in args.items():
+            consume(p, fn(self.held[p], *a))
+        return None
+
+
 # ---------------------------------------------------------------------------------------------
 # the coarse space: exact static Schur complements, interface modes of the cuts
 # ---------------------------------------------------------------------------------------------
@@ -314,11 +375,10 @@ class CoarseSpace:
         return self.R[self.local[p]][:, self.columns(p)].tocsr()
 
 
-def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int):
+def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int) -> CoarseSpace:
     """The coarse space of ``parts`` from the upper triangle S of the whole model's exact static Schur
-    complement on G \\ b (``coarse_schur`` at sigma 0 with b held): b kept, every cut reduced to its
-    ``n_interface`` lowest interface modes; returns (CoarseSpace, the factor of S for the substructured
-    solve; S is not kept)."""
+    complement on G \\ b (``static_schur``): b kept, every cut reduced to its ``n_interface`` lowest
+    interface modes (S itself is factored for the substructured solve by ``schur_factor``)."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
@@ -331,8 +391,13 @@ def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model,
             phi = interface_modes(symmetric_block(S, slot[g]), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
-    space = CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
-    return space, (upper_factor(S) if len(free) else None)
+    return CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
+
+
+def schur_factor(S: sp.csr_matrix):
+    """The factor of the exact static Schur complement on G \\ b from its upper triangle S
+    (``static_schur``), for the substructured solve; None when G \\ b is empty."""
+    return upper_factor(S) if S.shape[0] else None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -370,12 +435,14 @@ def with_coarse_coordinates(part: PartModel, R: sp.csr_matrix) -> tuple[sp.csr_m
     return (T.T @ (part.K @ T)).tocsr(), (T.T @ (part.M @ T)).tocsr()
 
 
-def reduce_part(part: PartModel, R: sp.csr_matrix, n_modes: int | None = None, fmax: float | None = None,
+def reduce_part(held: HeldPart, R: sp.csr_matrix, n_modes: int | None = None, fmax: float | None = None,
                 memory_limit: float | None = None) -> PartReduction:
     """Craig-Bampton of one part on its coarse coordinates (``with_coarse_coordinates``): n_modes
     fixed-interface modes or all below fmax (Hz); ``memory_limit`` : bytes the worker may use (the
-    reduction refuses to start beyond it).  One constraint mode per coarse coordinate."""
+    reduction refuses to start beyond it).  One constraint mode per coarse coordinate.  Its factor of
+    K_II (the part's own DOFs come first, unchanged) is kept in ``held`` for the later solves.  A task."""
 
+    part = held.part
     n_i = len(part.dofs) - len(part.boundary)
     n_modes = None if n_modes is None else min(n_modes, n_i - 1)
     K, M = with_coarse_coordinates(part, R)
@@ -385,6 +452,7 @@ def reduce_part(part: PartModel, R: sp.csr_matrix, n_modes: int | None = None, f
                                memory_limit=memory_limit, extent=part.extent)
     except InputError as exc:
         raise InputError(f"{part.name}: {exc}") from None
+    held.keep(cb.interior_factor)
     return PartReduction(cb.K, cb.M, cb.basis[:n_i, cb.n_boundary:].copy(), cb.fixed_interface_hz, peak_memory_mb())
 
 
@@ -418,26 +486,16 @@ def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assem
                     space, offsets)
 
 
-def in_process(fn, args: list, consume=None) -> list | None:
-    """fn, [args per part] -> [fn(*args) per part], here (without an executor); with ``consume``,
-    consume(p, fn(*args[p])) instead, and None."""
-    if consume is None:
-        return [fn(*a) for a in args]
-    for p, a in enumerate(args):
-        consume(p, fn(*a))
-    return None
-
-
 def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> sp.csr_matrix:
     """The upper triangle of the whole model's exact static Schur complement on G \\ b: the sum of the
     parts' (``part_dynamic_schur`` at sigma 0 on ``tasks``, a function fn, [args per part], consume ->
-    [results], or here), each added as it arrives (``BlockSum``): for ``coarse_space``."""
+    [results], or ``InProcess``), each added as it arrives (``BlockSum``): for ``coarse_space``."""
 
     slot = np.full(len(coarse), -1)
     free = ~np.isin(coarse, boundary)
     slot[free] = np.arange(int(free.sum()))
     total = BlockSum([slot[pos] for pos in part_positions(parts, coarse)], int(free.sum()), upper=True)
-    (tasks or in_process)(part_dynamic_schur, [(part, 0.0) for part in parts], lambda p, inertia: total.add(p, inertia.schur))
+    (tasks or InProcess(parts))(part_dynamic_schur, [(0.0,)] * len(parts), lambda p, inertia: total.add(p, inertia.schur))
     return total.S
 
 
@@ -459,7 +517,7 @@ def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> in
         below, perturbed = below + inertia.n_negative, perturbed + inertia.n_perturbed
         blocks.add(local[p], inertia.schur)
 
-    (tasks or in_process)(part_dynamic_schur, [(part, sigma) for part in parts], add)
+    (tasks or InProcess(parts))(part_dynamic_schur, [(sigma,)] * len(parts), add)
     coarse_count = None if perturbed else blocks.negative_pivots()
     return None if coarse_count is None else int(below + coarse_count)
 
@@ -545,11 +603,12 @@ def pivot_signs(factor: np.ndarray, ipiv: np.ndarray) -> int | None:
     return negative
 
 
-def part_dynamic_schur(part: PartModel, sigma: float) -> Inertia:
+def part_dynamic_schur(held: HeldPart, sigma: float) -> Inertia:
     """The Inertia of the part's (K - sigma M)_II (#{its eigenvalues below sigma}, perturbed pivots) with
     the part's exact dynamic Schur complement (K - sigma M)_BB - (K - sigma M)_BI (K - sigma M)_II^-1
     (K - sigma M)_IB (nb_p, nb_p) on its coarse DOFs, from one sparse LDL^T of K - sigma M.  A task."""
 
+    part = held.part
     with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
         K = (part.K - sigma * part.M).tocsr() if sigma else part.K
         return ldlt_inertia(K, part.boundary)
@@ -561,24 +620,22 @@ def interior_factor(part: PartModel):
     return factorize(part.K[own][:, own])
 
 
-def part_coarse_load(part: PartModel, r: np.ndarray) -> np.ndarray:
+def part_coarse_load(held: HeldPart, r: np.ndarray) -> np.ndarray:
     """K_BI K_II^-1 r (nb_p, k): the part's share of the coarse right-hand side, r (ni_p, k) on its own
-    DOFs; the factor is built here and dropped (the driver holds none).  A task."""
-    own = part.interior
+    DOFs, with the factor ``held`` keeps (the driver holds none).  A task."""
+    part = held.part
     with single_threaded_blas():                          # one BLAS thread per task (a worker per core)
-        y = np.asarray(interior_factor(part).solve(r)).reshape(r.shape)
-        return part.K[part.boundary][:, own] @ y
+        y = np.asarray(held.factor().solve(r)).reshape(r.shape)
+        return part.K[part.boundary][:, part.interior] @ y
 
 
-def part_interior_solve(part: PartModel, r: np.ndarray | None, u_B: np.ndarray) -> np.ndarray:
+def part_interior_solve(held: HeldPart, r: np.ndarray, u_B: np.ndarray) -> np.ndarray:
     """K_II^-1 (r - K_IB u_B) (ni_p, k): the part's own DOFs given its coarse DOFs u_B (nb_p, k) and the
-    load r (ni_p, k) on its own DOFs (None: no load); the factor is built here and dropped.  A task."""
-    own = part.interior
-    rhs = -(part.K[own][:, part.boundary] @ u_B)
-    if r is not None:
-        rhs += r
+    load r (ni_p, k) on its own DOFs, with the factor ``held`` keeps.  A task."""
+    part = held.part
+    rhs = r - part.K[part.interior][:, part.boundary] @ u_B
     with single_threaded_blas():
-        return np.asarray(interior_factor(part).solve(rhs)).reshape(rhs.shape)
+        return np.asarray(held.factor().solve(rhs)).reshape(rhs.shape)
 
 
 class SubstructuredSolver:
@@ -588,18 +645,18 @@ class SubstructuredSolver:
 
         g = r_G - sum_p K_GI K_II^-1 r_p,   S x_G = g,   x_p = K_II^-1 (r_p - K_IG x_G)
 
-    two rounds of part tasks (``part_coarse_load``, ``part_interior_solve`` on ``tasks``, a function
-    fn, [args per part] -> [results]; default here) around the coarse solve: every task factors its
-    part's K_II again (seconds for a part of 30-60k DOF), so the driver holds no part factor.
+    two rounds of part tasks (``part_coarse_load``, ``part_interior_solve`` on ``tasks``: fn,
+    [args per part] -> [fn(HeldPart, *args) per part], default ``InProcess``) around the coarse solve;
+    each part's K_II is factored once, where the part is held (the driver holds no part factor).
     It is the ``interior_factor`` of the parts' ReducedModel (``solve``), recovers every model DOF
-    from coarse coordinates and modal coordinates (``recover``) and counts eigenvalues over the
-    parts (``eigenvalue_count``).
+    from coarse coordinates and modal coordinates in the same second round (``solve_and_recover``)
+    and counts eigenvalues over the parts (``eigenvalue_count``).
     """
 
     def __init__(self, parts, reductions, assembly: Assembly, boundary, n_model: int, coarse_factor, tasks=None):
 
         self.parts, self.reductions, self.assembly = parts, reductions, assembly
-        self.tasks = tasks or in_process
+        self.tasks = tasks or InProcess(parts)
         self.space = assembly.space
         self.boundary = np.asarray(boundary, dtype=np.int64)
         interior = np.ones(n_model, bool)
@@ -616,42 +673,56 @@ class SubstructuredSolver:
     def solve(self, r: np.ndarray) -> np.ndarray:
         """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending)."""
         shape = np.shape(r)
-        r = np.asarray(r, dtype=float).reshape(shape[0], -1)
-        coarse, n = self.space.coarse, len(self.parts)
-        slot = np.full(len(coarse), -1)
-        slot[self.free_coarse] = np.arange(len(self.free_coarse))
-        cols = [slot[self.space.local[p]] for p in range(n)]
-        g = r[self.row[coarse[self.free_coarse]]].copy()
-        for p, load in enumerate(self.tasks(part_coarse_load, [(part, r[self.own_rows(p)]) for p, part in enumerate(self.parts)])):
-            keep = cols[p] >= 0
-            g[cols[p][keep]] -= load[keep]
-        x = np.empty_like(r)
-        x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None else g
-        x[self.row[coarse[self.free_coarse]]] = x_G
-        u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
-        own = self.tasks(part_interior_solve, [(part, r[self.own_rows(p)], u_B[p]) for p, part in enumerate(self.parts)])
-        for p, x_p in enumerate(own):
-            x[self.own_rows(p)] = x_p
+        x, _ = self.solve_and_recover(np.asarray(r, dtype=float).reshape(shape[0], -1), None)
         return x.reshape(shape)
 
-    def recover(self, U: np.ndarray, n_model: int) -> np.ndarray:
-        """Model-DOF vectors (n_model, k) from assembly vectors U (n_asm, k): u_G = R c, each part's
-        own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p (step 4; one round of part tasks)."""
-        a, space = self.assembly, self.space
-        out = np.zeros((n_model, U.shape[1]))
-        u_G = space.R @ U[:space.R.shape[1]]
-        out[space.coarse] = u_G
-        static = self.tasks(part_interior_solve, [(part, None, u_G[space.local[p]]) for p, part in enumerate(self.parts)])
-        for p, part in enumerate(self.parts):
-            q = U[a.offsets[p]:a.offsets[p + 1]]
-            out[part.dofs[part.interior]] = self.reductions[p].modes @ q + static[p]
-        return out
+    def solve_and_recover(self, r: np.ndarray, U: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """(K_ii^-1 r (ni, k), the model-DOF vectors (n_model, m) of the assembly vectors U (n_asm, m));
+        r (ni, k) in the rows of K_ii; U None: no recovery.  The recovery (u_G = R c; each part's own
+        DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p, step 5) rides on the solve's second round."""
+        space, n = self.space, len(self.parts)
+        coarse, free = space.coarse, self.free_coarse
+        slot = np.full(len(coarse), -1)
+        slot[free] = np.arange(len(free))
+        cols = [slot[space.local[p]] for p in range(n)]
+        g = r[self.row[coarse[free]]].copy()
 
-    def constraint_modes(self, K_model) -> np.ndarray:
-        """(ni, nb) the whole model's exact constraint modes on the interior, -K_ii^-1 K_ib."""
+        def subtract(p: int, load: np.ndarray) -> None:
+            keep = cols[p] >= 0
+            g[cols[p][keep]] -= load[keep]
+
+        if r.shape[1]:
+            self.tasks(part_coarse_load, [(r[self.own_rows(p)],) for p in range(n)], subtract)
+        x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None and r.shape[1] else g
+        x = np.empty_like(r)
+        x[self.row[coarse[free]]] = x_G
+        u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
+        out = None
+        if U is not None:                                  # recovery: u_G = R c, no load on the parts
+            out = np.zeros((len(self.row), U.shape[1]))
+            u_G = space.R @ U[:space.R.shape[1]]
+            out[coarse] = u_G
+            u_B = [np.hstack([u, u_G[space.local[p]]]) for p, u in enumerate(u_B)]
+        k = r.shape[1]
+        args = [(np.hstack([r[self.own_rows(p)], np.zeros((len(self.own_rows(p)), u_B[p].shape[1] - k))]), u_B[p])
+                for p in range(n)]
+
+        def place(p: int, x_p: np.ndarray) -> None:
+            x[self.own_rows(p)] = x_p[:, :k]
+            if U is not None:
+                a, part = self.assembly, self.parts[p]
+                out[part.dofs[part.interior]] = self.reductions[p].modes @ U[a.offsets[p]:a.offsets[p + 1]] + x_p[:, k:]
+
+        self.tasks(part_interior_solve, args, place)
+        return x, out
+
+    def constraint_modes_and_recovery(self, K_model, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((ni, nb) the whole model's exact constraint modes on the interior, -K_ii^-1 K_ib; the
+        model-DOF vectors of the assembly vectors U): two rounds of part tasks for both."""
         interior = np.ones(K_model.shape[0], bool)
         interior[self.boundary] = False
-        return -self.solve(K_model[interior][:, self.boundary].toarray())
+        psi, out = self.solve_and_recover(-K_model[interior][:, self.boundary].toarray(), U)
+        return psi, out
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
         """Eigenvalues of the whole model below ``sigma`` (held DOFs removed), over the parts (``count_below``)."""
@@ -672,10 +743,13 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
     n = K_model.shape[0]
     solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, coarse_factor, tasks)
     nb = len(boundary)
-    basis = solver.recover(level2.basis, n)
+    psi, modes = solver.constraint_modes_and_recovery(K_model, level2.basis[:, nb:])
+    basis = np.zeros((n, level2.basis.shape[1]))
     interior = np.ones(n, bool)
     interior[boundary] = False
-    basis[np.ix_(interior, np.arange(nb))] = solver.constraint_modes(K_model)
+    basis[boundary, :nb] = np.eye(nb)
+    basis[interior, :nb] = psi
+    basis[:, nb:] = modes
     f, basis[interior, nb:] = refined_modes(K_model, M_model, interior, solver, basis[interior, nb:])
     return ReducedModel(basis, project(K_model, basis), project(M_model, basis),
                         np.asarray(boundary, dtype=np.int64), f, solver)
