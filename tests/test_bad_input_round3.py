@@ -504,6 +504,12 @@ def _state(pid: int) -> str:
     return "(Z)"
 
 
+def default_sigint() -> None:
+    """SIGINT to its default in a child: a test run as a background job inherits SIG_IGN, and
+    Python keeps an ignored SIGINT ignored (no KeyboardInterrupt to test)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def running_batch(tmp: Path) -> tuple[subprocess.Popen, Path]:
     """A batch of four reductions of the bar with two workers, once its workers run."""
     import time
@@ -511,7 +517,7 @@ def running_batch(tmp: Path) -> tuple[subprocess.Popen, Path]:
     study = tmp / "study.toml"
     study.write_text(f'[job]\nmesh = "{BAR}"\n[sweep]\nmodes = [2, 3, 4, 5]\n[batch]\noutdir = "out"\nworkers = 2\n')
     proc = subprocess.Popen([sys.executable, "-m", "sidprep.cli.main", "batch", str(study), "-q"], env=env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     deadline = time.monotonic() + START_S
     while len(descendants(proc.pid)) < 3 and time.monotonic() < deadline:   # forkserver + 2 workers
         time.sleep(0.2)
