@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from sidprep.solver.integrators.base import advance_pose, evaluate
+from sidprep.solver.integrators.base import advance_pose, constraint_rows, evaluate
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.run import Run
 
@@ -54,7 +54,7 @@ def coordinate_names(system) -> tuple:
 def tangent_stiffness(L, R, A, Q, refs, weights, length) -> np.ndarray:
     """K = -d f / d x (n, n) at zero velocity, central differences of step FD_STEP L / w."""
     n = int(L.uoff[-1])
-    zero_u, lam = np.zeros(n), np.zeros(int(L.joint_off[-1] + L.drv_joint.shape[0]))
+    zero_u, lam = np.zeros(n), np.zeros(constraint_rows(L))
     K = np.empty((n, n))
     for j in range(n):
         e = FD_STEP * length / weights[j]

@@ -24,9 +24,8 @@ from sidprep.solver.compile.path_range import path_marker_problems
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_warning, energy_balance
 from sidprep.solver.equations.aot import compile_events
-from sidprep.solver.equations.assemble import every_marker
 from sidprep.solver.equations.forces import FE_SPRING
-from sidprep.solver.integrators.base import Problem, Samples, State, evaluate
+from sidprep.solver.integrators.base import Problem, Samples, State, evaluate, marker_kinematics
 from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
@@ -167,8 +166,7 @@ class Run:
         run's layout; the System is not changed)."""
         rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
         if rows.size:
-            P = evaluate(every_marker(self.L), R, A, Q, np.zeros(int(self.L.uoff[-1])), 0.0,
-                         np.zeros(len(self.names)), self.refs).kin.P
+            P = marker_kinematics(self.L, R, A, Q).P
             for r in rows:
                 self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
 

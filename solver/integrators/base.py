@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate_into, evaluation_arrays
+from sidprep.solver.equations.assemble import evaluate_into, evaluation_arrays, every_marker
 from sidprep.solver.equations.forces import FE_FRICTION
 from sidprep.solver.equations.aot import NumbaValue
 from sidprep.solver.equations.rotations import add, exp_so3, jit, matvec, put, put2, se3_jacobian
@@ -77,7 +77,7 @@ class Problem:
 
     @property
     def m_all(self) -> int:
-        return int(self.L.joint_off[-1] + self.L.drv_joint.shape[0])
+        return constraint_rows(self.L)
 
 
 @dataclass
@@ -404,3 +404,14 @@ def evaluate(L, R, A, Q, u, t, lam, refs):
     Python (start, planar check, linearisation); compiled code passes its per-run workspace to
     evaluate_into."""
     return state_equations(L, R, A, Q, u, float(t), lam, refs, NO_INDICES, NO_INDICES, False)[0]
+
+
+def constraint_rows(L) -> int:
+    """m_all: the constraint rows of the layout L, every joint's then every driver's."""
+    return int(L.joint_off[-1] + L.drv_joint.shape[0])
+
+
+def marker_kinematics(L, R, A, Q):
+    """Every marker's MarkerKinematics (assemble.markers_into) at the pose (R, A, Q), at rest at t = 0."""
+    return evaluate(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, np.zeros(constraint_rows(L)),
+                    np.zeros(L.joint_off.shape[0] - 1)).kin

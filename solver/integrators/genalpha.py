@@ -47,8 +47,8 @@ from sidprep.solver.equations.assemble import (constraint_power, evaluate_into, 
                                                markers_into, moving_masses)
 from sidprep.solver.equations.rotations import jit, put
 from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
-                                             Samples, Stepper, advance_pose, expand, first_samples, lu_factor,
-                                             lu_solve, new_status, sample_buffers, store_sample)
+                                             Samples, Stepper, advance_pose, constraint_rows, expand, first_samples,
+                                             lu_factor, lu_solve, new_status, sample_buffers, store_sample)
 from sidprep.solver.integrators.outputs import sample_outputs
 from sidprep.solver.integrators.runge_kutta import hermite
 from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
@@ -83,7 +83,7 @@ GaWorkspace = namedtuple("GaWorkspace", ["e", "e_col", "lam_all", "r", "r_col", 
 
 def ga_workspace(L, constants) -> GaWorkspace:
     """The GaWorkspace of a run with layout L and GaConstants ``constants``."""
-    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+    m_all = constraint_rows(L)
     size = constants.free.size + constants.kept.size
     return GaWorkspace(evaluation_arrays(L), evaluation_arrays(L), np.zeros(m_all), np.zeros(size), np.zeros(size),
                        np.zeros((size, size)), np.zeros(3), np.full(4, np.nan))

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.integrators.base import advance_pose, evaluate, kkt_solve, restrict, state_equations
+from sidprep.solver.integrators.base import (advance_pose, constraint_rows, evaluate, kkt_solve, restrict,
+                                             state_equations)
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -78,7 +79,7 @@ def rigid_columns(L) -> np.ndarray:
 
 def constraints_at(L, R, A, Q, t, refs):
     """(g, B) of all rows at a pose (zero velocities)."""
-    e = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), refs)
+    e = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(constraint_rows(L)), refs)
     return e.g, e.B
 
 
@@ -165,7 +166,7 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     """
     if kept.size == 0:
         return u
-    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+    m_all = constraint_rows(L)
 
     def error(v):
         e = evaluate(L, R, A, Q, v, t, np.zeros(m_all), refs)
@@ -188,7 +189,7 @@ def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
     """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte;
     base.index1_accelerations through base.state_equations, lam the first guess of the kept
     multipliers, default zero)."""
-    guess = np.zeros(int(L.joint_off[-1] + L.drv_joint.size))
+    guess = np.zeros(constraint_rows(L))
     if lam is not None:
         guess[kept] = lam
     return state_equations(L, R, A, Q, u, float(t), guess, refs, free, kept, True)[1:]

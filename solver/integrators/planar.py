@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import every_marker
 from sidprep.solver.equations.rotations import jit
-from sidprep.solver.integrators.base import advance_pose, evaluate
+from sidprep.solver.integrators.base import advance_pose, constraint_rows, evaluate, marker_kinematics
 
 #: relative size below which an out-of-plane coupling counts as zero
 PLANAR_TOL = 1e-9
@@ -44,8 +43,7 @@ AXES = "xyz"
 def plane_normal(system, L, R, A, Q) -> np.ndarray | None:
     """Common unit normal (inertial) of the joint axes: revolute / cylindrical z, planar-joint
     normal; prismatic axes must lie in the plane.  None without such a joint or if they differ."""
-    AM = evaluate(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0,
-                  np.zeros(int(L.joint_off[-1] + L.drv_joint.size)), np.zeros(L.joint_off.size - 1)).kin.AM
+    AM = marker_kinematics(L, R, A, Q).AM
     index = {id(m): k for k, m in enumerate(system.markers())}
 
     def axes(kinds):
@@ -91,7 +89,7 @@ def planar_coordinates(system, L, state, refs, kept, weights, length, t_end):
     if np.any(np.abs(u[out]) > PLANAR_AXIS_TOL * max(np.max(np.abs(u)), 1e-300)):
         return None, None, ""
     rng = np.random.default_rng(0)
-    m_all = int(L.joint_off[-1] + L.drv_joint.size)
+    m_all = constraint_rows(L)
     rows = None
     for t in np.linspace(0.0, t_end, PLANAR_SAMPLES):
         Rt, At, Qt = advance_pose(L, R, A, Q, np.where(free, PLANAR_MOTION * length * rng.standard_normal(n)
