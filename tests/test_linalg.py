@@ -48,6 +48,15 @@ def test_cholmod_and_superlu_solve_the_same_system(free_box):
 
 
 @pytest.mark.parametrize("backend", ["cholmod", "superlu"])
+def test_a_right_hand_side_of_the_wrong_length_is_an_error_not_a_corrupted_heap(free_box, backend):
+    _, K, M, _ = free_box
+    factor = factorize((K + 1e-6 * spectral_scale(K, M) * M).tocsr(), backend)
+    for b in (np.zeros(3), np.zeros((3, 1)), np.zeros((K.shape[0] + 1, 2))):
+        with pytest.raises(ValueError):
+            factor.solve(b)
+
+
+@pytest.mark.parametrize("backend", ["cholmod", "superlu"])
 def test_free_body_modes_match_dense_eigh(free_box, backend):
     _, K, M, lam_ref = free_box
     res = eigen_modes(K, M, count=8, backend=backend)

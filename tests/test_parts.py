@@ -27,7 +27,7 @@ from sidprep.fe.material import material_from_options
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs import parts as jp
-from sidprep.jobs.parts import PART_RETRIES, PartLost, PartsSettings, check_parts_fit, parts_reducer
+from sidprep.jobs.parts import PART_RETRIES, PartFailed, PartLost, PartsSettings, check_parts_fit, parts_reducer
 from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
@@ -323,3 +323,18 @@ def test_a_worker_holds_parts_within_its_budget_and_asks_for_an_evicted_part_aga
         jp.held_task(("run", 0), None, budget, rp.part_factorisations)
     jp.release_run("run")
     assert not [key for key in jp._HELD if key[0] == "run"]
+
+
+def test_a_task_that_fails_on_a_living_worker_stops_the_run_naming_the_part_without_retries():
+    mesh, material, im, K, M = full_model(ROD)
+    parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
+    tasks = jp.PartTasks(PartsSettings(3, workers=1), parts)
+    try:
+        assert tasks(rp.part_factorisations, {0: ()}) == [0]
+        worker = pool_workers()
+        wrong = np.zeros((3, 1))                            # not the part's own DOFs: the solve raises
+        with pytest.raises(PartFailed, match=r"^part 1/3: part_coarse_load failed: ValueError"):
+            tasks(rp.part_coarse_load, {0: (wrong,)})
+        assert pool_workers() == worker                     # the same process: nothing was lost or renewed
+    finally:
+        tasks.close()

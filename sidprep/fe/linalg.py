@@ -121,6 +121,7 @@ class CholmodFactorization(Factorization):
         if not U.has_sorted_indices:
             U.sort_indices()
         L = sp.csc_matrix((U.data, U.indices, U.indptr), shape=A.shape)
+        self.n = A.shape[0]
         del U
         try:
             self._chol = SparseCholesky(L)
@@ -128,7 +129,10 @@ class CholmodFactorization(Factorization):
             raise np.linalg.LinAlgError(f"CHOLMOD: {exc}") from None
 
     def solve(self, b):
-        return self._chol.solve_A(np.ascontiguousarray(b, dtype=np.float64))  # CHOLMOD needs C order
+        b = np.ascontiguousarray(b, dtype=np.float64)         # CHOLMOD needs C order
+        if b.ndim not in (1, 2) or b.shape[0] != self.n:      # CHOLMOD reads past a short b (heap corruption)
+            raise ValueError(f"CHOLMOD solve: right-hand side of shape {b.shape} for a matrix of order {self.n}")
+        return self._chol.solve_A(b)
 
 
 def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:

@@ -12,8 +12,9 @@ driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduct
   right-hand sides only.
 * Faults: a task whose worker is lost (killed, out of memory) is run again - its part sent and
   factored again - on the restarted slot (local pool) or another worker (Dask), up to PART_RETRIES
-  times; then the run stops with one line naming the part.  No result is assembled from a part
-  that did not finish.
+  times; then the run stops with one line naming the part.  A task that raises an error of its own
+  on a living worker is not run again: the run stops with that error, naming the part (PartFailed).
+  No result is assembled from a part that did not finish.
 """
 
 from __future__ import annotations
@@ -54,6 +55,10 @@ MAX_SUGGESTED_PARTS = 4096
 
 class PartLost(RuntimeError):
     """A part's task failed PART_RETRIES + 1 times because its worker was lost."""
+
+
+class PartFailed(RuntimeError):
+    """A part's task raised an error of its own (its worker lives): not run again."""
 
 
 @dataclass(frozen=True)
@@ -126,7 +131,12 @@ def held_task(key: tuple, part, budget: float, fn, *args):
                 _HELD.popitem(last=False)
             _HELD[key] = held
         _HELD.move_to_end(key)
-    return fn(held, *args)
+    try:
+        return fn(held, *args)
+    except (InputError, MemoryError):                      # the user's error; out of memory: the worker's
+        raise
+    except Exception as exc:                               # the task's own error: the same again on a retry
+        raise PartFailed(f"{held.part.name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
 
 
 def release_run(run: str) -> None:
@@ -191,14 +201,14 @@ class PartTasks:
                     p = running.pop(fut)
                     try:
                         result = fut.result()
-                    except (InputError, PartLost):
+                    except (InputError, PartLost, PartFailed):
                         raise
                     except NotHeld:                         # a fresh or evicted holder: send the part again
                         self.sent.discard(p)
                         todo.append(p)
                         continue
-                    except Exception as exc:                # the worker died (killed, out of memory)
-                        self.lose(p, exc, lost)
+                    except Exception as exc:                # the worker died (killed, out of memory: no
+                        self.lose(p, exc, lost)             # task error reaches here, ``held_task``)
                         todo.append(p)
                         continue
                     self.sent.add(p)
