@@ -438,6 +438,15 @@ def single_threaded_blas():
     return threadpool_limits(limits=1, user_api="blas")
 
 
+def all_cores_blas():
+    """Context: one BLAS thread per core, for large dense work (LAPACK on blocks of thousands) while
+    nothing else computes - a reduction in parts' driver between rounds of part tasks (its workers
+    wait): the interface eigenproblems of a 2600-DOF cut 1.6x faster on 2 idle cores."""
+
+    fast_blas()
+    return threadpool_limits(limits=os.cpu_count() or 1, user_api="blas")
+
+
 def _start_vector(n: int) -> np.ndarray:
     return np.random.default_rng(START_SEED).standard_normal(n)
 

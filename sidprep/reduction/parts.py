@@ -47,8 +47,8 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import (CholmodFactorization, cholmod_available, estimate_peak_memory, factorize,
-    single_threaded_blas)
+from sidprep.fe.linalg import (CholmodFactorization, all_cores_blas, cholmod_available, estimate_peak_memory,
+    factorize, single_threaded_blas)
 from sidprep.fe.mesh import _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
@@ -387,7 +387,7 @@ def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model,
     slot[free] = np.arange(len(free))
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
     for g in cut_groups(local, len(coarse), b):
-        with single_threaded_blas():                      # 3x faster than two threads on the shared machine
+        with all_cores_blas():                            # no part task runs yet
             phi = interface_modes(symmetric_block(S, slot[g]), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
@@ -518,7 +518,8 @@ def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> in
         blocks.add(local[p], inertia.schur)
 
     (tasks or InProcess(parts))(part_dynamic_schur, [(sigma,)] * len(parts), add)
-    coarse_count = None if perturbed else blocks.negative_pivots()
+    with all_cores_blas():                                # the part tasks are done
+        coarse_count = None if perturbed else blocks.negative_pivots()
     return None if coarse_count is None else int(below + coarse_count)
 
 
@@ -549,7 +550,10 @@ class CutBlocks:
 
     def negative_pivots(self) -> int | None:
         """Negative eigenvalues of the matrix (Sylvester: the pivots of a block LDL^T, Haynsworth's
-        inertia additivity over the eliminated groups), or None when a pivot is zero.  Consumes it."""
+        inertia additivity over the eliminated groups), or None when a pivot is zero.  Consumes it.
+        Each group's update A_kn^T A_kk^-1 A_kn is W^T D^-1 W with W = L^-1 P^T A_kn from the group's
+        Bunch-Kaufman L D L^T (level-3 triangular solves; LAPACK's dsytrs with as many right-hand
+        sides is level-2: 6.5 s against 1.4 s for a 2600-DOF cut)."""
         blocks = self.blocks
         neighbours = {k: set() for k in range(len(self.sizes))}
         for i, j in blocks:
@@ -560,20 +564,22 @@ class CutBlocks:
         while neighbours:
             k = min(neighbours, key=lambda g: (len(neighbours[g]), self.sizes[g]))
             near = sorted(neighbours.pop(k))
-            factor, ipiv, info = sla.lapack.dsytrf(blocks.pop((k, k)), lower=1)
-            count = pivot_signs(factor, ipiv)
-            if info != 0 or count is None:
+            L, D, perm = sla.ldl(blocks.pop((k, k)), lower=True, overwrite_a=True, check_finite=False)
+            count = block_diagonal_negatives(D)
+            if count is None:
                 return None
             negative += count
             if not near:
                 continue
             A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
-            X, _ = sla.lapack.dsytrs(factor, ipiv, A, lower=1)                                   # A_kk^-1 A_k,near
+            W = sla.solve_triangular(L[perm], A[perm], lower=True, unit_diagonal=True, check_finite=False)
+            del A
+            DW = block_diagonal_solve(D, W)
             at = np.cumsum([0] + [self.sizes[i] for i in near])
             for a, i in enumerate(near):
                 neighbours[i].discard(k)
                 for b, j in enumerate(near[a:], start=a):
-                    update = A[:, at[a]:at[a + 1]].T @ X[:, at[b]:at[b + 1]]
+                    update = W[:, at[a]:at[a + 1]].T @ DW[:, at[b]:at[b + 1]]
                     if (i, j) in blocks:
                         blocks[(i, j)] -= update
                     else:
@@ -584,23 +590,29 @@ class CutBlocks:
         return negative
 
 
-def pivot_signs(factor: np.ndarray, ipiv: np.ndarray) -> int | None:
-    """Negative eigenvalues of the block-diagonal D of a Bunch-Kaufman LDL^T (LAPACK dsytrf, lower;
-    ipiv 1-based: a negative pair marks a 2 x 2 block), or None when D is singular."""
-    negative, k, n = 0, 0, len(ipiv)
+def block_diagonal_negatives(D: np.ndarray) -> int | None:
+    """Negative eigenvalues of the block-diagonal D (1 x 1 and 2 x 2 blocks) of a Bunch-Kaufman L D L^T
+    (scipy.linalg.ldl), or None when D is singular."""
+    d, e = np.diag(D).copy(), np.r_[np.diag(D, 1), 0.0]
+    negative, k, n = 0, 0, len(d)
     while k < n:
-        if ipiv[k] > 0:
-            d = factor[k, k]
-            if d == 0:
+        if e[k] == 0.0:
+            if d[k] == 0.0:
                 return None
-            negative, k = negative + int(d < 0), k + 1
+            negative, k = negative + int(d[k] < 0), k + 1
         else:                                            # 2 x 2 block: det < 0 -> one of each sign
-            a, b, c = factor[k, k], factor[k + 1, k], factor[k + 1, k + 1]
-            det = a * c - b * b
-            if det == 0:
+            det = d[k] * d[k + 1] - e[k] * e[k]
+            if det == 0.0:
                 return None
-            negative, k = negative + (1 if det < 0 else 2 * int(a < 0)), k + 2
+            negative, k = negative + (1 if det < 0 else 2 * int(d[k] < 0)), k + 2
     return negative
+
+
+def block_diagonal_solve(D: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """D^-1 W for the block-diagonal (tridiagonal) D of ``block_diagonal_negatives``, W (n, k)."""
+    bands = np.zeros((3, len(D)))
+    bands[0, 1:], bands[1], bands[2, :-1] = np.diag(D, 1), np.diag(D), np.diag(D, -1)
+    return sla.solve_banded((1, 1), bands, W, check_finite=False)
 
 
 def part_dynamic_schur(held: HeldPart, sigma: float) -> Inertia:
@@ -693,7 +705,8 @@ class SubstructuredSolver:
 
         if r.shape[1]:
             self.tasks(part_coarse_load, [(r[self.own_rows(p)],) for p in range(n)], subtract)
-        x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None and r.shape[1] else g
+        with all_cores_blas():                            # between two rounds of part tasks
+            x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None and r.shape[1] else g
         x = np.empty_like(r)
         x[self.row[coarse[free]]] = x_G
         u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
@@ -766,7 +779,8 @@ def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np
         return np.zeros(0), X
     m_ii, k_ii = interior_operator(M, interior).matmat, interior_operator(K, interior).matmat
     V = np.hstack([X, solver.solve(m_ii(X))])
-    G, H = block_gram(m_ii, V), block_gram(k_ii, V)
+    with all_cores_blas():                                # no part task runs
+        G, H = block_gram(m_ii, V), block_gram(k_ii, V)
     d = 1.0 / np.sqrt(np.diag(G))                          # columns of unit M_ii norm
     G, H = d[:, None] * G * d, d[:, None] * H * d
     s, W = np.linalg.eigh(0.5 * (G + G.T))
