@@ -128,14 +128,19 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
     parts = [np.r_[groups[0], groups[1]], np.r_[groups[1], groups[2], groups[3]], np.r_[groups[3], groups[4]],
              np.r_[groups[2], groups[4]]]
     for shift in (-2.0, 0.5, 3.0):
-        blocks = rp.CutBlocks(groups, 30)
+        blocks, twin = rp.CutBlocks(groups, 30), rp.CutBlocks(groups, 30)
         A = np.zeros((30, 30))
         for pos in parts:
             B = rng.standard_normal((len(pos), len(pos)))
             B = B + B.T - shift * np.eye(len(pos))
             A[np.ix_(pos, pos)] += B
             blocks.add(pos, B)
+            twin.add(pos, B)
         assert blocks.negative_pivots() == int(np.sum(np.linalg.eigvalsh(A) < 0))
+        # the same elimination kept is a solver: against a dense LU solve
+        b = rng.standard_normal((30, 2))
+        x = twin.eliminate(keep=True).solve(b)
+        np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=0, atol=1e-10 * np.abs(x).max())
 
 
 def test_piston_rod_in_4_parts_on_the_local_pool_matches_the_monolithic_reduction():

@@ -9,7 +9,7 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
 
 1. each part's exact static Schur complement S_p = K_BB - K_BI K_II^-1 K_IB on B_p (a task: one sparse
    partial LDL^T, sidprep.fe.pardiso); their sum S on G is the whole model's exact Schur complement
-   (summed as the parts' blocks arrive, its upper triangle only: ``BlockSum``);
+   (summed as the parts' blocks arrive, as dense blocks between the cuts: ``CutBlocks``);
 2. the coarse space (``coarse_space``): b kept; every cut (the coarse DOFs shared by one set of parts)
    reduced to its lowest interface modes, eigenvectors of S and M on the cut (characteristic
    constraint modes; Castanier, Tan & Pierre 2001): u_G = R c;
@@ -21,8 +21,8 @@ monolithic reduction (the interface masters).  With I_p the other DOFs of part p
    cut-off and the interface modes rise;
 5. every model DOF recovered from the parts (``SubstructuredSolver.solve_and_recover``), which gives
    the same ReducedModel as ``craig_bampton`` (basis, K, M, boundary b) with an exact K_ii^-1 by
-   substructuring (part tasks around the factor of the exact S in the driver; each part's K_II
-   factor is made once and kept where the part is held, ``HeldPart``, the driver holds none) - the
+   substructuring (part tasks around the block LDL^T of the exact S in the driver, ``CutFactor``;
+   each part's K_II factor is made once and kept where the part is held, ``HeldPart``) - the
    static columns are the whole model's EXACT constraint modes -K_ii^-1 K_ib from it - and a
    certified eigenvalue count (Wittrick-Williams over the parts, each part's inertia and dynamic
    Schur complement from one sparse LDL^T, the coarse sum's inertia from another), so the checks
@@ -47,8 +47,7 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import (CholmodFactorization, all_cores_blas, cholmod_available, estimate_peak_memory,
-    factorize, single_threaded_blas)
+from sidprep.fe.linalg import all_cores_blas, estimate_peak_memory, factorize, single_threaded_blas
 from sidprep.fe.mesh import _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
@@ -251,22 +250,18 @@ class BlockSum:
     """sum_p P_p^T B_p P_p (n, n) csr (``S``), the dense blocks B_p (len(pos), len(pos)) added at
     ``positions`` (-1: that row and column dropped) as they arrive (``add``), row by row into the
     sparsity pattern of the sum (``sum_pattern``): the peak is the sum and the blocks in flight, not
-    every block at once (the exact coarse Schur complements' blocks are as large as their sum) nor
-    their triplets (24 bytes an entry).  ``upper``: only the upper triangle of the (symmetric) sum,
-    sorted (what the sparse LDL^T and Cholesky read)."""
+    every block at once nor their triplets (24 bytes an entry)."""
 
-    def __init__(self, positions, n: int, upper: bool = False):
+    def __init__(self, positions, n: int):
         self.kept = [np.flatnonzero(np.asarray(pos) >= 0) for pos in positions]
         self.cols = [np.asarray(pos)[k] for pos, k in zip(positions, self.kept)]
-        self.upper = upper
-        self.S = sum_pattern(self.cols, n, upper)
+        self.S = sum_pattern(self.cols, n)
 
     def add(self, p: int, B: np.ndarray) -> None:
         S, k, cols = self.S, self.kept[p], self.cols[p]
         for i, r in zip(k, cols):
             start, stop = S.indptr[r], S.indptr[r + 1]
-            at = cols >= r if self.upper else slice(None)
-            S.data[start + np.searchsorted(S.indices[start:stop], cols[at])] += B[i, k][at]
+            S.data[start + np.searchsorted(S.indices[start:stop], cols)] += B[i, k]
 
 
 def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
@@ -277,10 +272,10 @@ def summed_blocks(positions, blocks, n: int) -> sp.csr_matrix:
     return total.S
 
 
-def sum_pattern(positions, n: int, upper: bool) -> sp.csr_matrix:
+def sum_pattern(positions, n: int) -> sp.csr_matrix:
     """The zero (n, n) csr matrix (sorted indices) with the pattern of sum_p P_p^T B_p P_p: row r holds
-    the union of the positions of the parts that hold r (its upper part with ``upper``).  Rows held
-    by the same parts share that union (a cut), so no product of index sets is formed."""
+    the union of the positions of the parts that hold r.  Rows held by the same parts share that
+    union (a cut), so no product of index sets is formed."""
     sizes = [len(pos) for pos in positions]
     owners = sp.csr_matrix((np.ones(sum(sizes), dtype=np.int8),
                             (np.concatenate(positions), np.repeat(np.arange(len(sizes)), sizes))),
@@ -288,30 +283,15 @@ def sum_pattern(positions, n: int, upper: bool) -> sp.csr_matrix:
     keys = [owners.indices[owners.indptr[r]:owners.indptr[r + 1]].tobytes() for r in range(n)]
     union = {key: np.unique(np.concatenate([positions[p] for p in np.frombuffer(key, dtype=owners.indices.dtype)]
                                            or [np.zeros(0, np.int64)])) for key in set(keys)}
-    start = [np.searchsorted(union[key], r) if upper else 0 for r, key in enumerate(keys)]
-    counts = np.array([len(union[key]) - s0 for key, s0 in zip(keys, start)], dtype=np.int64)
+    counts = np.array([len(union[key]) for key in keys], dtype=np.int64)
     indptr = np.r_[0, np.cumsum(counts)]
     index_type = np.int32 if indptr[-1] < 2**31 else np.int64
     indices = np.empty(indptr[-1], dtype=index_type)
-    for r, (key, s0) in enumerate(zip(keys, start)):
-        indices[indptr[r]:indptr[r + 1]] = union[key][s0:]
+    for r, key in enumerate(keys):
+        indices[indptr[r]:indptr[r + 1]] = union[key]
     S = sp.csr_matrix((np.zeros(len(indices)), indices, indptr.astype(index_type)), shape=(n, n))
     S.has_sorted_indices = True
     return S
-
-
-def upper_factor(U: sp.csr_matrix):
-    """The factor of the SPD matrix of upper triangle U (sorted CSR): CHOLMOD reads U as it is,
-    SuperLU (without CHOLMOD) gets both triangles."""
-    if cholmod_available():
-        return CholmodFactorization(U, upper=True)
-    return factorize(U + sp.triu(U, 1).T)
-
-
-def symmetric_block(U: sp.csr_matrix, rows: np.ndarray) -> np.ndarray:
-    """The dense symmetric block A[rows][:, rows] of A from its upper triangle U (rows ascending)."""
-    B = U[rows][:, rows].toarray()
-    return B + np.triu(B, 1).T
 
 
 def cut_groups(local, n_coarse: int, fixed: np.ndarray) -> list[np.ndarray]:
@@ -375,29 +355,35 @@ class CoarseSpace:
         return self.R[self.local[p]][:, self.columns(p)].tocsr()
 
 
-def coarse_space(parts, coarse: np.ndarray, boundary, S: sp.csr_matrix, M_model, n_interface: int) -> CoarseSpace:
-    """The coarse space of ``parts`` from the upper triangle S of the whole model's exact static Schur
-    complement on G \\ b (``static_schur``): b kept, every cut reduced to its ``n_interface`` lowest
-    interface modes (S itself is factored for the substructured solve by ``schur_factor``)."""
+def coarse_space(parts, coarse: np.ndarray, boundary, S: CutBlocks, M_model, n_interface: int) -> CoarseSpace:
+    """The coarse space of ``parts`` from the whole model's exact static Schur complement S on G \\ b
+    (``static_schur``, its blocks between the cuts): b kept, every cut reduced to its ``n_interface``
+    lowest interface modes (S itself is factored for the substructured solve by ``schur_factor``)."""
 
     b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
     local = part_positions(parts, coarse)
     free = np.setdiff1d(np.arange(len(coarse)), b)
-    slot = np.full(len(coarse), -1)
-    slot[free] = np.arange(len(free))
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
-    for g in cut_groups(local, len(coarse), b):
+    for k, cut in enumerate(S.groups):
+        g = free[cut]
         with all_cores_blas():                            # no part task runs yet
-            phi = interface_modes(symmetric_block(S, slot[g]), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
+            phi = interface_modes(S.block(k), M_model[coarse[g]][:, coarse[g]].toarray(), n_interface)
         rows, cols = np.nonzero(np.ones_like(phi, dtype=bool))
         blocks.append(sp.csr_matrix((phi.ravel(), (g[rows], cols)), shape=(len(coarse), phi.shape[1])))
     return CoarseSpace(coarse, local, b, sp.hstack(blocks, format="csr"))
 
 
-def schur_factor(S: sp.csr_matrix):
-    """The factor of the exact static Schur complement on G \\ b from its upper triangle S
-    (``static_schur``), for the substructured solve; None when G \\ b is empty."""
-    return upper_factor(S) if S.shape[0] else None
+def schur_factor(S: CutBlocks):
+    """The factor of the exact static Schur complement on G \\ b (``static_schur``) for the substructured
+    solve (``CutFactor``; S is consumed); None when G \\ b is empty.  LinAlgError unless S is positive
+    definite (a part, or the body, free to move)."""
+    if not S.groups:
+        return None
+    factor = S.eliminate(keep=True)
+    if factor is None or factor.negative:
+        raise np.linalg.LinAlgError("the coarse Schur complement is not positive definite: a part or the body can "
+                                    "move freely")
+    return factor
 
 
 # ---------------------------------------------------------------------------------------------
@@ -486,17 +472,21 @@ def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assem
                     space, offsets)
 
 
-def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> sp.csr_matrix:
-    """The upper triangle of the whole model's exact static Schur complement on G \\ b: the sum of the
-    parts' (``part_dynamic_schur`` at sigma 0 on ``tasks``, a function fn, [args per part], consume ->
-    [results], or ``InProcess``), each added as it arrives (``BlockSum``): for ``coarse_space``."""
+def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> CutBlocks:
+    """The whole model's exact static Schur complement on G \\ b as dense blocks between its cuts
+    (``CutBlocks``, positions in G \\ b): the sum of the parts' (``part_dynamic_schur`` at sigma 0 on
+    ``tasks``, a function fn, [args per part], consume -> [results], or ``InProcess``), each added as
+    it arrives: for ``coarse_space`` and ``schur_factor``."""
 
+    b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
+    local = part_positions(parts, coarse)
     slot = np.full(len(coarse), -1)
-    free = ~np.isin(coarse, boundary)
-    slot[free] = np.arange(int(free.sum()))
-    total = BlockSum([slot[pos] for pos in part_positions(parts, coarse)], int(free.sum()), upper=True)
-    (tasks or InProcess(parts))(part_dynamic_schur, [(0.0,)] * len(parts), lambda p, inertia: total.add(p, inertia.schur))
-    return total.S
+    free = np.setdiff1d(np.arange(len(coarse)), b)
+    slot[free] = np.arange(len(free))
+    total = CutBlocks([slot[g] for g in cut_groups(local, len(coarse), b)], len(free))
+    (tasks or InProcess(parts))(part_dynamic_schur, [(0.0,)] * len(parts),
+                                lambda p, inertia: total.add(slot[local[p]], inertia.schur))
+    return total
 
 
 def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> int | None:
@@ -524,23 +514,25 @@ def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> in
 
 
 class CutBlocks:
-    """A symmetric matrix on the coarse DOFs as dense blocks between groups of them (the cuts,
+    """A symmetric matrix on n coarse positions as dense blocks between groups of them (the cuts,
     ``cut_groups``): block (i, j), i <= j, exists when a part holds DOFs of both.  The parts' Schur
-    complements are added as they arrive (``add``); ``negative_pivots`` eliminates the groups one by
-    one (fewest neighbours first), so the memory is the blocks of the sum (for a chain of parts,
-    two cuts per part) - no sparse factor with its symbolic analysis of the whole coarse matrix."""
+    complements are added as they arrive (``add``); ``eliminate`` runs a block LDL^T group by group
+    (fewest neighbours first), so the memory is the blocks of the sum (for a chain of parts, two cuts
+    per part) - no sparse factor with its symbolic analysis of the whole coarse matrix."""
 
     def __init__(self, groups: list[np.ndarray], n: int):
+        self.groups = [np.asarray(g, dtype=np.int64) for g in groups]
         self.sizes = [len(g) for g in groups]
+        self.n = n
         self.group = np.full(n, -1)
         self.offset = np.zeros(n, dtype=np.int64)
-        for k, g in enumerate(groups):
+        for k, g in enumerate(self.groups):
             self.group[g], self.offset[g] = k, np.arange(len(g))
         self.blocks: dict = {}
 
     def add(self, pos: np.ndarray, B: np.ndarray) -> None:
-        """Add the dense block B (len(pos), len(pos)) at the coarse positions ``pos`` (held ones dropped)."""
-        g = self.group[pos]
+        """Add the dense block B (len(pos), len(pos)) at the positions ``pos`` (-1 or in no group: dropped)."""
+        g = np.where(pos >= 0, self.group[pos], -1)
         rows = {k: np.flatnonzero(g == k) for k in np.unique(g[g >= 0])}
         for i, ri in rows.items():
             for j, rj in rows.items():
@@ -548,46 +540,104 @@ class CutBlocks:
                     block = self.blocks.setdefault((i, j), np.zeros((self.sizes[i], self.sizes[j])))
                     block[np.ix_(self.offset[pos[ri]], self.offset[pos[rj]])] += B[np.ix_(ri, rj)]
 
+    def block(self, k: int) -> np.ndarray:
+        """The dense symmetric diagonal block of group k (before ``eliminate``)."""
+        return self.blocks.get((k, k), np.zeros((self.sizes[k], self.sizes[k])))
+
     def negative_pivots(self) -> int | None:
-        """Negative eigenvalues of the matrix (Sylvester: the pivots of a block LDL^T, Haynsworth's
-        inertia additivity over the eliminated groups), or None when a pivot is zero.  Consumes it.
-        Each group's update A_kn^T A_kk^-1 A_kn is W^T D^-1 W with W = L^-1 P^T A_kn from the group's
-        Bunch-Kaufman L D L^T (level-3 triangular solves; LAPACK's dsytrs with as many right-hand
-        sides is level-2: 6.5 s against 1.4 s for a 2600-DOF cut)."""
+        """Negative eigenvalues of the matrix, or None when a pivot is zero (``eliminate``).  Consumes it."""
+        factor = self.eliminate(keep=False)
+        return None if factor is None else factor.negative
+
+    def eliminate(self, keep: bool) -> CutFactor | None:
+        """The block LDL^T, group k after group k: A_kk = L D L^T (Bunch-Kaufman, scipy.linalg.ldl) and
+        its neighbours' blocks updated by A_kn^T A_kk^-1 A_kn = W^T D^-1 W, W = L^-1 P^T A_kn (level-3
+        triangular solves; LAPACK's dsytrs with as many right-hand sides is level-2: 6.5 s against
+        1.4 s for a 2600-DOF cut).  A CutFactor: the negative pivots (Sylvester's law, Haynsworth's
+        inertia additivity over the groups) and, with ``keep``, the steps its ``solve`` needs; None
+        when a pivot is zero.  Consumes the blocks."""
         blocks = self.blocks
         neighbours = {k: set() for k in range(len(self.sizes))}
         for i, j in blocks:
             if i != j:
                 neighbours[i].add(j)
                 neighbours[j].add(i)
-        negative = 0
+        negative, steps = 0, []
         while neighbours:
             k = min(neighbours, key=lambda g: (len(neighbours[g]), self.sizes[g]))
             near = sorted(neighbours.pop(k))
-            L, D, perm = sla.ldl(blocks.pop((k, k)), lower=True, overwrite_a=True, check_finite=False)
+            L, D, perm = sla.ldl(self.block(k), lower=True, overwrite_a=True, check_finite=False)
+            blocks.pop((k, k), None)
             count = block_diagonal_negatives(D)
             if count is None:
                 return None
             negative += count
-            if not near:
-                continue
-            A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
-            W = sla.solve_triangular(L[perm], A[perm], lower=True, unit_diagonal=True, check_finite=False)
-            del A
-            DW = block_diagonal_solve(D, W)
-            at = np.cumsum([0] + [self.sizes[i] for i in near])
-            for a, i in enumerate(near):
-                neighbours[i].discard(k)
-                for b, j in enumerate(near[a:], start=a):
-                    update = W[:, at[a]:at[a + 1]].T @ DW[:, at[b]:at[b + 1]]
-                    if (i, j) in blocks:
-                        blocks[(i, j)] -= update
-                    else:
-                        blocks[(i, j)] = -update
-                    if i != j:
-                        neighbours[i].add(j)
-                        neighbours[j].add(i)
-        return negative
+            L = L[perm]                                     # unit lower triangular: A_kk[perm][:, perm] = L D L^T
+            W = np.zeros((self.sizes[k], 0))
+            if near:
+                A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
+                W = sla.solve_triangular(L, A[perm], lower=True, unit_diagonal=True, check_finite=False)
+                del A
+                DW = block_diagonal_solve(D, W)
+                at = np.cumsum([0] + [self.sizes[i] for i in near])
+                for a, i in enumerate(near):
+                    neighbours[i].discard(k)
+                    for b, j in enumerate(near[a:], start=a):
+                        update = W[:, at[a]:at[a + 1]].T @ DW[:, at[b]:at[b + 1]]
+                        if (i, j) in blocks:
+                            blocks[(i, j)] -= update
+                        else:
+                            blocks[(i, j)] = -update
+                        if i != j:
+                            neighbours[i].add(j)
+                            neighbours[j].add(i)
+                del DW
+            if keep:
+                steps.append(EliminationStep(self.groups[k], [self.groups[i] for i in near], L, D, perm, W))
+        return CutFactor(self.n, negative, steps)
+
+
+@dataclass(frozen=True)
+class EliminationStep:
+    """One group's elimination in a block LDL^T: rows (its positions), near (its neighbours' positions,
+    in the order of W's columns), A_kk[perm][:, perm] = L D L^T, W = L^-1 A_k,near[perm]."""
+
+    rows: np.ndarray
+    near: list
+    L: np.ndarray
+    D: np.ndarray
+    perm: np.ndarray
+    W: np.ndarray
+
+
+@dataclass(frozen=True)
+class CutFactor:
+    """A block LDL^T of a symmetric matrix on n positions (``CutBlocks.eliminate``): negative, its
+    negative eigenvalues; steps, the eliminations in order."""
+
+    n: int
+    negative: int
+    steps: list
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """x = A^-1 b, b (n,) or (n, k): block forward elimination, then back substitution in reverse
+        (z_k = L^-1 b_k[perm], b_near -= W^T D^-1 z_k; x_k[perm] = L^-T D^-1 (z_k - W x_near))."""
+        shape = np.shape(b)
+        v = np.array(b, dtype=float).reshape(self.n, -1)
+        z = []
+        for s in self.steps:
+            z.append(sla.solve_triangular(s.L, v[s.rows][s.perm], lower=True, unit_diagonal=True, check_finite=False))
+            if s.near:
+                near = np.concatenate(s.near)
+                v[near] -= s.W.T @ block_diagonal_solve(s.D, z[-1])
+        x = np.zeros_like(v)
+        for s, z_k in zip(reversed(self.steps), reversed(z)):
+            if s.near:
+                z_k = z_k - s.W @ x[np.concatenate(s.near)]
+            y = sla.solve_triangular(s.L, block_diagonal_solve(s.D, z_k), lower=True, trans="T", unit_diagonal=True,
+                                     check_finite=False)
+            x[s.rows[s.perm]] = y
+        return x.reshape(shape)
 
 
 def block_diagonal_negatives(D: np.ndarray) -> int | None:
