@@ -90,7 +90,7 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) 
     split is the user's).  Returns the bytes a worker may spend on the other parts it holds (their
     matrices and K_II factors, ``held_task``) beside the largest reduction: the held parts' bound."""
 
-    need = [reduction_peak_bytes(len(p.dofs), p.K.nnz, p.extent) for p in parts]
+    need = [reduction_peak_bytes(len(p.dofs), None, p.extent) for p in parts]
     worst = int(np.argmax(need))
     if need[worst] <= MEMORY_HEADROOM * memory:
         return MEMORY_HEADROOM * memory - need[worst]
@@ -294,10 +294,18 @@ def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_m
 
 
 def sent_mb(items) -> float:
-    """MiB of the arrays of PartModels (to the workers) or PartReductions (back), once each."""
-    arrays = [a for x in items for v in vars(x).values()
-              for a in ((v.data, v.indices, v.indptr) if hasattr(v, "indptr") else (v,)) if isinstance(a, np.ndarray)]
-    return sum(a.nbytes for a in arrays) / 2.0**20
+    """MiB of the arrays of PartModels (to the workers, their PartFE and materials included) or
+    PartReductions (back), once each."""
+    return sum(array_bytes(x) for x in items) / 2.0**20
+
+
+def array_bytes(x) -> int:
+    """Bytes of the numpy arrays in ``x``: an array, a sparse matrix, or an object holding them."""
+    if isinstance(x, np.ndarray):
+        return x.nbytes
+    if hasattr(x, "indptr"):
+        return x.data.nbytes + x.indices.nbytes + x.indptr.nbytes
+    return sum(array_bytes(v) for v in vars(x).values()) if hasattr(x, "__dict__") else 0
 
 
 def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None, components=None):

@@ -48,7 +48,7 @@ from scipy.sparse.csgraph import connected_components
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
 from sidprep.fe.linalg import all_cores_blas, estimate_peak_memory, factorize, single_threaded_blas
-from sidprep.fe.mesh import _face_table
+from sidprep.fe.mesh import FEMesh, _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
@@ -62,6 +62,8 @@ PART_CUTOFF = 2.0
 RANK_TOL = 1e-12
 #: columns of the refinement's Gram products at a time (each applies an (n, REFINE_BLOCK) operator product)
 REFINE_BLOCK = 16
+#: bytes of a stored entry of a float64 CSR matrix with 32-bit indices
+CSR_BYTES_PER_ENTRY = 12
 #: METIS load imbalance allowed between parts (1.03 = 3 %, its default for k-way partitions)
 PART_IMBALANCE = 1.03
 
@@ -108,20 +110,35 @@ def partition_cells(cells: np.ndarray, n_parts: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
+class PartFE:
+    """A part's FE model as the worker that holds it assembles it (``assembled``): points (np_l, 3) m,
+    its nodes; cells (ne_p, nn) into them; material, a Material or GivenMatrices on its nodes' DOFs;
+    T (3 np_l, n_p) csr, its nodes' displacements from its model DOFs (rows of the interface
+    transformation, sidprep.reduction.interfaces)."""
+
+    points: np.ndarray
+    cells: np.ndarray
+    material: object
+    T: sp.csr_matrix
+
+
+@dataclass(frozen=True)
 class PartModel:
     """One part in model DOFs: what a task needs.
 
-    name : "part k/N"; dofs : (n_p,) its model DOFs (ascending); K, M : (n_p, n_p) csr, N/m and kg,
-    assembled from its cells only; boundary : (nb_p,) local indices of its coarse DOFs (ascending);
-    extent : (3,) bounding-box edges (m) for the memory estimate.
+    name : "part k/N"; dofs : (n_p,) its model DOFs (ascending); boundary : (nb_p,) local indices of
+    its coarse DOFs (ascending); extent : (3,) bounding-box edges (m) for the memory estimate;
+    fe : its FE model (PartFE); K, M : (n_p, n_p) csr, N/m and kg, from its cells only - None in the
+    driver, which describes the part; its worker assembles them (``assembled``).
     """
 
     name: str
     dofs: np.ndarray
-    K: sp.csr_matrix
-    M: sp.csr_matrix
     boundary: np.ndarray
     extent: np.ndarray
+    fe: PartFE | None = None
+    K: sp.csr_matrix | None = None
+    M: sp.csr_matrix | None = None
 
     @property
     def interior(self) -> np.ndarray:
@@ -159,11 +176,31 @@ def part_fe_matrices(mesh, cells: np.ndarray, material) -> tuple[sp.csr_matrix, 
     return stiffness_matrix(sub, material), vector_mass(scalar_mass_matrix(sub, material.rho))
 
 
+def part_fe(mesh, cells: np.ndarray, material, T: sp.csr_matrix) -> PartFE:
+    """The PartFE of ``cells`` (global node indices) with the model DOFs' columns T (3n, n_p) of the
+    interface transformation: its nodes renumbered, T's and given matrices' rows cut to them."""
+    nodes, local = np.unique(cells, return_inverse=True)
+    rows = (3 * nodes[:, None] + np.arange(3)).ravel()
+    if isinstance(material, GivenMatrices):
+        material = GivenMatrices(material.K[rows][:, rows].tocsr(), material.M[rows][:, rows].tocsr())
+    return PartFE(mesh.points[nodes], local.reshape(cells.shape), material, T[rows].tocsr())
+
+
+def assembled(part: PartModel) -> PartModel:
+    """The part with its K = T^T K_fe T and M = T^T M_fe T (K_fe, M_fe from its cells: ``part_fe_matrices``)."""
+    if part.K is not None:
+        return part
+    fe = part.fe
+    mesh = FEMesh(fe.points, fe.cells, np.arange(len(fe.points)))
+    K_fe, M_fe = part_fe_matrices(mesh, fe.cells, fe.material)
+    return replace(part, K=(fe.T.T @ (K_fe @ fe.T)).tocsr(), M=(fe.T.T @ (M_fe @ fe.T)).tocsr())
+
+
 def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) -> tuple[list[PartModel], np.ndarray]:
-    """Each part's model matrices (T^T K_p T restricted to its DOFs, K_p from its cells) and the
-    coarse DOFs G; ``boundary`` the monolithic reduction's boundary DOFs (model indices).
-    ``material`` : one Material, or one per part (an assembly's components: a Material or
-    GivenMatrices); ``names`` : one per part (default "part k/N")."""
+    """Each part described (its DOFs, coarse DOFs and FE model; its matrices T^T K_p T are assembled
+    where it is held, ``assembled``) and the coarse DOFs G; ``boundary`` the monolithic reduction's
+    boundary DOFs (model indices).  ``material`` : one Material, or one per part (an assembly's
+    components: a Material or GivenMatrices); ``names`` : one per part (default "part k/N")."""
 
     n = int(labels.max()) + 1
     materials = list(material) if isinstance(material, (list, tuple)) else [material] * n
@@ -173,12 +210,8 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
     G = coarse_dofs(owned, boundary)
     parts = []
     for c, dofs, mat, name in zip(cells, owned, materials, names):
-        T = im.T[:, dofs]
-        K_fe, M_fe = part_fe_matrices(mesh, c, mat)
-        K = (T.T @ (K_fe @ T)).tocsr()
-        M = (T.T @ (M_fe @ T)).tocsr()
-        x = mesh.points[np.unique(c)]
-        parts.append(PartModel(name, dofs, K, M, np.flatnonzero(np.isin(dofs, G)), np.ptp(x, axis=0)))
+        fe = part_fe(mesh, c, mat, im.T[:, dofs])
+        parts.append(PartModel(name, dofs, np.flatnonzero(np.isin(dofs, G)), np.ptp(fe.points, axis=0), fe))
     return parts, G
 
 
@@ -189,7 +222,7 @@ class HeldPart:
     ``factorisations`` counts the factors made."""
 
     def __init__(self, part: PartModel):
-        self.part = part
+        self.part = assembled(part)
         self._factor = None
         self.factorisations = 0
 
@@ -216,9 +249,10 @@ def part_factorisations(held: HeldPart) -> int:
 
 
 def held_part_bytes(part: PartModel) -> float:
-    """Estimated bytes a worker holds for ``part``: its K, M and the factor of its K_II."""
-    matrices = sum(a.nbytes for m in (part.K, part.M) for a in (m.data, m.indices, m.indptr))
-    return matrices + estimate_peak_memory(len(part.interior), part.K.nnz, part.extent).factor_bytes
+    """Estimated bytes a worker holds for ``part``: its K, M and the factor of its K_II
+    (sidprep.fe.linalg.estimate_peak_memory, tet10 entries per DOF)."""
+    matrices = 2 * CSR_BYTES_PER_ENTRY * estimate_peak_memory(len(part.dofs), None, part.extent).nnz
+    return matrices + estimate_peak_memory(len(part.interior), None, part.extent).factor_bytes
 
 
 class InProcess:
