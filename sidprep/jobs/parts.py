@@ -118,25 +118,37 @@ _HELD_LOCK = threading.Lock()
 
 
 def held_task(key: tuple, part, budget: float, fn, *args):
-    """``fn(HeldPart, *args)`` in a worker with the part ``key`` it holds; ``part`` (a PartModel, or None
-    when the worker should hold it already: NotHeld otherwise) is held from now on, the least recently
-    used other parts dropped while the estimated bytes held exceed ``budget``."""
-    with _HELD_LOCK:
-        held = _HELD.get(key)
-        if held is None:
-            if part is None:
-                raise NotHeld(key)
-            held = HeldPart(part)
-            while _HELD and sum(h.held_bytes for h in _HELD.values()) + held.held_bytes > budget:
-                _HELD.popitem(last=False)
-            _HELD[key] = held
-        _HELD.move_to_end(key)
+    """``fn(HeldPart, *args)`` in a worker with the part ``key`` it holds (``held_part``).  An error of
+    the task's own (the part's assembly included) is PartFailed, naming the part: it is not retried."""
+    held = None
     try:
+        held = held_part(key, part, budget)
         return fn(held, *args)
-    except (InputError, MemoryError):                      # the user's error; out of memory: the worker's
+    except (InputError, MemoryError, NotHeld):             # the user's error; out of memory: the worker's
         raise
     except Exception as exc:                               # the task's own error: the same again on a retry
-        raise PartFailed(f"{held.part.name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
+        name = (held.part if held is not None else part).name
+        raise PartFailed(f"{name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
+
+
+def held_part(key: tuple, part, budget: float) -> HeldPart:
+    """The HeldPart ``key`` this worker holds; ``part`` (a PartModel, or None when the worker should
+    hold it already: NotHeld otherwise) is assembled and held from now on - outside the lock, so a
+    worker's threads assemble parts side by side - the least recently used other parts dropped while
+    the estimated bytes held exceed ``budget``."""
+    with _HELD_LOCK:
+        held = _HELD.get(key)
+        if held is not None:
+            _HELD.move_to_end(key)
+            return held
+    if part is None:
+        raise NotHeld(key)
+    held = HeldPart(part)
+    with _HELD_LOCK:
+        while _HELD and sum(h.held_bytes for h in _HELD.values()) + held.held_bytes > budget:
+            _HELD.popitem(last=False)
+        _HELD[key] = held
+    return held
 
 
 def release_run(run: str) -> None:
