@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import scipy.sparse.linalg as spla
 
 from sidprep.errors import InputError
@@ -141,6 +143,36 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
         b = rng.standard_normal((30, 2))
         x = twin.eliminate(keep=True).solve(b)
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=0, atol=1e-10 * np.abs(x).max())
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)   # 3000 random examples passed once
+@given(st.lists(st.integers(1, 5), min_size=1, max_size=6), st.integers(0, 2**32 - 1), st.floats(-3.0, 3.0))
+def test_the_block_ldlt_counts_and_solves_like_dense_algebra_on_any_grouping(sizes, seed, shift):
+    # groups of any sizes, "parts" holding random sets of them (every group held), symmetric blocks
+    # shifted to be indefinite: Sylvester's count against a dense eigen count, the kept
+    # elimination's solve against a dense LU solve (where the matrix is not near singular)
+    rng = np.random.default_rng(seed)
+    at = np.cumsum([0] + sizes)
+    groups = [np.arange(at[k], at[k + 1]) for k in range(len(sizes))]
+    n = int(at[-1])
+    held = [rng.choice(len(groups), size=rng.integers(1, min(3, len(groups)) + 1), replace=False)
+            for _ in range(rng.integers(1, 5))] + [[k] for k in range(len(groups))]
+    blocks, twin, A = rp.CutBlocks(groups, n), rp.CutBlocks(groups, n), np.zeros((n, n))
+    for part in held:
+        pos = np.concatenate([groups[k] for k in part])
+        B = rng.standard_normal((len(pos), len(pos)))
+        B = B + B.T - shift * np.eye(len(pos))
+        A[np.ix_(pos, pos)] += B
+        blocks.add(pos, B)
+        twin.add(pos, B)
+    eig = np.linalg.eigvalsh(A)
+    if np.abs(eig).min() < 1e-8 * np.abs(eig).max():
+        return                                              # (near) singular: no count to compare
+    assert blocks.negative_pivots() == int(np.sum(eig < 0))
+    b = rng.standard_normal((n, 2))
+    x = twin.eliminate(keep=True).solve(b)
+    x_ref = np.linalg.solve(A, b)
+    assert np.abs(x - x_ref).max() <= 1e-11 * np.abs(x_ref).max() * np.abs(eig).max() / np.abs(eig).min()
 
 
 def test_piston_rod_in_4_parts_on_the_local_pool_matches_the_monolithic_reduction():
