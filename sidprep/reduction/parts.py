@@ -352,6 +352,13 @@ def interface_modes(S: np.ndarray, M: np.ndarray, count: int) -> np.ndarray:
     return phi
 
 
+def boundary_positions(coarse: np.ndarray, boundary) -> tuple[np.ndarray, np.ndarray]:
+    """(positions in G of the boundary b, positions of G \\ b), both ascending: the numbering of the
+    exact static Schur complement's positions (``static_schur``) and of the coarse space's cuts."""
+    b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
+    return b, np.setdiff1d(np.arange(len(coarse)), b)
+
+
 def part_positions(parts, coarse: np.ndarray) -> tuple:
     """Per part, the positions in G (``coarse``) of its coarse DOFs B_p."""
     return tuple(np.searchsorted(coarse, part.dofs[part.boundary]) for part in parts)
@@ -394,9 +401,8 @@ def coarse_space(parts, coarse: np.ndarray, boundary, S: CutBlocks, M_model, n_i
     (``static_schur``, its blocks between the cuts): b kept, every cut reduced to its ``n_interface``
     lowest interface modes (S itself is factored for the substructured solve by ``schur_factor``)."""
 
-    b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
+    b, free = boundary_positions(coarse, boundary)
     local = part_positions(parts, coarse)
-    free = np.setdiff1d(np.arange(len(coarse)), b)
     blocks = [sp.csr_matrix((np.ones(len(b)), (b, np.arange(len(b)))), shape=(len(coarse), len(b)))]
     for k, cut in enumerate(S.groups):
         g = free[cut]
@@ -512,10 +518,9 @@ def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> CutBlocks:
     ``tasks``, a function fn, [args per part], consume -> [results], or ``InProcess``), each added as
     it arrives: for ``coarse_space`` and ``schur_factor``."""
 
-    b = np.searchsorted(coarse, np.asarray(boundary, dtype=np.int64))
+    b, free = boundary_positions(coarse, boundary)
     local = part_positions(parts, coarse)
     slot = np.full(len(coarse), -1)
-    free = np.setdiff1d(np.arange(len(coarse)), b)
     slot[free] = np.arange(len(free))
     total = CutBlocks([slot[g] for g in cut_groups(local, len(coarse), b)], len(free))
     (tasks or InProcess(parts))(part_dynamic_schur, [(0.0,)] * len(parts),
