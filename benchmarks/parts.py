@@ -109,6 +109,8 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--no-monolithic", action="store_true", help="only the runs in parts")
+    p.add_argument("--mesh", type=Path, default=None, help="a tet10 .msh of the bar (its fixed_end and free_end "
+                   "surfaces) instead of meshing one for --dof")
     p.add_argument("--dask-memory", type=float, default=None, metavar="GB",
                    help="the parts on a Dask LocalCluster of --workers processes limited to GB each")
     args = p.parse_args(argv)
@@ -121,9 +123,11 @@ def main(argv=None) -> int:
                                                        memory_limit=f"{args.dask_memory}GB", dashboard_address=None))
             scheduler = cluster.scheduler_address
         tmp = Path(tmp)
-        geo = tmp / "bar.geo"
-        geo.write_text(BAR_GEO.format(a=BOX[0], b=BOX[1], c=BOX[2], h=bar_h(args.dof, free=True)))
-        mesh = write_msh(geo)
+        mesh = args.mesh
+        if mesh is None:
+            geo = tmp / "bar.geo"
+            geo.write_text(BAR_GEO.format(a=BOX[0], b=BOX[1], c=BOX[2], h=bar_h(args.dof, free=True)))
+            mesh = write_msh(geo)
         rows: dict = {}
         for _ in range(args.repeat):                        # alternate: the load hits every variant alike
             for parts in ([] if args.no_monolithic else [None]) + args.parts:

@@ -97,8 +97,9 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     b = im.master_dofs.ravel()
     labels = rp.partition_cells(mesh.cells, 8)
     parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    S = rp.static_schur(parts, coarse, b)
+    S = rp.static_schur(parts, coarse, b, out_of_core=True)     # the solves below read S's factor from disk
     space, coarse_factor = rp.coarse_space(parts, coarse, b, S, M, n_interface=24), rp.schur_factor(S)
+    assert all(isinstance(step.L, np.memmap) for step in coarse_factor.steps)
     tasks = rp.InProcess(parts)
     reductions = tasks(rp.reduce_part, [(space.part_map(k), 40) for k in range(len(parts))])
     assembly = rp.assemble_parts(reductions, space)
@@ -130,7 +131,9 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
     parts = [np.r_[groups[0], groups[1]], np.r_[groups[1], groups[2], groups[3]], np.r_[groups[3], groups[4]],
              np.r_[groups[2], groups[4]]]
     for shift in (-2.0, 0.5, 3.0):
-        blocks, twin = rp.CutBlocks(groups, 30), rp.CutBlocks(groups, 30)
+        blocks, twin = rp.CutBlocks(groups, 30, parts), rp.CutBlocks(groups, 30, parts)
+        disk = rp.CutBlocks(groups, 30, parts, out_of_core=True)      # blocks and factor in mapped files
+        streamed = rp.CutBlocks(groups, 30, parts, count_only=True)   # eliminated as the blocks arrive
         A = np.zeros((30, 30))
         for pos in parts:
             B = rng.standard_normal((len(pos), len(pos)))
@@ -138,11 +141,23 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
             A[np.ix_(pos, pos)] += B
             blocks.add(pos, B)
             twin.add(pos, B)
-        assert blocks.negative_pivots() == int(np.sum(np.linalg.eigvalsh(A) < 0))
-        # the same elimination kept is a solver: against a dense LU solve
+            disk.add(pos, B)
+            streamed.add(pos, B)
+        assert len(streamed.neighbours) < len(groups)              # group 0 went once parts 0 and 1 were in
+        assert blocks.planned_bytes() == sum(B.nbytes for B in blocks.blocks.values())   # the out-of-core test
+        expected = int(np.sum(np.linalg.eigvalsh(A) < 0))
+        assert blocks.negative_pivots() == expected
+        assert streamed.negative_pivots() == expected
+        with pytest.raises(ValueError, match="keeps no factor"):
+            streamed.eliminate(keep=True)
+        # the same elimination kept is a solver, in memory and out of core: against a dense LU solve
         b = rng.standard_normal((30, 2))
         x = twin.eliminate(keep=True).solve(b)
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=0, atol=1e-10 * np.abs(x).max())
+        factor = disk.eliminate(keep=True)
+        assert all(isinstance(step.L, np.memmap) and isinstance(step.W, np.memmap) for step in factor.steps)
+        x_disk = factor.solve(b)
+        np.testing.assert_allclose(x_disk, np.linalg.solve(A, b), rtol=0, atol=1e-10 * np.abs(x).max())
 
 
 @settings(max_examples=200, deadline=None, derandomize=True)   # 3000 random examples passed once
@@ -157,18 +172,21 @@ def test_the_block_ldlt_counts_and_solves_like_dense_algebra_on_any_grouping(siz
     n = int(at[-1])
     held = [rng.choice(len(groups), size=rng.integers(1, min(3, len(groups)) + 1), replace=False)
             for _ in range(rng.integers(1, 5))] + [[k] for k in range(len(groups))]
-    blocks, twin, A = rp.CutBlocks(groups, n), rp.CutBlocks(groups, n), np.zeros((n, n))
-    for part in held:
-        pos = np.concatenate([groups[k] for k in part])
+    positions = [np.concatenate([groups[k] for k in part]) for part in held]
+    blocks, twin, A = rp.CutBlocks(groups, n, positions), rp.CutBlocks(groups, n, positions), np.zeros((n, n))
+    streamed = rp.CutBlocks(groups, n, positions, count_only=True)   # counted as the blocks arrive
+    for pos in positions:
         B = rng.standard_normal((len(pos), len(pos)))
         B = B + B.T - shift * np.eye(len(pos))
         A[np.ix_(pos, pos)] += B
         blocks.add(pos, B)
         twin.add(pos, B)
+        streamed.add(pos, B)
     eig = np.linalg.eigvalsh(A)
     if np.abs(eig).min() < 1e-8 * np.abs(eig).max():
         return                                              # (near) singular: no count to compare
     assert blocks.negative_pivots() == int(np.sum(eig < 0))
+    assert streamed.negative_pivots() == int(np.sum(eig < 0))
     b = rng.standard_normal((n, 2))
     x = twin.eliminate(keep=True).solve(b)
     x_ref = np.linalg.solve(A, b)
@@ -200,6 +218,47 @@ def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction
     assert parts.checks["frequency_check"].startswith("certified")
     coarse, coordinates = coarse_note(parts, 8)
     assert coordinates < 0.5 * coarse
+
+
+def test_a_dask_worker_for_parts_stops_where_dask_would_pause_it_and_gets_large_arrays_scattered():
+    # a Dask worker above distributed.worker.memory.pause of its limit starts no task: with the parts it
+    # holds still held it would never run the next one, so the parts' budget ends below that fraction
+    distributed = pytest.importorskip("distributed")
+    import dask.config
+
+    from sidprep.jobs.executor import task_pool
+    from sidprep.jobs.parts import worker_memory_bytes
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, memory_limit="2GB",
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        pool = task_pool(client, pinned=True)
+        with dask.config.set({"distributed.worker.memory.pause": 0.5}):
+            assert worker_memory_bytes(pool) == pytest.approx(0.5 * 2e9)
+        with dask.config.set({"distributed.worker.memory.pause": False}):
+            assert worker_memory_bytes(pool) == pytest.approx(0.95 * 2e9)   # the terminate fraction
+        # a large array argument reaches the pinned worker scattered (not inside the task the
+        # scheduler holds), a small one inline; the task sees both
+        scattered = []
+        scatter = client.scatter
+        client.scatter = lambda data, **kw: scattered.append(data.nbytes) or scatter(data, **kw)
+        big, small = np.arange(2**18, dtype=float), np.ones(3)
+        slot = pool.slots[0]
+        assert pool.run_on(slot, np.dot, big, big).result() == pytest.approx(big @ big)
+        assert pool.run_on(slot, np.dot, small, small).result() == 3.0
+        assert scattered == [big.nbytes, big.nbytes]
+        pool.close()
+
+
+def test_a_local_pools_workers_share_what_the_driver_leaves(monkeypatch):
+    from sidprep.jobs.executor import task_pool
+    from sidprep.jobs.parts import LOCAL_DRIVER_SHARE, worker_memory_bytes
+
+    monkeypatch.setenv("SIDPREP_MEMORY_LIMIT", "10G")
+    pool = task_pool(None, 2, pinned=True)
+    try:
+        assert worker_memory_bytes(pool) == pytest.approx((1 - LOCAL_DRIVER_SHARE) * 10 * 2**30 / 2)
+    finally:
+        pool.close()
 
 
 def coarse_note(result, n_parts: int) -> tuple[int, int]:
@@ -306,7 +365,8 @@ def test_a_part_larger_than_a_worker_is_refused_before_it_starts_with_the_parts_
     suggested = int(exc.value.args[0].split("use --parts ")[1].split()[0])
     finer, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, suggested), im, b)
     check_parts_fit(finer, mesh.n_dof, memory)              # the suggestion fits
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "SIDPREP_MEMORY_LIMIT": str(int(2 * memory))}
+    limit = 2 * memory / (1 - jp.LOCAL_DRIVER_SHARE)        # two local workers with ``memory`` each
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "SIDPREP_MEMORY_LIMIT": str(int(limit))}
     run = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(ROD), "--parts", "2", "--workers",
                           "2", "-q", "-o", str(tmp_path / "rod.sid.h5")],
                          capture_output=True, text=True, env=env, timeout=300)
@@ -349,15 +409,26 @@ def test_each_part_is_factored_once_where_it_is_held_and_a_worker_killed_after_i
         tasks.close()
 
 
-def test_a_worker_holds_parts_within_its_budget_and_asks_for_an_evicted_part_again():
+def test_a_worker_holds_parts_within_its_budget_and_makes_a_released_part_again_without_it_sent():
     mesh, material, im, K, M = full_model(ROD)
     parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
-    budget = 1.5 * max(rp.held_part_bytes(p) for p in parts)   # room for one part at a time
+    budget = 2.5 * max(rp.held_part_bytes(p) for p in parts)   # room for two parts' matrices and factors
+    jp._HELD.clear()                                        # parts other tests left in this process count too
     for p, part in enumerate(parts):
         assert jp.held_task(("run", p), part, budget, rp.part_factorisations) == 0
-    assert [key for key in jp._HELD if key[0] == "run"] == [("run", 2)]
-    with pytest.raises(jp.NotHeld):
-        jp.held_task(("run", 0), None, budget, rp.part_factorisations)
+        jp.held_task(("run", p), None, budget, rp.HeldPart.factor)
+    # in a cycle over the parts the one just used is needed last: part 1 was released for part 2
+    assert [key[1] for key, h in jp._HELD.items() if key[0] == "run" and h.held_bytes] == [0, 2]
+    # a released part's task runs without the part sent again: K_BI K_II^-1 r against a direct solve
+    part = rp.assembled(parts[1])
+    r = np.random.default_rng(0).standard_normal((len(part.interior), 2))
+    I, B = part.interior, part.boundary
+    expected = part.K[B][:, I] @ spla.spsolve(part.K[I][:, I].tocsc(), r)
+    np.testing.assert_allclose(jp.held_task(("run", 1), None, budget, rp.part_coarse_load, r), expected,
+                               rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    assert jp.held_task(("run", 1), None, budget, rp.part_factorisations) == 2   # made again once
+    with pytest.raises(jp.NotHeld):                         # a worker that never held the part asks for it
+        jp.held_task(("run", 7), None, budget, rp.part_factorisations)
     jp.release_run("run")
     assert not [key for key in jp._HELD if key[0] == "run"]
 

@@ -13,6 +13,8 @@ from sidprep.jobs.guard import guarded, stop_workers, worker_setup
 
 #: seconds to wait for a Dask scheduler before giving up
 DASK_CONNECT_S = 10
+#: an array argument of a pinned Dask task above this many bytes is scattered to its worker first
+SCATTER_BYTES = 2**20
 
 
 #: every thread pool of a worker process at one thread, set before numpy, MKL, OpenBLAS or numba
@@ -130,7 +132,11 @@ class _DaskPool:
         return sorted(self.client.scheduler_info()["workers"])
 
     def run_on(self, slot, fn, *args):
-        """A task on the worker ``slot`` (its address) while it lives; on another when it is gone."""
+        """A task on the worker ``slot`` (its address) while it lives; on another when it is gone.  Its
+        array arguments above SCATTER_BYTES are scattered to that worker first, so that the scheduler
+        holds no copy of them in the task (at 2.4M DOF in parts, 3.8 GB in the scheduler's process)."""
+        args = [self.client.scatter(a, workers=[slot], hash=False) if getattr(a, "nbytes", 0) > SCATTER_BYTES else a
+                for a in args]
         return self.client.submit(fn, *args, pure=False, workers=[slot], allow_other_workers=True)
 
     def renew(self, slot) -> bool:

@@ -31,8 +31,8 @@ from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
-from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below, part_models,
-    partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts, static_schur)
+from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below, held_part_bytes,
+    part_models, partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts, static_schur)
 
 
 #: times a part is run again after its worker was lost
@@ -51,6 +51,10 @@ INTERFACE_PER_MODE = 2.0
 INTERFACE_MIN_MODES = 24
 #: most parts suggested when a part does not fit a worker
 MAX_SUGGESTED_PARTS = 4096
+#: the share of the available memory a local pool leaves to its driver, beyond the model it holds
+#: already: the coarse blocks (up to COARSE_IN_MEMORY_FRACTION of it; more goes out of core) and the
+#: basis and solve vectors (at 1.02M DOF in 16 parts the driver grew ~6 GB past the model's ~3 GB)
+LOCAL_DRIVER_SHARE = 0.35
 
 
 class PartLost(RuntimeError):
@@ -72,16 +76,31 @@ class PartsSettings:
 
 
 def worker_memory_bytes(pool) -> float:
-    """Memory one worker may use: the smallest Dask worker memory limit, or the available memory
-    (sidprep.fe.linalg.available_memory_bytes, SIDPREP_MEMORY_LIMIT) shared by the local workers."""
+    """Memory one worker may use: the smallest Dask worker memory limit times the fraction at which a
+    Dask worker pauses (``dask_pause_fraction``), or the available memory
+    (sidprep.fe.linalg.available_memory_bytes, SIDPREP_MEMORY_LIMIT) less LOCAL_DRIVER_SHARE of it,
+    shared by the local workers."""
 
     client = getattr(pool, "client", None)
     if client is not None:
         limits = [w.get("memory_limit") or 0 for w in client.scheduler_info()["workers"].values()]
         if limits and min(limits) > 0:
-            return float(min(limits))
+            return float(min(limits)) * dask_pause_fraction()
         return available_memory_bytes()
-    return available_memory_bytes() / max(pool.workers, 1)
+    return (1.0 - LOCAL_DRIVER_SHARE) * available_memory_bytes() / max(pool.workers, 1)
+
+
+def dask_pause_fraction() -> float:
+    """The fraction of its memory limit at which a Dask worker stops starting tasks
+    (``distributed.worker.memory.pause``, 0.8 by default; else ``terminate``, 0.95; else 1): the parts a
+    worker holds must stay below it, or the worker pauses with them held and the run waits for ever."""
+    import dask.config                                     # loaded with the Dask client already
+
+    for key in ("distributed.worker.memory.pause", "distributed.worker.memory.terminate"):
+        fraction = dask.config.get(key, default=False)
+        if fraction:
+            return float(fraction)
+    return 1.0
 
 
 def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) -> float:
@@ -108,7 +127,7 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) 
 
 
 class NotHeld(LookupError):
-    """A part task reached a worker that does not hold the part (a new or evicted one): send it again."""
+    """A part task reached a worker that does not hold the part (a new one): send it again."""
 
 
 #: per worker process: (run id, part index) -> HeldPart, least recently used first; its lock (a Dask
@@ -127,27 +146,29 @@ def held_task(key: tuple, part, budget: float, fn, *args):
     except (InputError, MemoryError, NotHeld):             # the user's error; out of memory: the worker's
         raise
     except Exception as exc:                               # the task's own error: the same again on a retry
-        name = (held.part if held is not None else part).name
+        name = (held.description if held is not None else part).name
         raise PartFailed(f"{name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
 
 
 def held_part(key: tuple, part, budget: float) -> HeldPart:
     """The HeldPart ``key`` this worker holds; ``part`` (a PartModel, or None when the worker should
-    hold it already: NotHeld otherwise) is assembled and held from now on - outside the lock, so a
-    worker's threads assemble parts side by side - the least recently used other parts dropped while
-    the estimated bytes held exceed ``budget``."""
+    hold it already: NotHeld otherwise) is held from now on.  While the estimated bytes of the parts
+    whose matrices and factors are held, this one's included, exceed ``budget``, the most recently
+    used other part is released (``HeldPart.release``): the tasks of a round visit a worker's parts
+    in the same order every round, so the part just used is the one needed last (least recently
+    used first would release each part just before its next task).  Its task assembles the part,
+    outside the lock, so a worker's threads assemble parts side by side."""
     with _HELD_LOCK:
         held = _HELD.get(key)
-        if held is not None:
-            _HELD.move_to_end(key)
-            return held
-    if part is None:
-        raise NotHeld(key)
-    held = HeldPart(part)
-    with _HELD_LOCK:
-        while _HELD and sum(h.held_bytes for h in _HELD.values()) + held.held_bytes > budget:
-            _HELD.popitem(last=False)
-        _HELD[key] = held
+        if held is None:
+            if part is None:
+                raise NotHeld(key)
+            held = _HELD[key] = HeldPart(part)
+        _HELD.move_to_end(key)
+        need = held_part_bytes(held.description)
+        others = [h for k, h in _HELD.items() if k != key and h.held_bytes]
+        while others and sum(h.held_bytes for h in others) + need > budget:
+            others.pop().release()
     return held
 
 
@@ -215,7 +236,7 @@ class PartTasks:
                         result = fut.result()
                     except (InputError, PartLost, PartFailed):
                         raise
-                    except NotHeld:                         # a fresh or evicted holder: send the part again
+                    except NotHeld:                         # a fresh holder (a new worker): send the part again
                         self.sent.discard(p)
                         todo.append(p)
                         continue

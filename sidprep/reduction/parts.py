@@ -37,6 +37,7 @@ Bathe & Wilson 1972 (subspace iteration); Castanier, Tan & Pierre 2001 (characte
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -47,7 +48,7 @@ from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
-from sidprep.fe.linalg import all_cores_blas, estimate_peak_memory, factorize, single_threaded_blas
+from sidprep.fe.linalg import all_cores_blas, available_memory_bytes, estimate_peak_memory, factorize, single_threaded_blas
 from sidprep.fe.mesh import FEMesh, _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
@@ -66,6 +67,9 @@ REFINE_BLOCK = 16
 CSR_BYTES_PER_ENTRY = 12
 #: METIS load imbalance allowed between parts (1.03 = 3 %, its default for k-way partitions)
 PART_IMBALANCE = 1.03
+#: the coarse factor stays in memory up to this fraction of the memory available when it is made (the
+#: workers hold their parts meanwhile); a larger one goes to memory-mapped files (``on_disk``)
+COARSE_IN_MEMORY_FRACTION = 0.25
 
 
 # ---------------------------------------------------------------------------------------------
@@ -216,15 +220,25 @@ def part_models(mesh, material, labels: np.ndarray, im, boundary, names=None) ->
 
 
 class HeldPart:
-    """A part as the worker that holds it for a whole run sees it: its PartModel and the factor of its
-    K_II (its own DOFs), made on first use - or kept from its Craig-Bampton reduction, which factors
-    the same K_II - and reused by every later substructured solve (only right-hand sides travel).
-    ``factorisations`` counts the factors made."""
+    """A part as the worker that holds it for a whole run sees it: its description (a PartModel), its
+    matrices (assembled here on first use, ``part``) and the factor of its K_II (its own DOFs), made on
+    first use - or kept from its Craig-Bampton reduction, which factors the same K_II - and reused by
+    every later substructured solve (only right-hand sides travel).  ``release`` drops the matrices
+    and the factor, not the description: they are made again when next needed, without the part
+    sent again.  ``factorisations`` counts the factors made."""
 
     def __init__(self, part: PartModel):
-        self.part = assembled(part)
+        self.description = part
+        self._part = None
         self._factor = None
         self.factorisations = 0
+
+    @property
+    def part(self) -> PartModel:
+        """The part with its K and M (``assembled`` here on first use, and after ``release``)."""
+        if self._part is None:
+            self._part = assembled(self.description)
+        return self._part
 
     def factor(self):
         """The factor of K_II (made here on first use)."""
@@ -237,10 +251,14 @@ class HeldPart:
         self._factor = factor
         self.factorisations += 1
 
+    def release(self) -> None:
+        """Drop the matrices and the factor (not the description)."""
+        self._part = self._factor = None
+
     @property
     def held_bytes(self) -> float:
-        """Estimated bytes held: the part's matrices and its factor (sidprep.fe.linalg.estimate_peak_memory)."""
-        return held_part_bytes(self.part)
+        """Estimated bytes held: the part's matrices and its factor once made (``held_part_bytes``)."""
+        return held_part_bytes(self.description) if self._part is not None else 0.0
 
 
 def part_factorisations(held: HeldPart) -> int:
@@ -415,8 +433,8 @@ def coarse_space(parts, coarse: np.ndarray, boundary, S: CutBlocks, M_model, n_i
 
 def schur_factor(S: CutBlocks):
     """The factor of the exact static Schur complement on G \\ b (``static_schur``) for the substructured
-    solve (``CutFactor``; S is consumed); None when G \\ b is empty.  LinAlgError unless S is positive
-    definite (a part, or the body, free to move)."""
+    solve (``CutFactor``, out of core when S is; S is consumed); None when G \\ b is empty.
+    LinAlgError unless S is positive definite (a part, or the body, free to move)."""
     if not S.groups:
         return None
     factor = S.eliminate(keep=True)
@@ -512,19 +530,21 @@ def assemble_parts(reductions: list[PartReduction], space: CoarseSpace) -> Assem
                     space, offsets)
 
 
-def static_schur(parts, coarse: np.ndarray, boundary, tasks=None) -> CutBlocks:
+def static_schur(parts, coarse: np.ndarray, boundary, tasks=None, out_of_core: bool | None = None) -> CutBlocks:
     """The whole model's exact static Schur complement on G \\ b as dense blocks between its cuts
-    (``CutBlocks``, positions in G \\ b): the sum of the parts' (``part_dynamic_schur`` at sigma 0 on
-    ``tasks``, a function fn, [args per part], consume -> [results], or ``InProcess``), each added as
-    it arrives: for ``coarse_space`` and ``schur_factor``."""
+    (``CutBlocks``, positions in G \\ b; ``out_of_core``: see there): the sum of the parts'
+    (``part_dynamic_schur`` at sigma 0 on ``tasks``, a function fn, [args per part], consume ->
+    [results], or ``InProcess``), each added as it arrives: for ``coarse_space`` and ``schur_factor``."""
 
     b, free = boundary_positions(coarse, boundary)
     local = part_positions(parts, coarse)
     slot = np.full(len(coarse), -1)
     slot[free] = np.arange(len(free))
-    total = CutBlocks([slot[g] for g in cut_groups(local, len(coarse), b)], len(free))
+    positions = [slot[pos] for pos in local]
+    total = CutBlocks([slot[g] for g in cut_groups(local, len(coarse), b)], len(free), positions,
+                      out_of_core=out_of_core)
     (tasks or InProcess(parts))(part_dynamic_schur, [(0.0,)] * len(parts),
-                                lambda p, inertia: total.add(slot[local[p]], inertia.schur))
+                                lambda p, inertia: total.add(positions[p], inertia.schur))
     return total
 
 
@@ -538,7 +558,7 @@ def count_below(parts, coarse: np.ndarray, held, sigma: float, tasks=None) -> in
 
     local = part_positions(parts, coarse)
     held_at = np.flatnonzero(np.isin(coarse, [] if held is None else held))
-    blocks = CutBlocks(cut_groups(local, len(coarse), held_at), len(coarse))
+    blocks = CutBlocks(cut_groups(local, len(coarse), held_at), len(coarse), local, count_only=True)
     below = perturbed = 0
 
     def add(p: int, inertia: Inertia) -> None:
@@ -557,9 +577,18 @@ class CutBlocks:
     ``cut_groups``): block (i, j), i <= j, exists when a part holds DOFs of both.  The parts' Schur
     complements are added as they arrive (``add``); ``eliminate`` runs a block LDL^T group by group
     (fewest neighbours first), so the memory is the blocks of the sum (for a chain of parts, two cuts
-    per part) - no sparse factor with its symbolic analysis of the whole coarse matrix."""
+    per part) - no sparse factor with its symbolic analysis of the whole coarse matrix.
 
-    def __init__(self, groups: list[np.ndarray], n: int):
+    ``arriving``: the positions of every block to be added (one per part).  ``count_only`` (for
+    ``negative_pivots``): a group is eliminated as soon as its blocks are all in and it has at most
+    two neighbours (its elimination adds at most the one block it joins them by, and drops two),
+    while the other parts' blocks arrive - the peak is the front of the elimination, not the whole
+    matrix.  ``out_of_core`` (default: when the blocks will exceed COARSE_IN_MEMORY_FRACTION of the
+    available memory; never for a count): the blocks, and the factor's L and W, in memory-mapped
+    temporary files (``disk_zeros``)."""
+
+    def __init__(self, groups: list[np.ndarray], n: int, arriving: list, count_only: bool = False,
+                 out_of_core: bool | None = None):
         self.groups = [np.asarray(g, dtype=np.int64) for g in groups]
         self.sizes = [len(g) for g in groups]
         self.n = n
@@ -568,6 +597,33 @@ class CutBlocks:
         for k, g in enumerate(self.groups):
             self.group[g], self.offset[g] = k, np.arange(len(g))
         self.blocks: dict = {}
+        self.neighbours = {k: set() for k in range(len(self.sizes))}   # the groups not eliminated yet
+        self.pending = np.zeros(len(self.sizes), dtype=np.int64)       # blocks still to come per group
+        for pos in arriving:
+            touched = self.groups_at(pos)
+            self.pending[touched] += 1
+            self.join(touched)
+        self.count_only = count_only
+        if out_of_core is None:
+            out_of_core = not count_only and self.planned_bytes() > COARSE_IN_MEMORY_FRACTION * available_memory_bytes()
+        self.zeros = disk_zeros if out_of_core else np.zeros
+        self.negative: int | None = 0
+        self.steps: list = []
+
+    def planned_bytes(self) -> int:
+        """Bytes of the blocks once every part's is in (before any elimination)."""
+        pairs = sum(self.sizes[i] * self.sizes[j] for i in self.neighbours for j in self.neighbours[i] if i < j)
+        return 8 * (pairs + sum(size * size for size in self.sizes))
+
+    def groups_at(self, pos: np.ndarray) -> np.ndarray:
+        """The groups holding any of the positions ``pos`` (-1 or in no group: none)."""
+        g = self.group[pos[pos >= 0]]
+        return np.unique(g[g >= 0])
+
+    def join(self, touched) -> None:
+        """Record the groups ``touched`` as each other's neighbours."""
+        for i in touched:
+            self.neighbours[i].update(j for j in touched if j != i)
 
     def add(self, pos: np.ndarray, B: np.ndarray) -> None:
         """Add the dense block B (len(pos), len(pos)) at the positions ``pos`` (-1 or in no group: dropped)."""
@@ -576,8 +632,30 @@ class CutBlocks:
         for i, ri in rows.items():
             for j, rj in rows.items():
                 if i <= j:
-                    block = self.blocks.setdefault((i, j), np.zeros((self.sizes[i], self.sizes[j])))
+                    if (i, j) not in self.blocks:
+                        self.blocks[(i, j)] = self.zeros((self.sizes[i], self.sizes[j]))
+                    block = self.blocks[(i, j)]
                     block[np.ix_(self.offset[pos[ri]], self.offset[pos[rj]])] += B[np.ix_(ri, rj)]
+        self.pending[list(rows)] -= 1
+        if self.count_only:
+            with single_threaded_blas():                  # the other parts' tasks run meanwhile
+                self.eliminate_complete()
+
+    def eliminate_complete(self) -> None:
+        """Eliminate, counting only, every group whose blocks are all in and that has at most two neighbours."""
+        while self.negative is not None:
+            ready = [k for k, near in self.neighbours.items() if self.pending[k] == 0 and len(near) <= 2]
+            if not ready:
+                return
+            self.eliminate_group(min(ready, key=lambda g: (len(self.neighbours[g]), self.sizes[g])), keep=False)
+
+    def stored(self, a: np.ndarray) -> np.ndarray:
+        """``a``, or a copy out of core when the blocks are."""
+        if self.zeros is np.zeros:
+            return a
+        out = disk_zeros(a.shape)
+        out[...] = a
+        return out
 
     def block(self, k: int) -> np.ndarray:
         """The dense symmetric diagonal block of group k (before ``eliminate``)."""
@@ -589,51 +667,60 @@ class CutBlocks:
         return None if factor is None else factor.negative
 
     def eliminate(self, keep: bool) -> CutFactor | None:
-        """The block LDL^T, group k after group k: A_kk = L D L^T (Bunch-Kaufman, scipy.linalg.ldl) and
-        its neighbours' blocks updated by A_kn^T A_kk^-1 A_kn = W^T D^-1 W, W = L^-1 P^T A_kn (level-3
+        """The block LDL^T of the groups left, group after group, fewest neighbours first
+        (``eliminate_group``).  A CutFactor: the negative pivots (Sylvester's law, Haynsworth's inertia
+        additivity over the groups) and, with ``keep``, the steps its ``solve`` needs; None when a
+        pivot is zero.  Consumes the blocks."""
+        if keep and self.count_only:
+            raise ValueError("a CutBlocks for a count is eliminated as its blocks arrive: it keeps no factor")
+        while self.neighbours and self.negative is not None:
+            self.eliminate_group(min(self.neighbours, key=lambda g: (len(self.neighbours[g]), self.sizes[g])), keep)
+        return None if self.negative is None else CutFactor(self.n, self.negative, self.steps)
+
+    def eliminate_group(self, k: int, keep: bool) -> None:
+        """One step of the block LDL^T: A_kk = L D L^T (Bunch-Kaufman, scipy.linalg.ldl) and its
+        neighbours' blocks updated by A_kn^T A_kk^-1 A_kn = W^T D^-1 W, W = L^-1 P^T A_kn (level-3
         triangular solves; LAPACK's dsytrs with as many right-hand sides is level-2: 6.5 s against
-        1.4 s for a 2600-DOF cut).  A CutFactor: the negative pivots (Sylvester's law, Haynsworth's
-        inertia additivity over the groups) and, with ``keep``, the steps its ``solve`` needs; None
-        when a pivot is zero.  Consumes the blocks."""
+        1.4 s for a 2600-DOF cut); its negative pivots added to ``negative`` (None when a pivot is
+        zero), with ``keep`` the step appended to ``steps`` (its L and W out of core when the blocks are)."""
         blocks = self.blocks
-        neighbours = {k: set() for k in range(len(self.sizes))}
-        for i, j in blocks:
-            if i != j:
-                neighbours[i].add(j)
-                neighbours[j].add(i)
-        negative, steps = 0, []
-        while neighbours:
-            k = min(neighbours, key=lambda g: (len(neighbours[g]), self.sizes[g]))
-            near = sorted(neighbours.pop(k))
-            L, D, perm = sla.ldl(self.block(k), lower=True, overwrite_a=True, check_finite=False)
-            blocks.pop((k, k), None)
-            count = block_diagonal_negatives(D)
-            if count is None:
-                return None
-            negative += count
-            L = L[perm]                                     # unit lower triangular: A_kk[perm][:, perm] = L D L^T
-            W = np.zeros((self.sizes[k], 0))
-            if near:
-                A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
-                W = sla.solve_triangular(L, A[perm], lower=True, unit_diagonal=True, check_finite=False)
-                del A
-                DW = block_diagonal_solve(D, W)
-                at = np.cumsum([0] + [self.sizes[i] for i in near])
-                for a, i in enumerate(near):
-                    neighbours[i].discard(k)
-                    for b, j in enumerate(near[a:], start=a):
-                        update = W[:, at[a]:at[a + 1]].T @ DW[:, at[b]:at[b + 1]]
-                        if (i, j) in blocks:
-                            blocks[(i, j)] -= update
-                        else:
-                            blocks[(i, j)] = -update
-                        if i != j:
-                            neighbours[i].add(j)
-                            neighbours[j].add(i)
-                del DW
-            if keep:
-                steps.append(EliminationStep(self.groups[k], [self.groups[i] for i in near], L, D, perm, W))
-        return CutFactor(self.n, negative, steps)
+        near = sorted(self.neighbours.pop(k))
+        L, D, perm = sla.ldl(self.block(k), lower=True, overwrite_a=True, check_finite=False)
+        blocks.pop((k, k), None)
+        count = block_diagonal_negatives(D)
+        if count is None:
+            self.negative = None
+            return
+        self.negative += count
+        L = L[perm]                                     # unit lower triangular: A_kk[perm][:, perm] = L D L^T
+        W = np.zeros((self.sizes[k], 0))
+        if near:
+            A = np.hstack([blocks.pop((k, i)) if k < i else blocks.pop((i, k)).T for i in near])  # A_k,near
+            W = sla.solve_triangular(L, A[perm], lower=True, unit_diagonal=True, check_finite=False)
+            del A
+            DW = block_diagonal_solve(D, W)
+            at = np.cumsum([0] + [self.sizes[i] for i in near])
+            for i in near:
+                self.neighbours[i].discard(k)
+            for a, i in enumerate(near):
+                for b, j in enumerate(near[a:], start=a):
+                    update = W[:, at[a]:at[a + 1]].T @ DW[:, at[b]:at[b + 1]]
+                    if (i, j) not in blocks:
+                        blocks[(i, j)] = self.zeros(update.shape)
+                    blocks[(i, j)] -= update
+            self.join(near)
+            del DW
+        if keep:
+            self.steps.append(EliminationStep(self.groups[k], [self.groups[i] for i in near], self.stored(L), D, perm,
+                                              self.stored(W)))
+
+
+def disk_zeros(shape: tuple) -> np.ndarray:
+    """A float64 array of zeros mapped from a temporary file that has no name (the kernel frees it with
+    the map): the page cache keeps what memory allows and the rest is written out and read back when
+    used - out of core, as MUMPS's OOC factors."""
+    with tempfile.TemporaryFile(prefix="sidprep-coarse-") as fh:
+        return np.memmap(fh, dtype=np.float64, mode="w+", shape=shape)
 
 
 @dataclass(frozen=True)
@@ -823,7 +910,8 @@ class SubstructuredSolver:
         model-DOF vectors of the assembly vectors U): two rounds of part tasks for both."""
         interior = np.ones(K_model.shape[0], bool)
         interior[self.boundary] = False
-        psi, out = self.solve_and_recover(-K_model[interior][:, self.boundary].toarray(), U)
+        K_ib = K_model[self.boundary][:, interior].T      # K symmetric: no copy of K's interior rows
+        psi, out = self.solve_and_recover(-K_ib.toarray(), U)
         return psi, out
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
