@@ -818,10 +818,12 @@ def part_coarse_load(held: HeldPart, r: np.ndarray) -> np.ndarray:
 
 
 def part_interior_solve(held: HeldPart, r: np.ndarray, u_B: np.ndarray) -> np.ndarray:
-    """K_II^-1 (r - K_IB u_B) (ni_p, k): the part's own DOFs given its coarse DOFs u_B (nb_p, k) and the
-    load r (ni_p, k) on its own DOFs, with the factor ``held`` keeps.  A task."""
+    """K_II^-1 ([r, 0] - K_IB u_B) (ni_p, k'): the part's own DOFs given its coarse DOFs u_B (nb_p, k')
+    and the load r (ni_p, k), k <= k', on its own DOFs in the first k columns (the others: a
+    recovery with no load), with the factor ``held`` keeps.  A task."""
     part = held.part
-    rhs = r - part.K[part.interior][:, part.boundary] @ u_B
+    rhs = -(part.K[part.interior][:, part.boundary] @ u_B)
+    rhs[:, :r.shape[1]] += r
     with single_threaded_blas():
         return np.asarray(held.factor().solve(rhs)).reshape(rhs.shape)
 
@@ -879,8 +881,9 @@ class SubstructuredSolver:
             keep = cols[p] >= 0
             g[cols[p][keep]] -= load[keep]
 
+        r_parts = [r[self.own_rows(p)] for p in range(n)]      # each part's load, sent in both rounds
         if r.shape[1]:
-            self.tasks(part_coarse_load, [(r[self.own_rows(p)],) for p in range(n)], subtract)
+            self.tasks(part_coarse_load, [(r_p,) for r_p in r_parts], subtract)
         with all_cores_blas():                            # between two rounds of part tasks
             x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None and r.shape[1] else g
         x = np.empty_like(r)
@@ -893,8 +896,6 @@ class SubstructuredSolver:
             out[coarse] = u_G
             u_B = [np.hstack([u, u_G[space.local[p]]]) for p, u in enumerate(u_B)]
         k = r.shape[1]
-        args = [(np.hstack([r[self.own_rows(p)], np.zeros((len(self.own_rows(p)), u_B[p].shape[1] - k))]), u_B[p])
-                for p in range(n)]
 
         def place(p: int, x_p: np.ndarray) -> None:
             x[self.own_rows(p)] = x_p[:, :k]
@@ -902,7 +903,7 @@ class SubstructuredSolver:
                 a, part = self.assembly, self.parts[p]
                 out[part.dofs[part.interior]] = self.reductions[p].modes @ U[a.offsets[p]:a.offsets[p + 1]] + x_p[:, k:]
 
-        self.tasks(part_interior_solve, args, place)
+        self.tasks(part_interior_solve, list(zip(r_parts, u_B)), place)
         return x, out
 
     def constraint_modes_and_recovery(self, K_model, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
