@@ -70,7 +70,6 @@ def pendulum(repeat: int) -> None:
 def engine_system():
     """Crank (flywheel 0.05 kg m^2, radius 0.05 m), rod 0.15 m, 0.5 kg piston, gas force."""
     from sidprep.solver import PointForce, Prismatic, Revolute, RigidBody, System, Table
-    from sidprep.solver.run import simulate
 
     crank_r, rod_l = 0.05, 0.15
     s = System(gravity=(0, -9.81, 0))
@@ -90,6 +89,8 @@ def engine_system():
 
 
 def engine(repeat: int) -> None:
+    from sidprep.solver.run import simulate
+
     t_end = 1.0
     ref = simulate(engine_system(), t_end, h=1e-5, output_dt=0.01).joints["main"].rate
     print("\n### Rigid one-cylinder engine (gas force over crank angle, 1 s from 150 rad/s)\n")

@@ -59,7 +59,6 @@ def reduced_bar(folder: Path) -> Path:
 def pendulum(sid, planar=None):
     """The hinged bar as a System, its tip node marker (hinge = SID node 0, tip = node 1)."""
     from sidprep.solver import FlexibleBody, Revolute, System
-    from sidprep.solver.run import simulate
 
     system = System(gravity=(0.0, 0.0, -9.81))
     if planar is not None:
@@ -73,6 +72,8 @@ def pendulum(sid, planar=None):
 
 def run(sid, h, *, rtol=None, newton_tol=1e-8, planar=None):
     """(angle (nt,) rad, tip deflection (nt, 3) m, CPU s per simulated s, stats)."""
+    from sidprep.solver.run import simulate
+
     system = pendulum(sid, planar)
     res = simulate(system, T_END, h=h, rtol=rtol, newton_tol=newton_tol, output_dt=OUTPUT_DT, static_start=True)
     phi_tip = sid.nodes[1].phi.M0
