@@ -67,9 +67,11 @@ REFINE_BLOCK = 16
 CSR_BYTES_PER_ENTRY = 12
 #: METIS load imbalance allowed between parts (1.03 = 3 %, its default for k-way partitions)
 PART_IMBALANCE = 1.03
-#: the coarse factor stays in memory up to this fraction of the memory available when it is made (the
-#: workers hold their parts meanwhile); a larger one goes to memory-mapped files (``on_disk``)
-COARSE_IN_MEMORY_FRACTION = 0.25
+#: the coarse blocks and their factor stay in memory up to this fraction of the memory available as
+#: their round starts; larger ones go to memory-mapped files (``disk_zeros``): the
+#: driver's basis and solve vectors come later (at 2.4M DOF in 16 parts, ~4.4 GB of blocks stayed in
+#: memory at 0.25, beside the model's ~5 GB and 0.58 GB per 30 columns of model-size vectors)
+COARSE_IN_MEMORY_FRACTION = 0.1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -941,6 +943,7 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
     basis[boundary, :nb] = np.eye(nb)
     basis[interior, :nb] = psi
     basis[:, nb:] = modes
+    del psi, modes                                        # in the basis now: (ni, nb) and (n, nm) less
     f, basis[interior, nb:] = refined_modes(K_model, M_model, interior, solver, basis[interior, nb:])
     return ReducedModel(basis, project(K_model, basis), project(M_model, basis),
                         np.asarray(boundary, dtype=np.int64), f, solver)
@@ -949,25 +952,29 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
 def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Step 6: the lowest len(X.T) eigenpairs of K_ii, M_ii in span[X, K_ii^-1 M_ii X] (Rayleigh-Ritz
     after one block inverse iteration); (frequencies Hz (nm,), modes (ni, nm) M_ii-normalised).
-    V = [X, Y] is not orthonormalised in place: its Gram matrices are formed REFINE_BLOCK columns at a
-    time and the Ritz vectors are V C Z (C, Z small), so the peak is about 3 x (ni, nm) beside X."""
+    V = [X, Y] is never formed: its Gram matrices are formed REFINE_BLOCK columns at a time from X and
+    Y, and the Ritz vectors are X R_X + Y R_Y ([R_X; R_Y] = diag(d) C Z, small), so the peak is
+    about 3 x (ni, nm) beside X."""
 
     nm = X.shape[1]
     if nm == 0:
         return np.zeros(0), X
     m_ii, k_ii = interior_operator(M, interior).matmat, interior_operator(K, interior).matmat
-    V = np.hstack([X, solver.solve(m_ii(X))])
+    Y = solver.solve(m_ii(X))
     with all_cores_blas():                                # no part task runs
-        G, H = block_gram(m_ii, V), block_gram(k_ii, V)
+        G, H = block_gram(m_ii, (X, Y)), block_gram(k_ii, (X, Y))
     d = 1.0 / np.sqrt(np.diag(G))                          # columns of unit M_ii norm
     G, H = d[:, None] * G * d, d[:, None] * H * d
     s, W = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > RANK_TOL * s.max()                        # X and K^-1 M X are nearly parallel
     C = W[:, keep] / np.sqrt(s[keep])                    # V diag(d) C is M_ii-orthonormal
     lam, Z = sla.eigh(C.T @ (0.5 * (H + H.T)) @ C, subset_by_index=(0, nm - 1))
-    return np.sqrt(np.abs(lam)) / (2 * np.pi), V @ (d[:, None] * (C @ Z))
+    R = d[:, None] * (C @ Z)                             # (2 nm, nm): the Ritz vectors in V's columns
+    return np.sqrt(np.abs(lam)) / (2 * np.pi), X @ R[:nm] + Y @ R[nm:]
 
 
-def block_gram(op, V: np.ndarray) -> np.ndarray:
-    """V^T op(V) (k, k) for V (n, k), op applied REFINE_BLOCK columns at a time (peak memory)."""
-    return np.hstack([V.T @ op(V[:, j:j + REFINE_BLOCK]) for j in range(0, V.shape[1], REFINE_BLOCK)])
+def block_gram(op, blocks) -> np.ndarray:
+    """V^T op(V) (k, k) for V = [blocks] (n, k), the blocks side by side (V is never formed), op
+    applied to REFINE_BLOCK columns at a time (peak memory)."""
+    columns = (B[:, j:j + REFINE_BLOCK] for B in blocks for j in range(0, B.shape[1], REFINE_BLOCK))
+    return np.hstack([np.vstack([B.T @ product for B in blocks]) for product in map(op, columns)])
