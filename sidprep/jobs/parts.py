@@ -94,7 +94,7 @@ def dask_pause_fraction() -> float:
     """The fraction of its memory limit at which a Dask worker stops starting tasks
     (``distributed.worker.memory.pause``, 0.8 by default; else ``terminate``, 0.95; else 1): the parts a
     worker holds must stay below it, or the worker pauses with them held and the run waits for ever."""
-    import dask.config                                     # loaded with the Dask client already
+    import dask.config  # deferred: 1.5 s import, Dask only (loaded with the client already)
 
     for key in ("distributed.worker.memory.pause", "distributed.worker.memory.terminate"):
         fraction = dask.config.get(key, default=False)
