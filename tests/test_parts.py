@@ -123,6 +123,19 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
         assert solver.eigenvalue_count(held, sigma) == k
 
 
+def summed_random_blocks(rng, positions, n: int, shift: float, *targets) -> np.ndarray:
+    """A random symmetric block B - shift I at each of ``positions``, added to every CutBlocks of
+    ``targets``; their dense sum (n, n), the reference."""
+    A = np.zeros((n, n))
+    for pos in positions:
+        B = rng.standard_normal((len(pos), len(pos)))
+        B = B + B.T - shift * np.eye(len(pos))
+        A[np.ix_(pos, pos)] += B
+        for blocks in targets:
+            blocks.add(pos, B)
+    return A
+
+
 def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whole_matrix():
     # a symmetric indefinite matrix on 5 groups coupled like the cuts of parts (a chain and a triple
     # junction), summed from "part" blocks; its negative eigenvalues from a dense eigen solve
@@ -134,15 +147,7 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
         blocks, twin = rp.CutBlocks(groups, 30, parts), rp.CutBlocks(groups, 30, parts)
         disk = rp.CutBlocks(groups, 30, parts, out_of_core=True)      # blocks and factor in mapped files
         streamed = rp.CutBlocks(groups, 30, parts, count_only=True)   # eliminated as the blocks arrive
-        A = np.zeros((30, 30))
-        for pos in parts:
-            B = rng.standard_normal((len(pos), len(pos)))
-            B = B + B.T - shift * np.eye(len(pos))
-            A[np.ix_(pos, pos)] += B
-            blocks.add(pos, B)
-            twin.add(pos, B)
-            disk.add(pos, B)
-            streamed.add(pos, B)
+        A = summed_random_blocks(rng, parts, 30, shift, blocks, twin, disk, streamed)
         assert len(streamed.neighbours) < len(groups)              # group 0 went once parts 0 and 1 were in
         assert blocks.planned_bytes() == sum(B.nbytes for B in blocks.blocks.values())   # the out-of-core test
         expected = int(np.sum(np.linalg.eigvalsh(A) < 0))
@@ -173,15 +178,9 @@ def test_the_block_ldlt_counts_and_solves_like_dense_algebra_on_any_grouping(siz
     held = [rng.choice(len(groups), size=rng.integers(1, min(3, len(groups)) + 1), replace=False)
             for _ in range(rng.integers(1, 5))] + [[k] for k in range(len(groups))]
     positions = [np.concatenate([groups[k] for k in part]) for part in held]
-    blocks, twin, A = rp.CutBlocks(groups, n, positions), rp.CutBlocks(groups, n, positions), np.zeros((n, n))
+    blocks, twin = rp.CutBlocks(groups, n, positions), rp.CutBlocks(groups, n, positions)
     streamed = rp.CutBlocks(groups, n, positions, count_only=True)   # counted as the blocks arrive
-    for pos in positions:
-        B = rng.standard_normal((len(pos), len(pos)))
-        B = B + B.T - shift * np.eye(len(pos))
-        A[np.ix_(pos, pos)] += B
-        blocks.add(pos, B)
-        twin.add(pos, B)
-        streamed.add(pos, B)
+    A = summed_random_blocks(rng, positions, n, shift, blocks, twin, streamed)
     eig = np.linalg.eigvalsh(A)
     if np.abs(eig).min() < 1e-8 * np.abs(eig).max():
         return                                              # (near) singular: no count to compare
