@@ -32,7 +32,6 @@ from sidprep.jobs import parts as jp
 from sidprep.jobs.parts import PART_RETRIES, PartFailed, PartLost, PartsSettings, check_parts_fit, parts_reducer
 from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce
 from sidprep.progress import peak_memory_mb
-from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.reduction.interfaces import interface_model
 from sidprep.reduction import parts as rp
 
@@ -353,11 +352,45 @@ def test_workers_that_keep_dying_stop_the_run_with_one_line_naming_the_part():
     assert "\n" not in str(exc.value)
 
 
+SCHUR_PEAK_SCRIPT = """
+import sys
+import numpy as np
+from sidprep.fe.pardiso import ldlt_inertia
+K = np.load(sys.argv[1], allow_pickle=True)[()]
+def high_water():
+    with open("/proc/self/status") as fh:
+        return 1024 * int(next(line for line in fh if line.startswith("VmHWM")).split()[1])
+open("/proc/self/clear_refs", "w").write("5")              # reset the high-water mark
+base = high_water()
+ldlt_inertia(K, None if sys.argv[2] == "0" else np.arange(int(sys.argv[2])))
+print(high_water() - base)
+"""
+
+
+def schur_task_peak_bytes(K, n_rows: int, tmp_path) -> float:
+    """Measured peak RSS increase (bytes, VmHWM) of ldlt_inertia(K) with its dense Schur complement on
+    the first n_rows rows (0: none), in a fresh process."""
+    path = tmp_path / "K.npy"
+    np.save(path, K, allow_pickle=True)
+    run = subprocess.run([sys.executable, "-c", SCHUR_PEAK_SCRIPT, str(path), str(n_rows)], capture_output=True,
+                         text=True, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300, check=True)
+    return float(run.stdout)
+
+
+def test_the_schur_tasks_dense_blocks_stay_within_the_copies_the_estimate_counts(tmp_path):
+    # the measured peak RSS (an independent reference) of the sparse LDL^T with its dense Schur block,
+    # over the same LDL^T without it: at most rp.SCHUR_DENSE_COPIES (nb, nb) arrays
+    _, _, _, K, _ = full_model(ROD)
+    nb = 3000
+    extra = schur_task_peak_bytes(K, nb, tmp_path) - schur_task_peak_bytes(K, 0, tmp_path)
+    assert 8.0 * nb ** 2 <= extra <= rp.SCHUR_DENSE_COPIES * 8.0 * nb ** 2
+
+
 def test_a_part_larger_than_a_worker_is_refused_before_it_starts_with_the_parts_that_fit(tmp_path):
     mesh, material, im, K, M = full_model(ROD)
     b = im.master_dofs.ravel()
     parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 2), im, b)
-    need = max(reduction_peak_bytes(len(p.dofs), None, p.extent) for p in parts)
+    need = max(rp.part_peak_bytes(p) for p in parts)
     memory = 0.9 * need / MEMORY_HEADROOM
     with pytest.raises(InputError, match=r"parts = 2: part \d/2 \(\d+ of 16029 DOF\) needs .* use --parts (\d+)") as exc:
         check_parts_fit(parts, mesh.n_dof, memory)

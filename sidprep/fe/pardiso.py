@@ -101,8 +101,8 @@ def ldlt_inertia(A: sp.spmatrix, schur_rows=None) -> Inertia:
     iparm[9] = PIVOT_PERTURBATION_EXP
     iparm[34] = 1                                 # zero-based ia, ja
     iparm[35] = 1 if len(rows) else 0             # dense Schur complement of the rows marked in perm
-    x = np.zeros(max(len(rows) ** 2, n))
-    b = np.zeros_like(x)
+    x = np.zeros(max(len(rows) ** 2, n))          # the dense Schur complement is returned in x
+    b = np.zeros(n)                               # no solve: b only as PARDISO's argument
     pt, err = np.zeros(64, dtype=np.int64), np.zeros(1, dtype=np.int32)
 
     def call(phase: int) -> None:
@@ -115,7 +115,7 @@ def ldlt_inertia(A: sp.spmatrix, schur_rows=None) -> Inertia:
         call(PHASE_FACTORIZE)
         if err[0] != 0:
             raise np.linalg.LinAlgError(f"PARDISO: error {int(err[0])} in the factorisation")
-        schur = x[:len(rows) ** 2].reshape(len(rows), len(rows)).copy() if len(rows) else None
+        schur = x[:len(rows) ** 2].reshape(len(rows), len(rows)) if len(rows) else None   # a view: no copy
         return Inertia(int(iparm[22]), int(iparm[21]), int(iparm[13]), schur)
     finally:
         call(PHASE_RELEASE)

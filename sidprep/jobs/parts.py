@@ -4,9 +4,9 @@ The mesh is partitioned, every part's Craig-Bampton reduction runs as a task on 
 ``sidprep batch`` (sidprep.jobs.executor.task_pool: a local process pool, or a Dask cluster), and the
 driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduction.parts).
 
-* Memory: before any part starts, each part's reduction peak is estimated
-  (sidprep.reduction.craig_bampton.reduction_peak_bytes) against one worker's memory; a part that does
-  not fit is refused with the ``parts`` that would fit.
+* Memory: before any part starts, each part's largest task (its reduction, or its Schur task with the
+  dense blocks on its coarse DOFs) is estimated (sidprep.reduction.parts.part_peak_bytes) against one
+  worker's memory; a part that does not fit is refused with the ``parts`` that would fit.
 * Parts held where they are reduced (``PartTasks``): each part is pinned to one worker, which holds
   its matrices (sent once) and its K_II factor (made once) for the whole run; later tasks send
   right-hand sides only.
@@ -30,9 +30,9 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
-from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below, held_part_bytes,
-    part_models, partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts, static_schur)
+    part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts,
+    static_schur, task_peak_bytes)
 
 
 #: times a part is run again after its worker was lost
@@ -104,20 +104,20 @@ def dask_pause_fraction() -> float:
 
 
 def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) -> float:
-    """InputError before any part starts when a part's estimated reduction peak exceeds ``memory``
+    """InputError before any part starts when a part's estimated peak (``part_peak_bytes``) exceeds ``memory``
     (bytes, one worker), naming the ``parts`` that would fit (``components``: an assembly's, whose
     split is the user's).  Returns the bytes a worker may spend on the other parts it holds (their
-    matrices and K_II factors, ``held_task``) beside the largest reduction: the held parts' bound."""
+    matrices and K_II factors, ``held_task``) beside the largest task: the held parts' bound."""
 
-    need = [reduction_peak_bytes(len(p.dofs), None, p.extent) for p in parts]
+    need = [part_peak_bytes(p) for p in parts]
     worst = int(np.argmax(need))
     if need[worst] <= MEMORY_HEADROOM * memory:
         return MEMORY_HEADROOM * memory - need[worst]
     n = len(parts)
-    size = len(parts[worst].dofs)
-    fits = next((m for m in range(n + 1, MAX_SUGGESTED_PARTS + 1)
-                 if reduction_peak_bytes(size * n // m, None, parts[worst].extent * (n / m) ** (1 / 3))
-                 <= MEMORY_HEADROOM * memory), None)
+    size, n_coarse = len(parts[worst].dofs), len(parts[worst].boundary)
+    fits = next((m for m in range(n + 1, MAX_SUGGESTED_PARTS + 1)            # a part's cuts shrink as a surface
+                 if task_peak_bytes(size * n // m, int(n_coarse * (n / m) ** (2 / 3)),
+                                    parts[worst].extent * (n / m) ** (1 / 3)) <= MEMORY_HEADROOM * memory), None)
     advice = f"use --parts {fits} or more (or workers with more memory)" if fits else "use workers with more memory"
     if components:
         advice = "split it into smaller components (or use workers with more memory)"

@@ -52,7 +52,7 @@ from sidprep.fe.linalg import all_cores_blas, available_memory_bytes, estimate_p
 from sidprep.fe.mesh import FEMesh, _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
-from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project
+from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project, reduction_peak_bytes
 
 
 #: the parts' fixed-interface modes reach this multiple of the highest fixed-interface frequency of
@@ -63,6 +63,8 @@ PART_CUTOFF = 2.0
 RANK_TOL = 1e-12
 #: columns of the refinement's Gram products at a time (each applies an (n, REFINE_BLOCK) operator product)
 REFINE_BLOCK = 16
+#: rows of the Ritz vectors combined at a time (``ritz_vectors``; its temporaries scale with them)
+REFINE_ROWS = 65536
 #: bytes of a stored entry of a float64 CSR matrix with 32-bit indices
 CSR_BYTES_PER_ENTRY = 12
 #: METIS load imbalance allowed between parts (1.03 = 3 %, its default for k-way partitions)
@@ -72,6 +74,10 @@ PART_IMBALANCE = 1.03
 #: driver's basis and solve vectors come later (at 2.4M DOF in 16 parts, ~4.4 GB of blocks stayed in
 #: memory at 0.25, beside the model's ~5 GB and 0.58 GB per 30 columns of model-size vectors)
 COARSE_IN_MEMORY_FRACTION = 0.1
+#: dense (nb_p, nb_p) arrays alive at the peak of a part's Schur task (``part_dynamic_schur``): PARDISO's
+#: Schur block, the x it is returned in, and its workspace - measured 2.6 (peak RSS over the same
+#: LDL^T without the Schur rows: +423 MiB for nb_p = 4581 on a 94k-DOF part of the 2.4M bar in 24)
+SCHUR_DENSE_COPIES = 3
 
 
 # ---------------------------------------------------------------------------------------------
@@ -273,6 +279,19 @@ def held_part_bytes(part: PartModel) -> float:
     (sidprep.fe.linalg.estimate_peak_memory, tet10 entries per DOF)."""
     matrices = 2 * CSR_BYTES_PER_ENTRY * estimate_peak_memory(len(part.dofs), None, part.extent).nnz
     return matrices + estimate_peak_memory(len(part.interior), None, part.extent).factor_bytes
+
+
+def part_peak_bytes(part: PartModel) -> float:
+    """Estimated peak bytes of the largest task of ``part`` (a PartModel): its Craig-Bampton reduction
+    (sidprep.reduction.craig_bampton.reduction_peak_bytes) or its Schur task, a sparse LDL^T of the
+    part with SCHUR_DENSE_COPIES dense (nb_p, nb_p) blocks on its coarse DOFs, whichever is larger."""
+    return task_peak_bytes(len(part.dofs), len(part.boundary), part.extent)
+
+
+def task_peak_bytes(n_dof: int, n_coarse: int, extent=None) -> float:
+    """``part_peak_bytes`` of a part of n_dof DOF, n_coarse of them coarse, bounding box ``extent``."""
+    schur = estimate_peak_memory(n_dof, None, extent).direct_peak_bytes + SCHUR_DENSE_COPIES * 8.0 * n_coarse ** 2
+    return max(reduction_peak_bytes(n_dof, None, extent), schur)
 
 
 class InProcess:
@@ -862,16 +881,19 @@ class SubstructuredSolver:
         part = self.parts[p]
         return self.row[part.dofs[part.interior]]
 
-    def solve(self, r: np.ndarray) -> np.ndarray:
-        """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending)."""
+    def solve(self, r: np.ndarray, overwrite_r: bool = False) -> np.ndarray:
+        """x = K_ii^-1 r, r (ni,) or (ni, k) in the rows of K_ii (model DOFs but b, ascending);
+        ``overwrite_r``: x is written into r (float64, C-contiguous), no (ni, k) array more."""
         shape = np.shape(r)
-        x, _ = self.solve_and_recover(np.asarray(r, dtype=float).reshape(shape[0], -1), None)
+        x, _ = self.solve_and_recover(np.asarray(r, dtype=float).reshape(shape[0], -1), None, overwrite_r)
         return x.reshape(shape)
 
-    def solve_and_recover(self, r: np.ndarray, U: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    def solve_and_recover(self, r: np.ndarray, U: np.ndarray | None,
+                          overwrite_r: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """(K_ii^-1 r (ni, k), the model-DOF vectors (n_model, m) of the assembly vectors U (n_asm, m));
-        r (ni, k) in the rows of K_ii; U None: no recovery.  The recovery (u_G = R c; each part's own
-        DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p, step 5) rides on the solve's second round."""
+        r (ni, k) in the rows of K_ii; U None: no recovery; ``overwrite_r``: see ``solve``.  The
+        recovery (u_G = R c; each part's own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p, step 5) rides
+        on the solve's second round."""
         space, n = self.space, len(self.parts)
         coarse, free = space.coarse, self.free_coarse
         slot = np.full(len(coarse), -1)
@@ -888,7 +910,7 @@ class SubstructuredSolver:
             self.tasks(part_coarse_load, [(r_p,) for r_p in r_parts], subtract)
         with all_cores_blas():                            # between two rounds of part tasks
             x_G = np.asarray(self.schur.solve(g)).reshape(g.shape) if self.schur is not None and r.shape[1] else g
-        x = np.empty_like(r)
+        x = r if overwrite_r else np.empty_like(r)       # every row of x is written below; r is in g, r_parts
         x[self.row[coarse[free]]] = x_G
         u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
         out = None
@@ -914,7 +936,7 @@ class SubstructuredSolver:
         interior = np.ones(K_model.shape[0], bool)
         interior[self.boundary] = False
         K_ib = K_model[self.boundary][:, interior].T      # K symmetric: no copy of K's interior rows
-        psi, out = self.solve_and_recover(-K_ib.toarray(), U)
+        psi, out = self.solve_and_recover(-K_ib.toarray(), U, overwrite_r=True)
         return psi, out
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
@@ -951,16 +973,18 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
 
 def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Step 6: the lowest len(X.T) eigenpairs of K_ii, M_ii in span[X, K_ii^-1 M_ii X] (Rayleigh-Ritz
-    after one block inverse iteration); (frequencies Hz (nm,), modes (ni, nm) M_ii-normalised).
+    after one block inverse iteration); (frequencies Hz (nm,), modes (ni, nm) M_ii-normalised,
+    written over X).
     V = [X, Y] is never formed: its Gram matrices are formed REFINE_BLOCK columns at a time from X and
-    Y, and the Ritz vectors are X R_X + Y R_Y ([R_X; R_Y] = diag(d) C Z, small), so the peak is
-    about 3 x (ni, nm) beside X."""
+    Y, Y = K_ii^-1 (M_ii X) is solved in the buffer of M_ii X, and the Ritz vectors X R_X + Y R_Y
+    ([R_X; R_Y] = diag(d) C Z, small) are written over X: the peak is about 2 x (ni, nm) beside X
+    (Y and the solve's per-part loads)."""
 
     nm = X.shape[1]
     if nm == 0:
         return np.zeros(0), X
     m_ii, k_ii = interior_operator(M, interior).matmat, interior_operator(K, interior).matmat
-    Y = solver.solve(m_ii(X))
+    Y = solver.solve(m_ii(X), overwrite_r=True)
     with all_cores_blas():                                # no part task runs
         G, H = block_gram(m_ii, (X, Y)), block_gram(k_ii, (X, Y))
     d = 1.0 / np.sqrt(np.diag(G))                          # columns of unit M_ii norm
@@ -970,7 +994,15 @@ def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np
     C = W[:, keep] / np.sqrt(s[keep])                    # V diag(d) C is M_ii-orthonormal
     lam, Z = sla.eigh(C.T @ (0.5 * (H + H.T)) @ C, subset_by_index=(0, nm - 1))
     R = d[:, None] * (C @ Z)                             # (2 nm, nm): the Ritz vectors in V's columns
-    return np.sqrt(np.abs(lam)) / (2 * np.pi), X @ R[:nm] + Y @ R[nm:]
+    return np.sqrt(np.abs(lam)) / (2 * np.pi), ritz_vectors(X, Y, R)
+
+
+def ritz_vectors(X: np.ndarray, Y: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """X R[:nm] + Y R[nm:] written over X (ni, nm), REFINE_ROWS rows at a time: no (ni, nm) temporary."""
+    nm = X.shape[1]
+    for s in range(0, len(X), REFINE_ROWS):
+        X[s:s + REFINE_ROWS] = X[s:s + REFINE_ROWS] @ R[:nm] + Y[s:s + REFINE_ROWS] @ R[nm:]
+    return X
 
 
 def block_gram(op, blocks) -> np.ndarray:
