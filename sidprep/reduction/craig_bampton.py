@@ -25,6 +25,9 @@ from sidprep.fe.linalg import (MEMORY_HEADROOM, available_memory_bytes, estimate
 
 #: ceiling of fixed-interface modes requested when growing towards ``fmax``
 MAX_FIXED_INTERFACE_MODES = 400
+#: columns of an operator product at a time in a Gram matrix V^T A V (``block_gram``, ``project``):
+#: its (n, GRAM_BLOCK) temporaries instead of an (n, k) one (the driver's peak of a reduction in parts)
+GRAM_BLOCK = 16
 #: ARPACK relative tolerance of the fixed-interface eigen solve
 EIGSH_TOL = 1e-10
 
@@ -205,6 +208,17 @@ def guyan(K, M, boundary_dofs) -> ReducedModel:
 
 
 def project(A, basis: np.ndarray) -> np.ndarray:
-    """Symmetrised basis^T A basis, dense (nr, nr)."""
-    P = basis.T @ (A @ basis)
+    """Symmetrised basis^T A basis, dense (nr, nr); A @ basis is formed GRAM_BLOCK columns at a time
+    (``block_gram``): no (n, nr) temporary beside the basis."""
+    P = block_gram(A.__matmul__, (basis,))
     return 0.5 * (P + P.T)
+
+
+def block_gram(op, blocks) -> np.ndarray:
+    """V^T op(V) (k, k) for V = [blocks] (n, k), the blocks side by side (V is never formed), op
+    applied to GRAM_BLOCK columns at a time (peak memory)."""
+    columns = (B[:, j:j + GRAM_BLOCK] for B in blocks for j in range(0, B.shape[1], GRAM_BLOCK))
+    k = sum(B.shape[1] for B in blocks)
+    return np.hstack([np.vstack([B.T @ product for B in blocks]) for product in map(op, columns)]) if k \
+        else np.zeros((0, 0))
+

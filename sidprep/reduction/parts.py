@@ -52,7 +52,8 @@ from sidprep.fe.linalg import all_cores_blas, available_memory_bytes, estimate_p
 from sidprep.fe.mesh import FEMesh, _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
-from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interior_operator, project, reduction_peak_bytes
+from sidprep.reduction.craig_bampton import (ReducedModel, block_gram, craig_bampton, interior_operator, project,
+    reduction_peak_bytes)
 
 
 #: the parts' fixed-interface modes reach this multiple of the highest fixed-interface frequency of
@@ -61,8 +62,6 @@ from sidprep.reduction.craig_bampton import ReducedModel, craig_bampton, interio
 PART_CUTOFF = 2.0
 #: relative eigenvalue of the Gram matrix below which a direction of [X, K^-1 M X] is dropped
 RANK_TOL = 1e-12
-#: columns of the refinement's Gram products at a time (each applies an (n, REFINE_BLOCK) operator product)
-REFINE_BLOCK = 16
 #: rows of the Ritz vectors combined at a time (``ritz_vectors``; its temporaries scale with them)
 REFINE_ROWS = 65536
 #: bytes of a stored entry of a float64 CSR matrix with 32-bit indices
@@ -888,12 +887,12 @@ class SubstructuredSolver:
         x, _ = self.solve_and_recover(np.asarray(r, dtype=float).reshape(shape[0], -1), None, overwrite_r)
         return x.reshape(shape)
 
-    def solve_and_recover(self, r: np.ndarray, U: np.ndarray | None,
-                          overwrite_r: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """(K_ii^-1 r (ni, k), the model-DOF vectors (n_model, m) of the assembly vectors U (n_asm, m));
-        r (ni, k) in the rows of K_ii; U None: no recovery; ``overwrite_r``: see ``solve``.  The
-        recovery (u_G = R c; each part's own DOFs u_I = -K_II^-1 K_IB u_B + Phi_p q_p, step 5) rides
-        on the solve's second round."""
+    def solve_and_recover(self, r: np.ndarray, U: np.ndarray | None, overwrite_r: bool = False,
+                          out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """(K_ii^-1 r (ni, k), the model-DOF vectors (n_model, m) of the assembly vectors U (n_asm, m),
+        written into ``out`` if given); r (ni, k) in the rows of K_ii; U None: no recovery;
+        ``overwrite_r``: see ``solve``.  The recovery (u_G = R c; each part's own DOFs
+        u_I = -K_II^-1 K_IB u_B + Phi_p q_p, step 5) rides on the solve's second round."""
         space, n = self.space, len(self.parts)
         coarse, free = space.coarse, self.free_coarse
         slot = np.full(len(coarse), -1)
@@ -913,9 +912,10 @@ class SubstructuredSolver:
         x = r if overwrite_r else np.empty_like(r)       # every row of x is written below; r is in g, r_parts
         x[self.row[coarse[free]]] = x_G
         u_B = [np.where((c >= 0)[:, None], x_G[np.maximum(c, 0)], 0.0) for c in cols]
-        out = None
-        if U is not None:                                  # recovery: u_G = R c, no load on the parts
-            out = np.zeros((len(self.row), U.shape[1]))
+        if U is None:
+            out = None
+        else:                                              # recovery: u_G = R c, no load on the parts
+            out = np.zeros((len(self.row), U.shape[1])) if out is None else out
             u_G = space.R @ U[:space.R.shape[1]]
             out[coarse] = u_G
             u_B = [np.hstack([u, u_G[space.local[p]]]) for p, u in enumerate(u_B)]
@@ -930,14 +930,14 @@ class SubstructuredSolver:
         self.tasks(part_interior_solve, list(zip(r_parts, u_B)), place)
         return x, out
 
-    def constraint_modes_and_recovery(self, K_model, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def constraint_modes_and_recovery(self, K_model, U: np.ndarray, out: np.ndarray | None = None) -> tuple:
         """((ni, nb) the whole model's exact constraint modes on the interior, -K_ii^-1 K_ib; the
-        model-DOF vectors of the assembly vectors U): two rounds of part tasks for both."""
+        model-DOF vectors of the assembly vectors U, written into ``out`` if given): two rounds of part
+        tasks for both."""
         interior = np.ones(K_model.shape[0], bool)
         interior[self.boundary] = False
         K_ib = K_model[self.boundary][:, interior].T      # K symmetric: no copy of K's interior rows
-        psi, out = self.solve_and_recover(-K_ib.toarray(), U, overwrite_r=True)
-        return psi, out
+        return self.solve_and_recover(-K_ib.toarray(), U, overwrite_r=True, out=out)
 
     def eigenvalue_count(self, red, sigma: float) -> int | None:
         """Eigenvalues of the whole model below ``sigma`` (held DOFs removed), over the parts (``count_below``)."""
@@ -958,14 +958,12 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
     n = K_model.shape[0]
     solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, coarse_factor, tasks)
     nb = len(boundary)
-    psi, modes = solver.constraint_modes_and_recovery(K_model, level2.basis[:, nb:])
     basis = np.zeros((n, level2.basis.shape[1]))
+    psi, _ = solver.constraint_modes_and_recovery(K_model, level2.basis[:, nb:], out=basis[:, nb:])
     interior = np.ones(n, bool)
     interior[boundary] = False
     basis[boundary, :nb] = np.eye(nb)
     basis[interior, :nb] = psi
-    basis[:, nb:] = modes
-    del psi, modes                                        # in the basis now: (ni, nb) and (n, nm) less
     f, basis[interior, nb:] = refined_modes(K_model, M_model, interior, solver, basis[interior, nb:])
     return ReducedModel(basis, project(K_model, basis), project(M_model, basis),
                         np.asarray(boundary, dtype=np.int64), f, solver)
@@ -975,7 +973,7 @@ def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np
     """Step 6: the lowest len(X.T) eigenpairs of K_ii, M_ii in span[X, K_ii^-1 M_ii X] (Rayleigh-Ritz
     after one block inverse iteration); (frequencies Hz (nm,), modes (ni, nm) M_ii-normalised,
     written over X).
-    V = [X, Y] is never formed: its Gram matrices are formed REFINE_BLOCK columns at a time from X and
+    V = [X, Y] is never formed: its Gram matrices are formed GRAM_BLOCK columns at a time from X and
     Y, Y = K_ii^-1 (M_ii X) is solved in the buffer of M_ii X, and the Ritz vectors X R_X + Y R_Y
     ([R_X; R_Y] = diag(d) C Z, small) are written over X: the peak is about 2 x (ni, nm) beside X
     (Y and the solve's per-part loads)."""
@@ -1003,10 +1001,3 @@ def ritz_vectors(X: np.ndarray, Y: np.ndarray, R: np.ndarray) -> np.ndarray:
     for s in range(0, len(X), REFINE_ROWS):
         X[s:s + REFINE_ROWS] = X[s:s + REFINE_ROWS] @ R[:nm] + Y[s:s + REFINE_ROWS] @ R[nm:]
     return X
-
-
-def block_gram(op, blocks) -> np.ndarray:
-    """V^T op(V) (k, k) for V = [blocks] (n, k), the blocks side by side (V is never formed), op
-    applied to REFINE_BLOCK columns at a time (peak memory)."""
-    columns = (B[:, j:j + REFINE_BLOCK] for B in blocks for j in range(0, B.shape[1], REFINE_BLOCK))
-    return np.hstack([np.vstack([B.T @ product for B in blocks]) for product in map(op, columns)])
