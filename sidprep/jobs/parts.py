@@ -371,6 +371,7 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
                          f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
                          f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
                          f"{tasks.sent_mb:.0f} MiB of parts sent to the workers, {sent_mb(ordered):.0f} MiB back")
-        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor, tasks)
+        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor,
+                                   tasks)                 # empties ``ordered``: the parts' modes are freed
 
     return reducer

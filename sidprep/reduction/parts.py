@@ -953,13 +953,16 @@ def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly,
     """Step 4: the ReducedModel of the whole model in model DOFs, as ``craig_bampton`` returns it
     (basis with the boundary columns first: the EXACT constraint modes by the substructured solve;
     then the refined fixed-interface modes; K, M projected from the model matrices), with the
-    substructured K_ii solver as its factor (``coarse_factor``, ``tasks``: see there)."""
+    substructured K_ii solver as its factor (``coarse_factor``, ``tasks``: see there).  The list
+    ``reductions`` is emptied once the basis is recovered: the parts' modes, (n, ~60) together, are
+    not kept beside it (the driver's peak)."""
 
     n = K_model.shape[0]
     solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, coarse_factor, tasks)
     nb = len(boundary)
     basis = np.zeros((n, level2.basis.shape[1]))
     psi, _ = solver.constraint_modes_and_recovery(K_model, level2.basis[:, nb:], out=basis[:, nb:])
+    reductions.clear()                                    # the solver's too: the recovery is done
     interior = np.ones(n, bool)
     interior[boundary] = False
     basis[boundary, :nb] = np.eye(nb)
