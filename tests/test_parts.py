@@ -110,6 +110,9 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     assert np.abs(solver.solve(r) - x_ref).max() < SOLVE_RTOL * np.abs(x_ref).max()
     # the cuts are reduced (24 interface modes each), the constraint modes of b stay exact
     assert space.R.shape[1] < len(coarse)
+    # each part's coordinates, counted before any task (the memory check), are those the coarse space gave it
+    np.testing.assert_array_equal(rp.coordinates_per_part(parts, coarse, b, 24),
+                                  [len(space.columns(p)) for p in range(len(parts))])
     psi_ref = -spla.spsolve(K[interior][:, interior].tocsc(), K[interior][:, b].toarray())
     assert np.abs(solver.constraint_modes_and_recovery(K, None)[0] - psi_ref).max() < SOLVE_RTOL * np.abs(psi_ref).max()
     # each part's K_II was factored once (by its Craig-Bampton reduction), for three solves
@@ -389,14 +392,16 @@ def test_the_schur_tasks_dense_blocks_stay_within_the_copies_the_estimate_counts
 def test_a_part_larger_than_a_worker_is_refused_before_it_starts_with_the_parts_that_fit(tmp_path):
     mesh, material, im, K, M = full_model(ROD)
     b = im.master_dofs.ravel()
-    parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 2), im, b)
-    need = max(rp.part_peak_bytes(p) for p in parts)
+    parts, coarse = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 2), im, b)
+    coordinates = rp.coordinates_per_part(parts, coarse, b, jp.interface_count(30))
+    need = max(rp.part_peak_bytes(p, c) for p, c in zip(parts, coordinates))
     memory = 0.9 * need / MEMORY_HEADROOM
     with pytest.raises(InputError, match=r"parts = 2: part \d/2 \(\d+ of 16029 DOF\) needs .* use --parts (\d+)") as exc:
-        check_parts_fit(parts, mesh.n_dof, memory)
+        check_parts_fit(parts, mesh.n_dof, memory, coordinates=coordinates)
     suggested = int(exc.value.args[0].split("use --parts ")[1].split()[0])
-    finer, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, suggested), im, b)
-    check_parts_fit(finer, mesh.n_dof, memory)              # the suggestion fits
+    finer, coarse = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, suggested), im, b)
+    check_parts_fit(finer, mesh.n_dof, memory,              # the suggestion fits
+                    coordinates=rp.coordinates_per_part(finer, coarse, b, jp.interface_count(30)))
     limit = 2 * memory / (1 - jp.LOCAL_DRIVER_SHARE)        # two local workers with ``memory`` each
     env = {**os.environ, "PYTHONPATH": str(ROOT), "SIDPREP_MEMORY_LIMIT": str(int(limit))}
     run = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(ROD), "--parts", "2", "--workers",

@@ -30,9 +30,9 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
-from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, count_below, held_part_bytes,
-    part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part, schur_factor, second_level, short_parts,
-    static_schur, task_peak_bytes)
+from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, coordinates_per_part,
+    count_below, held_part_bytes, part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part,
+    schur_factor, second_level, short_parts, static_schur, task_peak_bytes)
 
 
 #: times a part is run again after its worker was lost
@@ -103,13 +103,14 @@ def dask_pause_fraction() -> float:
     return 1.0
 
 
-def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) -> float:
-    """InputError before any part starts when a part's estimated peak (``part_peak_bytes``) exceeds ``memory``
-    (bytes, one worker), naming the ``parts`` that would fit (``components``: an assembly's, whose
-    split is the user's).  Returns the bytes a worker may spend on the other parts it holds (their
+def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False, coordinates=None) -> float:
+    """InputError before any part starts when a part's estimated peak (``part_peak_bytes``, with its
+    ``coordinates``, ``coordinates_per_part``, if known) exceeds ``memory`` (bytes, one worker), naming
+    the ``parts`` that would fit (``components``: an assembly's, whose split is the user's).  Returns the bytes a worker may spend on the other parts it holds (their
     matrices and K_II factors, ``held_task``) beside the largest task: the held parts' bound."""
 
-    need = [part_peak_bytes(p) for p in parts]
+    coordinates = np.zeros(len(parts), dtype=np.int64) if coordinates is None else coordinates
+    need = [part_peak_bytes(p, c) for p, c in zip(parts, coordinates)]
     worst = int(np.argmax(need))
     if need[worst] <= MEMORY_HEADROOM * memory:
         return MEMORY_HEADROOM * memory - need[worst]
@@ -117,7 +118,8 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False) 
     size, n_coarse = len(parts[worst].dofs), len(parts[worst].boundary)
     fits = next((m for m in range(n + 1, MAX_SUGGESTED_PARTS + 1)            # a part's cuts shrink as a surface
                  if task_peak_bytes(size * n // m, int(n_coarse * (n / m) ** (2 / 3)),
-                                    parts[worst].extent * (n / m) ** (1 / 3)) <= MEMORY_HEADROOM * memory), None)
+                                    parts[worst].extent * (n / m) ** (1 / 3), coordinates[worst])
+                 <= MEMORY_HEADROOM * memory), None)
     advice = f"use --parts {fits} or more (or workers with more memory)" if fits else "use workers with more memory"
     if components:
         advice = "split it into smaller components (or use workers with more memory)"
@@ -281,18 +283,21 @@ class PartTasks:
             self.pool.close()
 
 
-def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None):
+def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None,
+                 components: bool = False):
     """The coarse space from the parts' exact static Schur complements (one round of tasks), then rounds
     of part reductions until every part's modes reach PART_CUTOFF x the second level's highest
     fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel,
-    the factor of the exact coarse Schur complement)."""
+    the factor of the exact coarse Schur complement).  With ``fmax``, the parts' reductions are checked
+    against ``memory`` (``check_parts_fit``, ``components``) once the count gives their coordinates."""
 
     wanted = n_modes
     if fmax is not None:                                # the whole model's fixed-interface modes below fmax
         wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
+        tasks.budget = check_parts_fit(parts, M_model.shape[0], memory, components,
+                                       coordinates_per_part(parts, coarse, boundary, interface_count(wanted)))
     schur = [static_schur(parts, coarse, boundary, tasks)]
-    space = coarse_space(parts, coarse, boundary, schur[0], M_model,
-                         max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0)))))
+    space = coarse_space(parts, coarse, boundary, schur[0], M_model, interface_count(wanted))
     factor: list = []
 
     def factor_schur() -> None:
@@ -326,6 +331,11 @@ def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_m
     return ordered, assembly, level2, factor[0]
 
 
+def interface_count(wanted: int | None) -> int:
+    """Interface modes kept on every cut for ``wanted`` second-level fixed-interface modes."""
+    return max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0))))
+
+
 def sent_mb(items) -> float:
     """MiB of the arrays of PartModels (to the workers, their PartFE and materials included) or
     PartReductions (back), once each."""
@@ -356,9 +366,11 @@ def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = 
         tasks = PartTasks(settings, parts)
         try:
             memory = worker_memory_bytes(tasks.pool)
-            tasks.budget = check_parts_fit(parts, mesh.n_dof, memory, components=names is not None)
+            coordinates = None if n_modes is None else coordinates_per_part(parts, coarse, boundary,
+                                                                               interface_count(n_modes))
+            tasks.budget = check_parts_fit(parts, mesh.n_dof, memory, names is not None, coordinates)
             ordered, assembly, level2, coarse_factor = reduce_parts(tasks, parts, coarse, boundary, M_model, memory,
-                                                                    n_modes, fmax)
+                                                                    n_modes, fmax, names is not None)
         except BaseException:
             tasks.close()
             raise

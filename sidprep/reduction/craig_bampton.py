@@ -28,6 +28,8 @@ MAX_FIXED_INTERFACE_MODES = 400
 #: columns of an operator product at a time in a Gram matrix V^T A V (``block_gram``, ``project``):
 #: its (n, GRAM_BLOCK) temporaries instead of an (n, k) one (the driver's peak of a reduction in parts)
 GRAM_BLOCK = 16
+#: boundary DOFs per multi-right-hand-side solve of the constraint modes (``add_constraint_modes``)
+CONSTRAINT_BLOCK = 64
 #: ARPACK relative tolerance of the fixed-interface eigen solve
 EIGSH_TOL = 1e-10
 
@@ -87,11 +89,13 @@ def split_dofs(n: int, boundary_dofs) -> tuple[np.ndarray, np.ndarray]:
     return b, interior
 
 
-def constraint_modes(K: sp.spmatrix, factor, b: np.ndarray, i: np.ndarray) -> np.ndarray:
-    """Psi_ib = -K_ii^-1 K_ib, all boundary DOFs as one multi-RHS solve; (ni, nb).  K symmetric CSR:
-    K_ib is read from the boundary rows (no CSC copy of K)."""
-    rhs = -K[b].toarray()[:, i].T
-    return np.asarray(factor.solve(rhs)).reshape(len(i), len(b))
+def add_constraint_modes(basis: np.ndarray, K: sp.csr_matrix, factor, b: np.ndarray, i: np.ndarray) -> None:
+    """basis[i, :nb] = Psi_ib = -K_ii^-1 K_ib, CONSTRAINT_BLOCK boundary DOFs per multi-RHS solve (the
+    solve's right-hand side and result scale with the block, not with nb: a part's hundreds of coarse
+    coordinates).  K symmetric CSR: K_ib is read from the boundary rows (no CSC copy of K)."""
+    for s in range(0, len(b), CONSTRAINT_BLOCK):
+        rhs = -K[b[s:s + CONSTRAINT_BLOCK]][:, i].T.toarray()
+        basis[i, s:s + len(rhs.T)] = np.asarray(factor.solve(rhs)).reshape(rhs.shape)
 
 
 def interior_operator(A: sp.spmatrix, interior) -> spla.LinearOperator:
@@ -188,17 +192,17 @@ def craig_bampton(K, M, boundary_dofs, n_modes=None, fmax=None, memory_limit=Non
         except (np.linalg.LinAlgError, RuntimeError) as exc:  # singular interior: the boundary does not hold it
             raise InputError(f"the interior stiffness is singular ({exc}); the interfaces do not hold the body "
                              "statically — add an interface or use the free frame") from exc
-        Psi = constraint_modes(K, factor, b, i)
         if n_modes == 0 or (n_modes is None and fmax is None):
             f, Phi_m = np.zeros(0), np.zeros((len(i), 0))
         else:
             # K_ii only as an operator (shift-invert never applies it); M_ii copied after the factorisation
             # (ARPACK applies it ~4x per mode: 0.56 -> 0.2 ms per product through the copy, piston rod)
             f, Phi_m = fixed_interface_modes(interior_operator(K, i), M[i][:, i], factor, n_modes, fmax)
-    basis = np.zeros((K.shape[0], len(b) + len(f)))
-    basis[i, :len(b)] = Psi
-    basis[b, np.arange(len(b))] = 1.0
-    basis[i, len(b):] = Phi_m
+        basis = np.zeros((K.shape[0], len(b) + len(f)))
+        basis[i, len(b):] = Phi_m
+        del Phi_m
+        basis[b, np.arange(len(b))] = 1.0
+        add_constraint_modes(basis, K, factor, b, i)
     return ReducedModel(basis, project(K, basis), project(M, basis), b, f, factor)
 
 

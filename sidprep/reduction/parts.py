@@ -77,6 +77,10 @@ COARSE_IN_MEMORY_FRACTION = 0.1
 #: Schur block, the x it is returned in, and its workspace - measured 2.6 (peak RSS over the same
 #: LDL^T without the Schur rows: +423 MiB for nb_p = 4581 on a 94k-DOF part of the 2.4M bar in 24)
 SCHUR_DENSE_COPIES = 3
+#: (n_p, n_coordinates) arrays alive at the peak of a part's reduction beyond ``reduction_peak_bytes``
+#: (the basis's constraint modes, the coupling of K and M to the coordinates): measured 1.6 between two
+#: parts of the 475k bar in 8 (186 and 360 coordinates, ~60k DOF each: 708 and 839 MiB peak RSS)
+COORDINATE_COPIES = 2
 
 
 # ---------------------------------------------------------------------------------------------
@@ -280,17 +284,35 @@ def held_part_bytes(part: PartModel) -> float:
     return matrices + estimate_peak_memory(len(part.interior), None, part.extent).factor_bytes
 
 
-def part_peak_bytes(part: PartModel) -> float:
+def part_peak_bytes(part: PartModel, n_coordinates: int = 0) -> float:
     """Estimated peak bytes of the largest task of ``part`` (a PartModel): its Craig-Bampton reduction
-    (sidprep.reduction.craig_bampton.reduction_peak_bytes) or its Schur task, a sparse LDL^T of the
-    part with SCHUR_DENSE_COPIES dense (nb_p, nb_p) blocks on its coarse DOFs, whichever is larger."""
-    return task_peak_bytes(len(part.dofs), len(part.boundary), part.extent)
+    on ``n_coordinates`` coarse coordinates (``coordinates_per_part``; 0: not known yet) or its Schur
+    task, a sparse LDL^T of the part with SCHUR_DENSE_COPIES dense (nb_p, nb_p) blocks on its coarse
+    DOFs, whichever is larger."""
+    return task_peak_bytes(len(part.dofs), len(part.boundary), part.extent, n_coordinates)
 
 
-def task_peak_bytes(n_dof: int, n_coarse: int, extent=None) -> float:
-    """``part_peak_bytes`` of a part of n_dof DOF, n_coarse of them coarse, bounding box ``extent``."""
+def task_peak_bytes(n_dof: int, n_coarse: int, extent=None, n_coordinates: int = 0) -> float:
+    """``part_peak_bytes`` of a part of n_dof DOF, n_coarse of them coarse, bounding box ``extent``: the
+    reduction (sidprep.reduction.craig_bampton.reduction_peak_bytes) with COORDINATE_COPIES (n_dof,
+    n_coordinates) arrays, or the Schur task."""
     schur = estimate_peak_memory(n_dof, None, extent).direct_peak_bytes + SCHUR_DENSE_COPIES * 8.0 * n_coarse ** 2
-    return max(reduction_peak_bytes(n_dof, None, extent), schur)
+    reduction = reduction_peak_bytes(n_dof, None, extent) + COORDINATE_COPIES * 8.0 * n_dof * n_coordinates
+    return max(reduction, schur)
+
+
+def coordinates_per_part(parts, coarse: np.ndarray, boundary, n_interface: int) -> np.ndarray:
+    """(N,) the coarse coordinates each part's reduction will have (``with_coarse_coordinates``), known
+    before any task: the DOFs of b it holds and, per cut it touches, min(n_interface, the cut's DOFs)
+    interface modes (``coarse_space``)."""
+    b, _ = boundary_positions(coarse, boundary)
+    local = part_positions(parts, coarse)
+    groups = cut_groups(local, len(coarse), b)
+    group_of = np.full(len(coarse), -1)
+    for k, g in enumerate(groups):
+        group_of[g] = k
+    modes = np.array([min(n_interface, len(g)) for g in groups] + [0], dtype=np.int64)
+    return np.array([np.sum(group_of[pos] < 0) + modes[np.unique(group_of[pos])].sum() for pos in local], dtype=np.int64)
 
 
 class InProcess:
