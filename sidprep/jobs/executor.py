@@ -46,8 +46,9 @@ class _LocalPool:
         """Any task (a top-level function and its picklable arguments) on the pool."""
         return self.pool.submit(guarded, fn, *args)
 
-    def wait(self, futures):
-        return wait(futures, return_when=FIRST_COMPLETED).done
+    def wait(self, futures, timeout=None):
+        """The futures done: at least one, or none after ``timeout`` seconds."""
+        return wait(futures, timeout=timeout, return_when=FIRST_COMPLETED).done
 
     def stop(self, futures):
         """Stop the running tasks now (^C, SIGTERM): sidprep.jobs.guard.stop_workers."""
@@ -81,8 +82,9 @@ class _PinnedLocalPool:
         """A task on the process of ``slot``."""
         return self.pools[slot].run(fn, *args)
 
-    def wait(self, futures):
-        return wait(futures, return_when=FIRST_COMPLETED).done
+    def wait(self, futures, timeout=None):
+        """The futures done: at least one, or none after ``timeout`` seconds."""
+        return wait(futures, timeout=timeout, return_when=FIRST_COMPLETED).done
 
     def renew(self, slot) -> bool:
         """Start ``slot``'s process afresh if it died; whether it had."""
@@ -147,9 +149,13 @@ class _DaskPool:
         """``fn(*args)`` on every worker (they outlive ``close``: clear what the tasks left there)."""
         self.client.run(fn, *args, on_error="ignore")     # a worker that died holds nothing
 
-    def wait(self, futures):
+    def wait(self, futures, timeout=None):
+        """The futures done: at least one, or none after ``timeout`` seconds."""
         from distributed import wait  # deferred: 1.5 s import, Dask only
-        return wait(list(futures), return_when="FIRST_COMPLETED").done
+        try:
+            return wait(list(futures), timeout=timeout, return_when="FIRST_COMPLETED").done
+        except TimeoutError:
+            return set()
 
     def stop(self, futures):
         self.client.cancel(list(futures))

@@ -37,6 +37,8 @@ from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coar
 
 #: times a part is run again after its worker was lost
 PART_RETRIES = 2
+#: seconds between checks, while part tasks run, for tasks pinned to a worker that is gone
+SLOT_CHECK_S = 5.0
 #: fewest fixed-interface modes of a part in the first round, which asks PART_FIRST_ROUND x
 #: PART_CUTOFF^2 x (second-level modes / parts): a part of 1/N of the body has about 1/N of its modes
 #: below a frequency, and about PART_CUTOFF^2 times as many below PART_CUTOFF x it (measured 2.4-4.4
@@ -232,7 +234,10 @@ class PartTasks:
                 meanwhile()
                 meanwhile = None
             while running:
-                for fut in self.pool.wait(list(running)):
+                done = self.pool.wait(list(running), timeout=SLOT_CHECK_S)
+                if not done:                                # Dask keeps a task pinned to a gone worker
+                    self.resend_orphans(running, lost, todo)  # unrunnable when all workers died at once
+                for fut in done:
                     p = running.pop(fut)
                     try:
                         result = fut.result()
@@ -240,6 +245,7 @@ class PartTasks:
                         raise
                     except NotHeld:                         # a fresh holder (a new worker): send the part again
                         self.sent.discard(p)
+                        self.rehome(self.home[p])
                         todo.append(p)
                         continue
                     except Exception as exc:                # the worker died (killed, out of memory: no
@@ -268,12 +274,30 @@ class PartTasks:
                            "written - check the workers' memory and logs, or use more parts") from None
         slot = self.home[p]
         self.pool.renew(slot)
-        gone = slot not in self.pool.slots
         for q, home in enumerate(self.home):
             if home == slot:
                 self.sent.discard(q)
-                if gone:
-                    self.home[q] = self.pool.slots[q % len(self.pool.slots)]
+        self.rehome(slot)
+
+    def rehome(self, slot) -> None:
+        """The parts at ``slot`` to the workers alive, if it is gone (a Dask worker's restart gives
+        it a new address)."""
+        alive = self.pool.slots
+        if slot not in alive and alive:
+            for q, home in enumerate(self.home):
+                if home == slot:
+                    self.home[q] = alive[q % len(alive)]
+
+    def resend_orphans(self, running: dict, lost: dict, todo: list) -> None:
+        """Tasks of ``running`` (future -> part) pinned to a worker that is gone are cancelled and
+        their parts lost (``lose``: re-homed, sent again with ``todo``)."""
+        alive = set(self.pool.slots)
+        orphans = [(fut, p) for fut, p in running.items() if self.home[p] not in alive]
+        for fut, p in orphans:
+            del running[fut]
+            self.pool.stop([fut])
+            self.lose(p, ConnectionError(f"worker {self.home[p]} gone"), lost)
+            todo.append(p)
 
     def close(self) -> None:
         """Close the pool (its workers drop the parts they hold)."""
