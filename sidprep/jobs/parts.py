@@ -30,6 +30,7 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
+from sidprep.progress import return_freed_memory
 from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, coordinates_per_part,
     count_below, held_part_bytes, part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part,
     schur_factor, second_level, short_parts, static_schur, task_peak_bytes)
@@ -152,6 +153,8 @@ def held_task(key: tuple, part, budget: float, fn, *args):
     except Exception as exc:                               # the task's own error: the same again on a retry
         name = (held.description if held is not None else part).name
         raise PartFailed(f"{name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
+    finally:
+        return_freed_memory()                              # the task's temporaries, not kept as heap
 
 
 def held_part(key: tuple, part, budget: float) -> HeldPart:
