@@ -5,17 +5,21 @@ closed-form strain energy of a quadratic displacement field, rigid-body motions 
 and the total mass rho V (V known in closed form, also for a curved tet10 mesh).
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from skfem import Basis, BilinearForm, ElementTetP1, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.helpers import dot
 from skfem.models.elasticity import linear_elasticity
 
-from sidprep.fe.assemble import _keast_points, lumped_scalar_mass, mass_matrix, scalar_mass_matrix, stiffness_matrix
+from sidprep.fe.assemble import (_keast_points, lumped_scalar_mass, mass_matrix, scalar_mass_matrix, stiffness_matrix,
+    vector_mass)
 from sidprep.errors import InputError
 from sidprep.fe.linalg import rigid_body_modes
 from sidprep.fe.material import Material
-from sidprep.fe.mesh import TET10_EDGES, FEMesh
+from sidprep.fe.mesh import TET10_EDGES, FEMesh, read_mesh
 
 #: assembled matrices agree with scikit-fem's to round-off (relative Frobenius norm)
 SKFEM_RTOL = 1e-12
@@ -152,3 +156,12 @@ def test_quadrature_rules_are_scikit_fems(degree):
     ref_points, ref_weights = get_quadrature(RefTet, degree)
     np.testing.assert_allclose(points, ref_points, atol=1e-15)
     np.testing.assert_allclose(weights, ref_weights, atol=1e-16)
+
+
+def test_vector_mass_is_the_kronecker_product_with_the_identity():
+    # written as CSR directly; the second formulation: scipy's kron, entry for entry, no explicit zeros
+    mesh = read_mesh(Path(__file__).resolve().parents[1] / "data" / "meshes" / "piston_rod.msh")
+    Ms = scalar_mass_matrix(mesh, 7850.0)
+    M, ref = vector_mass(Ms), sp.kron(Ms, sp.identity(3), format="csr")
+    assert M.shape == ref.shape and M.nnz == ref.nnz and M.has_sorted_indices
+    assert (M != ref).nnz == 0

@@ -234,8 +234,24 @@ def mass_matrix(mesh: FEMesh, material: Material, lumped: bool = False,
 
 
 def vector_mass(Ms: sp.spmatrix) -> sp.csr_matrix:
-    """M = Ms (x) I3 (3n, 3n) from the scalar mass matrix, without explicit zeros."""
-    return sp.kron(Ms, sp.identity(3), format="csr")
+    """M = Ms (x) I3 (3n, 3n) from the scalar mass matrix Ms (n, n), without explicit zeros, written as
+    CSR directly: row 3i + c holds row i of Ms at columns 3j + c (sp.kron's COO copies: a 206k-DOF
+    bar's peak 172 -> 111 MiB, for a 62 MiB result)."""
+    Ms = sp.csr_matrix(Ms)
+    Ms.sort_indices()
+    n, counts = Ms.shape[0], np.diff(Ms.indptr)
+    index = np.int32 if 3 * max(n, Ms.nnz) < 2**31 else np.int64
+    indptr = np.zeros(3 * n + 1, dtype=index)
+    np.cumsum(np.repeat(counts, 3), out=indptr[1:])
+    data, indices = np.empty(3 * Ms.nnz), np.empty(3 * Ms.nnz, dtype=index)
+    row = np.repeat(np.arange(n), counts)                  # each entry's row i of Ms
+    first = np.arange(Ms.nnz) + 2 * Ms.indptr[row]         # its place in row 3i: 3 indptr[i] + (k - indptr[i])
+    step = counts[row]                                     # rows 3i + 1, 3i + 2 follow, each counts[i] long
+    del row
+    for c in range(3):
+        data[first + c * step] = Ms.data
+        indices[first + c * step] = 3 * Ms.indices + c
+    return sp.csr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))
 
 
 def stiffness_and_mass(mesh: FEMesh, material: Material) -> tuple[sp.csr_matrix, sp.csr_matrix]:
