@@ -109,8 +109,9 @@ def dask_pause_fraction() -> float:
 def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False, coordinates=None) -> float:
     """InputError before any part starts when a part's estimated peak (``part_peak_bytes``, with its
     ``coordinates``, ``coordinates_per_part``, if known) exceeds ``memory`` (bytes, one worker), naming
-    the ``parts`` that would fit (``components``: an assembly's, whose split is the user's).  Returns the bytes a worker may spend on the other parts it holds (their
-    matrices and K_II factors, ``held_task``) beside the largest task: the held parts' bound."""
+    the ``parts`` that would fit (``components``: an assembly's, whose split is the user's).  Returns
+    the bytes a worker may spend on the other parts it holds (their matrices and K_II factors,
+    ``held_task``) beside the largest task: the held parts' bound."""
 
     coordinates = np.zeros(len(parts), dtype=np.int64) if coordinates is None else coordinates
     need = [part_peak_bytes(p, c) for p, c in zip(parts, coordinates)]

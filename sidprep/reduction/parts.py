@@ -311,8 +311,9 @@ def coordinates_per_part(parts, coarse: np.ndarray, boundary, n_interface: int) 
     group_of = np.full(len(coarse), -1)
     for k, g in enumerate(groups):
         group_of[g] = k
-    modes = np.array([min(n_interface, len(g)) for g in groups] + [0], dtype=np.int64)
-    return np.array([np.sum(group_of[pos] < 0) + modes[np.unique(group_of[pos])].sum() for pos in local], dtype=np.int64)
+    modes = np.array([min(n_interface, len(g)) for g in groups] + [0], dtype=np.int64)   # [-1]: b, counted apart
+    return np.array([np.sum(group_of[pos] < 0) + modes[np.unique(group_of[pos])].sum() for pos in local],
+                    dtype=np.int64)
 
 
 class InProcess:
