@@ -31,7 +31,7 @@ from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs import parts as jp
 from sidprep.jobs.parts import PART_RETRIES, PartFailed, PartLost, PartsSettings, check_parts_fit, parts_reducer
 from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce
-from sidprep.progress import peak_memory_mb
+from sidprep.progress import peak_memory_mb, resident_memory_bytes, return_freed_memory
 from sidprep.reduction.interfaces import interface_model
 from sidprep.reduction import parts as rp
 
@@ -494,26 +494,36 @@ def test_each_part_is_factored_once_where_it_is_held_and_a_worker_killed_after_i
         tasks.close()
 
 
-def test_a_worker_holds_parts_within_its_budget_and_makes_a_released_part_again_without_it_sent():
+def test_a_worker_releases_held_parts_while_its_resident_memory_exceeds_its_budget_and_makes_one_again_unsent():
     mesh, material, im, K, M = full_model(ROD)
     parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
-    budget = 2.5 * max(rp.held_part_bytes(p) for p in parts)   # room for two parts' matrices and factors
+    unbounded = float("inf")
     jp._HELD.clear()                                        # parts other tests left in this process count too
-    for p, part in enumerate(parts):
-        assert jp.held_task(("run", p), part, budget, rp.part_factorisations) == 0
-        jp.held_task(("run", p), None, budget, rp.HeldPart.factor)
-    # in a cycle over the parts the one just used is needed last: part 1 was released for part 2
+    for p in (0, 1):
+        assert jp.held_task(("run", p), parts[p], unbounded, rp.part_factorisations) == 0
+        jp.held_task(("run", p), None, unbounded, rp.HeldPart.factor)
+    return_freed_memory()
+    before = resident_memory_bytes()
+    jp.held_task(("run", 2), parts[2], unbounded, rp.HeldPart.factor)
+    return_freed_memory()
+    held_2 = resident_memory_bytes() - before               # part 2's matrices and factor, measured
+    assert held_2 > 0.5 * rp.held_part_bytes(parts[2])
+    # with room for two parts' worth the next task releases one; in a cycle over the parts the one
+    # just used is needed last: part 1 (used after part 0) goes
+    budget = before + 0.5 * held_2
+    jp.held_task(("run", 2), None, budget, rp.part_factorisations)
     assert [key[1] for key, h in jp._HELD.items() if key[0] == "run" and h.held_bytes] == [0, 2]
+    assert resident_memory_bytes() <= budget
     # a released part's task runs without the part sent again: K_BI K_II^-1 r against a direct solve
     part = rp.assembled(parts[1])
     r = np.random.default_rng(0).standard_normal((len(part.interior), 2))
     I, B = part.interior, part.boundary
     expected = part.K[B][:, I] @ spla.spsolve(part.K[I][:, I].tocsc(), r)
-    np.testing.assert_allclose(jp.held_task(("run", 1), None, budget, rp.part_coarse_load, r), expected,
+    np.testing.assert_allclose(jp.held_task(("run", 1), None, unbounded, rp.part_coarse_load, r), expected,
                                rtol=1e-9, atol=1e-9 * np.abs(expected).max())
-    assert jp.held_task(("run", 1), None, budget, rp.part_factorisations) == 2   # made again once
+    assert jp.held_task(("run", 1), None, unbounded, rp.part_factorisations) == 2   # made again once
     with pytest.raises(jp.NotHeld):                         # a worker that never held the part asks for it
-        jp.held_task(("run", 7), None, budget, rp.part_factorisations)
+        jp.held_task(("run", 7), None, unbounded, rp.part_factorisations)
     jp.release_run("run")
     assert not [key for key in jp._HELD if key[0] == "run"]
 

@@ -30,9 +30,9 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
 from sidprep.jobs.executor import task_pool
-from sidprep.progress import return_freed_memory
+from sidprep.progress import resident_memory_bytes, return_freed_memory
 from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, coordinates_per_part,
-    count_below, held_part_bytes, part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part,
+    count_below, part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part,
     schur_factor, second_level, short_parts, static_schur, task_peak_bytes)
 
 
@@ -110,8 +110,8 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False, 
     """InputError before any part starts when a part's estimated peak (``part_peak_bytes``, with its
     ``coordinates``, ``coordinates_per_part``, if known) exceeds ``memory`` (bytes, one worker), naming
     the ``parts`` that would fit (``components``: an assembly's, whose split is the user's).  Returns
-    the bytes a worker may spend on the other parts it holds (their matrices and K_II factors,
-    ``held_task``) beside the largest task: the held parts' bound."""
+    the resident bytes a worker may have when a task starts, the largest task's peak left beside it:
+    the bound of the parts it holds (their matrices and K_II factors, ``held_part``)."""
 
     coordinates = np.zeros(len(parts), dtype=np.int64) if coordinates is None else coordinates
     need = [part_peak_bytes(p, c) for p, c in zip(parts, coordinates)]
@@ -160,12 +160,16 @@ def held_task(key: tuple, part, budget: float, fn, *args):
 
 def held_part(key: tuple, part, budget: float) -> HeldPart:
     """The HeldPart ``key`` this worker holds; ``part`` (a PartModel, or None when the worker should
-    hold it already: NotHeld otherwise) is held from now on.  While the estimated bytes of the parts
-    whose matrices and factors are held, this one's included, exceed ``budget``, the most recently
-    used other part is released (``HeldPart.release``): the tasks of a round visit a worker's parts
-    in the same order every round, so the part just used is the one needed last (least recently
-    used first would release each part just before its next task).  Its task assembles the part,
-    outside the lock, so a worker's threads assemble parts side by side."""
+    hold it already: NotHeld otherwise) is held from now on.  While the worker's resident memory
+    (``resident_memory_bytes``, its freed heap returned first) exceeds ``budget`` - what it may hold
+    when a task starts, the task's own peak left beside it (``check_parts_fit``) - the most recently
+    used other part whose matrices or factor are held is released (``HeldPart.release``): measured,
+    not estimated, since a worker also holds its interpreter and what its transfers left (a 2.4M-DOF
+    run's 5 GB workers sat at 3.4 GB between tasks with 2 GB of parts estimated held, and a count
+    task on top of that stopped them).  The tasks of a round visit a worker's parts in the same order
+    every round, so the part just used is the one needed last (least recently used first would
+    release each part just before its next task).  Its task assembles the part, outside the lock, so
+    a worker's threads assemble parts side by side."""
     with _HELD_LOCK:
         held = _HELD.get(key)
         if held is None:
@@ -173,10 +177,11 @@ def held_part(key: tuple, part, budget: float) -> HeldPart:
                 raise NotHeld(key)
             held = _HELD[key] = HeldPart(part)
         _HELD.move_to_end(key)
-        need = held_part_bytes(held.description)
         others = [h for k, h in _HELD.items() if k != key and h.held_bytes]
-        while others and sum(h.held_bytes for h in others) + need > budget:
+        return_freed_memory()
+        while others and resident_memory_bytes() > budget:
             others.pop().release()
+            return_freed_memory()
     return held
 
 
@@ -202,10 +207,10 @@ class PartTasks:
     one worker of one pool kept from the parts' reductions to the checks (the substructured solves
     and the certified count, sidprep.reduction.parts.SubstructuredSolver, run after the reducer
     returned).  A part's matrices are sent once, with its first task; its worker holds it and its
-    K_II factor (``held_task``, bounded by ``budget`` bytes) so later tasks send right-hand sides only.
-    A part whose worker was lost (killed, out of memory) is sent again with its task, to the fresh
-    process of its slot (or another Dask worker), up to PART_RETRIES times; then PartLost.
-    The pool is closed with ``close`` or when this object is garbage-collected."""
+    K_II factor (``held_task``; its resident memory at a task's start bounded by ``budget`` bytes) so
+    later tasks send right-hand sides only.  A part whose worker was lost (killed, out of memory) is
+    sent again with its task, to the fresh process of its slot (or another Dask worker), up to
+    PART_RETRIES times; then PartLost.  The pool is closed with ``close`` or when this object is garbage-collected."""
 
     def __init__(self, settings: PartsSettings, parts):
         self.settings, self.parts = settings, parts
