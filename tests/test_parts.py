@@ -403,6 +403,34 @@ def test_workers_that_keep_dying_stop_the_run_with_one_line_naming_the_part():
     assert "\n" not in str(exc.value)
 
 
+DISK_LIMIT_SCRIPT = """
+import resource, signal
+from sidprep.errors import InputError
+from sidprep.reduction.parts import disk_zeros
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)                # a file past the limit: EFBIG, not a kill
+resource.setrlimit(resource.RLIMIT_FSIZE, (2**20, 2**20))    # files of at most 1 MiB: a disk that is full
+disk_zeros((100, 100))[:] = 1.0                              # 80 kB: fits
+try:
+    disk_zeros((1000, 1000))                                 # 8 MB
+except InputError as exc:
+    print(exc)
+"""
+
+
+def test_an_out_of_core_coarse_problem_without_room_on_disk_stops_with_one_line_before_it_writes():
+    # the 2.4M row's driver died of SIGBUS writing a mapped sparse file on a full disk: the room is
+    # checked against the planned blocks before they are made, and each file's blocks are reserved
+    n = 3_000_000                                             # one dense cut: 72 TB planned
+    with pytest.raises(InputError, match=r"^coarse problem out of core: .* GB do not fit in the temporary "
+                                         r"directory .*; set TMPDIR to a disk with room") as exc:
+        rp.CutBlocks([np.arange(n)], n, [np.arange(n)], out_of_core=True)
+    assert "\n" not in str(exc.value)
+    run = subprocess.run([sys.executable, "-c", DISK_LIMIT_SCRIPT], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.startswith("coarse problem out of core: 0.0 GB do not fit") and "File too large" in run.stdout
+
+
 SCHUR_PEAK_SCRIPT = """
 import sys
 import numpy as np

@@ -37,6 +37,8 @@ Bathe & Wilson 1972 (subspace iteration); Castanier, Tan & Pierre 2001 (characte
 
 from __future__ import annotations
 
+import os
+import shutil
 import tempfile
 from dataclasses import dataclass, replace
 
@@ -649,6 +651,8 @@ class CutBlocks:
         self.count_only = count_only
         if out_of_core is None:
             out_of_core = not count_only and self.planned_bytes() > COARSE_IN_MEMORY_FRACTION * available_memory_bytes()
+        if out_of_core:
+            check_disk_room(self.planned_bytes())
         self.zeros = disk_zeros if out_of_core else np.zeros
         self.negative: int | None = 0
         self.steps: list = []
@@ -761,9 +765,30 @@ class CutBlocks:
 def disk_zeros(shape: tuple) -> np.ndarray:
     """A float64 array of zeros mapped from a temporary file that has no name (the kernel frees it with
     the map): the page cache keeps what memory allows and the rest is written out and read back when
-    used - out of core, as MUMPS's OOC factors."""
+    used - out of core, as MUMPS's OOC factors.  The file's blocks are reserved first
+    (``posix_fallocate``): a map of a sparse file on a full disk kills the process with SIGBUS at the
+    first page written (the 2.4M row once, with 9 GB free) - here it is an InputError instead."""
+    nbytes = 8 * int(np.prod(shape))
     with tempfile.TemporaryFile(prefix="sidprep-coarse-") as fh:
+        try:
+            os.posix_fallocate(fh.fileno(), 0, max(nbytes, 1))
+        except OSError as exc:
+            raise InputError(no_disk_room(nbytes, exc.strerror)) from None
         return np.memmap(fh, dtype=np.float64, mode="w+", shape=shape)
+
+
+def check_disk_room(nbytes: float) -> None:
+    """InputError when the temporary directory has less than ``nbytes`` free (before the blocks of an
+    out-of-core coarse problem are made; their factor takes about as much again, ``disk_zeros``)."""
+    free = shutil.disk_usage(tempfile.gettempdir()).free
+    if nbytes > free:
+        raise InputError(no_disk_room(nbytes, f"{free / 1024.0**3:.1f} GB free"))
+
+
+def no_disk_room(nbytes: float, why: str) -> str:
+    """The one-line error of an out-of-core coarse problem without room on disk."""
+    return (f"coarse problem out of core: {nbytes / 1024.0**3:.1f} GB do not fit in the temporary directory "
+            f"{tempfile.gettempdir()} ({why}); set TMPDIR to a disk with room, or use more memory")
 
 
 @dataclass(frozen=True)
