@@ -154,8 +154,8 @@ def held_task(key: tuple, part, budget: float, fn, *args):
     except Exception as exc:                               # the task's own error: the same again on a retry
         name = (held.description if held is not None else part).name
         raise PartFailed(f"{name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
-    finally:
-        return_freed_memory()                              # the task's temporaries, not kept as heap
+    finally:                                               # the task's temporaries, not kept as heap; the
+        release_others(key, budget)                        # worker idles within its budget, as it starts
 
 
 def held_part(key: tuple, part, budget: float) -> HeldPart:
@@ -177,12 +177,19 @@ def held_part(key: tuple, part, budget: float) -> HeldPart:
                 raise NotHeld(key)
             held = _HELD[key] = HeldPart(part)
         _HELD.move_to_end(key)
+    release_others(key, budget)
+    return held
+
+
+def release_others(key: tuple, budget: float) -> None:
+    """Give the freed heap back, then release the most recently used held part other than ``key``
+    while the worker's resident memory exceeds ``budget`` (``held_part``)."""
+    with _HELD_LOCK:
         others = [h for k, h in _HELD.items() if k != key and h.held_bytes]
         return_freed_memory()
         while others and resident_memory_bytes() > budget:
             others.pop().release()
             return_freed_memory()
-    return held
 
 
 def release_run(run: str) -> None:
