@@ -428,7 +428,7 @@ def test_an_out_of_core_coarse_problem_without_room_on_disk_stops_with_one_line_
     run = subprocess.run([sys.executable, "-c", DISK_LIMIT_SCRIPT], capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
-    assert run.stdout.startswith("coarse problem out of core: 0.0 GB do not fit") and "File too large" in run.stdout
+    assert run.stdout.startswith("coarse problem out of core: 0.00745 GB do not fit") and "File too large" in run.stdout
 
 
 SCHUR_PEAK_SCRIPT = """

@@ -782,12 +782,12 @@ def check_disk_room(nbytes: float) -> None:
     out-of-core coarse problem are made; their factor takes about as much again, ``disk_zeros``)."""
     free = shutil.disk_usage(tempfile.gettempdir()).free
     if nbytes > free:
-        raise InputError(no_disk_room(nbytes, f"{free / 1024.0**3:.1f} GB free"))
+        raise InputError(no_disk_room(nbytes, f"{free / 1024.0**3:.3g} GB free"))
 
 
 def no_disk_room(nbytes: float, why: str) -> str:
     """The one-line error of an out-of-core coarse problem without room on disk."""
-    return (f"coarse problem out of core: {nbytes / 1024.0**3:.1f} GB do not fit in the temporary directory "
+    return (f"coarse problem out of core: {nbytes / 1024.0**3:.3g} GB do not fit in the temporary directory "
             f"{tempfile.gettempdir()} ({why}); set TMPDIR to a disk with room, or use more memory")
 
 
