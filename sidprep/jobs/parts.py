@@ -185,7 +185,7 @@ def release_others(key: tuple, budget: float) -> None:
     """Give the freed heap back, then release the most recently used held part other than ``key``
     while the worker's resident memory exceeds ``budget`` (``held_part``)."""
     with _HELD_LOCK:
-        others = [h for k, h in _HELD.items() if k != key and h.held_bytes]
+        others = [h for k, h in _HELD.items() if k != key and h.holds]
         return_freed_memory()
         while others and resident_memory_bytes() > budget:
             others.pop().release()

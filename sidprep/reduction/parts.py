@@ -66,8 +66,6 @@ PART_CUTOFF = 2.0
 RANK_TOL = 1e-12
 #: rows of the Ritz vectors combined at a time (``ritz_vectors``; its temporaries scale with them)
 REFINE_ROWS = 65536
-#: bytes of a stored entry of a float64 CSR matrix with 32-bit indices
-CSR_BYTES_PER_ENTRY = 12
 #: METIS load imbalance allowed between parts (1.03 = 3 %, its default for k-way partitions)
 PART_IMBALANCE = 1.03
 #: the coarse blocks and their factor stay in memory up to this fraction of the memory available as
@@ -269,21 +267,14 @@ class HeldPart:
         self._part = self._factor = None
 
     @property
-    def held_bytes(self) -> float:
-        """Estimated bytes held: the part's matrices and its factor once made (``held_part_bytes``)."""
-        return held_part_bytes(self.description) if self._part is not None else 0.0
+    def holds(self) -> bool:
+        """Whether the part's matrices (and with them, once made, its factor) are held."""
+        return self._part is not None
 
 
 def part_factorisations(held: HeldPart) -> int:
     """The factors of K_II made for the part where it is held (a part task)."""
     return held.factorisations
-
-
-def held_part_bytes(part: PartModel) -> float:
-    """Estimated bytes a worker holds for ``part``: its K, M and the factor of its K_II
-    (sidprep.fe.linalg.estimate_peak_memory, tet10 entries per DOF)."""
-    matrices = 2 * CSR_BYTES_PER_ENTRY * estimate_peak_memory(len(part.dofs), None, part.extent).nnz
-    return matrices + estimate_peak_memory(len(part.interior), None, part.extent).factor_bytes
 
 
 def part_peak_bytes(part: PartModel, n_coordinates: int = 0) -> float:
