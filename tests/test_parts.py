@@ -163,6 +163,8 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
         np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=0, atol=1e-10 * np.abs(x).max())
         factor = disk.eliminate(keep=True)
         assert all(isinstance(step.L, np.memmap) and isinstance(step.W, np.memmap) for step in factor.steps)
+        # what stays in memory is O(n) per group: D as its three bands, not a square block beside L
+        assert all(step.D.shape == (3, len(step.rows)) for step in factor.steps)
         x_disk = factor.solve(b)
         np.testing.assert_allclose(x_disk, np.linalg.solve(A, b), rtol=0, atol=1e-10 * np.abs(x).max())
 

@@ -54,8 +54,8 @@ from sidprep.fe.linalg import all_cores_blas, available_memory_bytes, estimate_p
 from sidprep.fe.mesh import FEMesh, _face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
-from sidprep.reduction.craig_bampton import (ReducedModel, block_gram, craig_bampton, interior_operator, project,
-    reduction_peak_bytes)
+from sidprep.reduction.craig_bampton import (ReducedModel, block_gram, blockwise, craig_bampton, interior_operator,
+    project, reduction_peak_bytes)
 
 
 #: the parts' fixed-interface modes reach this multiple of the highest fixed-interface frequency of
@@ -725,6 +725,7 @@ class CutBlocks:
         near = sorted(self.neighbours.pop(k))
         L, D, perm = sla.ldl(self.block(k), lower=True, overwrite_a=True, check_finite=False)
         blocks.pop((k, k), None)
+        D = tridiagonal_bands(D)                        # (3, nk), not the dense (nk, nk): kept in memory
         count = block_diagonal_negatives(D)
         if count is None:
             self.negative = None
@@ -785,7 +786,8 @@ def no_disk_room(nbytes: float, why: str) -> str:
 @dataclass(frozen=True)
 class EliminationStep:
     """One group's elimination in a block LDL^T: rows (its positions), near (its neighbours' positions,
-    in the order of W's columns), A_kk[perm][:, perm] = L D L^T, W = L^-1 A_k,near[perm]."""
+    in the order of W's columns), A_kk[perm][:, perm] = L D L^T (D as ``tridiagonal_bands``),
+    W = L^-1 A_k,near[perm]."""
 
     rows: np.ndarray
     near: list
@@ -825,10 +827,20 @@ class CutFactor:
         return x.reshape(shape)
 
 
+def tridiagonal_bands(D: np.ndarray) -> np.ndarray:
+    """(3, n) the bands of the tridiagonal (n, n) D in ``scipy.linalg.solve_banded``'s (1, 1) layout:
+    superdiagonal (first entry 0), diagonal, subdiagonal (last entry 0).  A Bunch-Kaufman D (1 x 1 and
+    2 x 2 blocks) stored so: O(n) against the dense D's n^2, as large as L and kept in memory when L is out
+    of core (``CutBlocks``)."""
+    bands = np.zeros((3, len(D)))
+    bands[0, 1:], bands[1], bands[2, :-1] = np.diag(D, 1), np.diag(D), np.diag(D, -1)
+    return bands
+
+
 def block_diagonal_negatives(D: np.ndarray) -> int | None:
-    """Negative eigenvalues of the block-diagonal D (1 x 1 and 2 x 2 blocks) of a Bunch-Kaufman L D L^T
-    (scipy.linalg.ldl), or None when D is singular."""
-    d, e = np.diag(D).copy(), np.r_[np.diag(D, 1), 0.0]
+    """Negative eigenvalues of the block-diagonal D (1 x 1 and 2 x 2 blocks; ``tridiagonal_bands``) of a
+    Bunch-Kaufman L D L^T (scipy.linalg.ldl), or None when D is singular."""
+    d, e = D[1], np.r_[D[0, 1:], 0.0]
     negative, k, n = 0, 0, len(d)
     while k < n:
         if e[k] == 0.0:
@@ -844,10 +856,8 @@ def block_diagonal_negatives(D: np.ndarray) -> int | None:
 
 
 def block_diagonal_solve(D: np.ndarray, W: np.ndarray) -> np.ndarray:
-    """D^-1 W for the block-diagonal (tridiagonal) D of ``block_diagonal_negatives``, W (n, k)."""
-    bands = np.zeros((3, len(D)))
-    bands[0, 1:], bands[1], bands[2, :-1] = np.diag(D, 1), np.diag(D), np.diag(D, -1)
-    return sla.solve_banded((1, 1), bands, W, check_finite=False)
+    """D^-1 W for the block-diagonal D (``tridiagonal_bands``, (3, n)) of ``block_diagonal_negatives``, W (n, k)."""
+    return sla.solve_banded((1, 1), D, W, check_finite=False)
 
 
 def part_dynamic_schur(held: HeldPart, sigma: float) -> Inertia:
@@ -1016,7 +1026,7 @@ def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np
     after one block inverse iteration); (frequencies Hz (nm,), modes (ni, nm) M_ii-normalised,
     written over X).
     V = [X, Y] is never formed: its Gram matrices are formed GRAM_BLOCK columns at a time from X and
-    Y, Y = K_ii^-1 (M_ii X) is solved in the buffer of M_ii X, and the Ritz vectors X R_X + Y R_Y
+    Y, Y = K_ii^-1 (M_ii X) is solved in the buffer of M_ii X (``blockwise``), and the Ritz vectors X R_X + Y R_Y
     ([R_X; R_Y] = diag(d) C Z, small) are written over X: the peak is about 2 x (ni, nm) beside X
     (Y and the solve's per-part loads)."""
 
@@ -1024,7 +1034,7 @@ def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np
     if nm == 0:
         return np.zeros(0), X
     m_ii, k_ii = interior_operator(M, interior).matmat, interior_operator(K, interior).matmat
-    Y = solver.solve(m_ii(X), overwrite_r=True)
+    Y = solver.solve(blockwise(m_ii, X), overwrite_r=True)
     with all_cores_blas():                                # no part task runs
         G, H = block_gram(m_ii, (X, Y)), block_gram(k_ii, (X, Y))
     d = 1.0 / np.sqrt(np.diag(G))                          # columns of unit M_ii norm
