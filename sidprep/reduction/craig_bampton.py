@@ -218,6 +218,16 @@ def project(A, basis: np.ndarray) -> np.ndarray:
     return 0.5 * (P + P.T)
 
 
+def blockwise(op, X: np.ndarray) -> np.ndarray:
+    """op(X) (n, k) for a square op (n, n) and X (n, k), op applied to GRAM_BLOCK columns at a time
+    into the one (n, k) result: op's (n, k) temporaries (three for ``interior_operator``) are (n,
+    GRAM_BLOCK) ones (the refinement's peak in a reduction in parts)."""
+    out = np.empty(X.shape)
+    for j in range(0, X.shape[1], GRAM_BLOCK):
+        out[:, j:j + GRAM_BLOCK] = op(X[:, j:j + GRAM_BLOCK])
+    return out
+
+
 def block_gram(op, blocks) -> np.ndarray:
     """V^T op(V) (k, k) for V = [blocks] (n, k), the blocks side by side (V is never formed), op
     applied to GRAM_BLOCK columns at a time (peak memory)."""
