@@ -13,7 +13,6 @@ import pytest
 
 import sidprep
 from sidprep.cli.main import main
-from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"

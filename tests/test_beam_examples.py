@@ -9,8 +9,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
+import numpy as np
 from readme_numbers import check_numbers, quoted_lines
+
+from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
+from sidprep.solver.results import read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 #: amplitude of the harmonic response vs A0 / (1 - F/F_cr) at F = 0.15 and 0.25 F_cr: 3 kept forms
@@ -44,10 +47,6 @@ def prepare(example: str, tmp_path: Path, names=("scene.toml", "scene_no_stiffen
 
 def test_beam_buckling(tmp_path):
     """Both scenes for the full 9.5 s: the README's numbers and the amplification to 2 %."""
-    import numpy as np
-
-    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
-
     prepare("beam_buckling", tmp_path)
     reports = {}
     for scene in ("scene.toml", "scene_no_stiffening.toml"):
@@ -84,10 +83,6 @@ ROTOR_FREQ_RTOL = 1e-3
 
 def test_helicopter_rotor(tmp_path):
     """The full 10 s of both scenes (about 2 s CPU each once compiled): every number of the README."""
-    import numpy as np
-
-    from sidprep.sid.io.sid_hdf5 import read_sid_hdf5
-
     prepare("helicopter_rotor", tmp_path)
     sid = read_sid_hdf5(tmp_path / "blade.sid.h5")
     np.testing.assert_allclose(sid.frequencies_hz, ROTOR_PAPER_HZ, rtol=ROTOR_FREQ_RTOL)
@@ -121,8 +116,6 @@ SLIDER_RIGID_DEVIATION_M = 0.025
 
 
 def test_beam_slider_crank(tmp_path):
-    import numpy as np
-
     prepare("beam_slider_crank", tmp_path, names=("scene.toml", "analyse.py"))
     r = cli("simulate", "scene.toml", "--csv", "--json", "-q", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
@@ -153,10 +146,6 @@ def test_beam_slider_crank_at_resonance_stops_with_the_reason(tmp_path):
     crank's 0.5 Hz (geometric stiffening included by `auto`); the resonance grows until the
     deflection passes 20 % of its 2 m and the run stops with one line naming the body, the time
     and the cause, the results up to there written."""
-    import numpy as np
-
-    from sidprep.solver.results import read_results
-
     prepare("beam_slider_crank", tmp_path, names=("scene.toml",))
     scene = tmp_path / "scene.toml"
     scene.write_text(scene.read_text().replace("speed = 1.5 ", "speed = 3.141592653589793 "))

@@ -6,7 +6,6 @@ the frequencies in data/meshes/README.md computed with plain scikit-fem.
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from sidprep.fe.material import builtin_material

@@ -33,7 +33,6 @@ import importlib.util
 import json
 import os
 import signal
-import sys
 import threading
 import warnings
 from contextlib import contextmanager
