@@ -19,7 +19,8 @@ from sidprep.fe.assemble import (_keast_points, lumped_scalar_mass, mass_matrix,
 from sidprep.errors import InputError
 from sidprep.fe.linalg import rigid_body_modes
 from sidprep.fe.material import Material
-from sidprep.fe.mesh import TET10_EDGES, FEMesh, read_mesh
+from sidprep.fe.mesh import FEMesh, read_mesh
+from sidprep.fe.topology import TET10_EDGES
 
 #: assembled matrices agree with scikit-fem's to round-off (relative Frobenius norm)
 SKFEM_RTOL = 1e-12

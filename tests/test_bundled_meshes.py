@@ -8,7 +8,8 @@ import gmsh
 import numpy as np
 import pytest
 
-from sidprep.fe.mesh import TET10_EDGES, connected_parts, read_mesh
+from sidprep.fe.mesh import read_mesh
+from sidprep.fe.topology import TET10_EDGES, connected_parts
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 #: the paper's (seed 000, section 6.4) lowest piston-rod modes and the accepted gap

@@ -6,14 +6,8 @@ import numpy as np
 import pytest
 
 from sidprep.errors import InputError
-from sidprep.fe.mesh import (
-    TET10_EDGES,
-    boundary_faces,
-    cell_volumes,
-    connected_parts,
-    read_mesh,
-    surface_node_indices,
-)
+from sidprep.fe.mesh import read_mesh
+from sidprep.fe.topology import TET10_EDGES, boundary_faces, cell_volumes, connected_parts, surface_node_indices
 
 #: mid-edge nodes of straight edges must sit at the midpoint to this fraction of the box size
 #: (formats that print coordinates with 8 significant digits limit it)
@@ -353,7 +347,7 @@ def test_close_pairs_are_the_search_tree_pairs():
     """The grid search for duplicate nodes finds exactly the pairs scipy's k-d tree finds."""
     from scipy.spatial import cKDTree
 
-    from sidprep.fe.mesh import close_pairs
+    from sidprep.fe.validation import close_pairs
 
     rng = np.random.default_rng(0)
     p = rng.random((20000, 3)) * [1.0, 0.05, 0.08]

@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from sidprep.fe.material import builtin_material
-from sidprep.fe.mesh import cell_volumes, read_mesh
+from sidprep.fe.mesh import read_mesh
+from sidprep.fe.topology import cell_volumes
 from sidprep.fe.plausibility import unit_warnings
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"

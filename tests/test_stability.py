@@ -20,7 +20,8 @@ import scipy.sparse as sp
 from sidprep.fe.assemble import mass_matrix, scalar_mass_matrix, stiffness_matrix
 from sidprep.fe.linalg import clamp_dofs, eigen_modes, factorize, node_dofs, rigid_body_modes
 from sidprep.fe.material import Material, material_from_options
-from sidprep.fe.mesh import FEMesh, read_mesh, surface_node_indices
+from sidprep.fe.mesh import FEMesh, read_mesh
+from sidprep.fe.topology import surface_node_indices
 from sidprep.solver.integrators.base import lu_factor, lu_solve
 from sidprep.solver.integrators.settings import METHODS
 from sidprep.solver.run import simulate

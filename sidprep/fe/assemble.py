@@ -23,7 +23,8 @@ import scipy.sparse as sp
 
 from sidprep.errors import InputError
 from sidprep.fe.material import Material
-from sidprep.fe.mesh import TET10_EDGES, FEMesh
+from sidprep.fe.mesh import FEMesh
+from sidprep.fe.topology import TET10_EDGES
 
 #: quadrature degree of the stiffness (exact for affine P2) and of the consistent mass
 STIFFNESS_QUAD_DEGREE = 2

@@ -24,7 +24,8 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from sidprep.errors import InputError
-from sidprep.fe.mesh import FEMesh, boundary_face_nodes
+from sidprep.fe.mesh import FEMesh
+from sidprep.fe.topology import boundary_face_nodes
 from sidprep.fe.ties import Ties, tie_to_faces
 
 

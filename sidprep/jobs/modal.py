@@ -13,7 +13,7 @@ import numpy as np
 from sidprep.errors import InputError
 from sidprep.fe.assemble import stiffness_and_mass
 from sidprep.fe.linalg import clamp_dofs, eigen_modes, node_dofs, rigid_body_modes
-from sidprep.fe.mesh import connected_parts
+from sidprep.fe.topology import connected_parts
 from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import DEFAULT_MODAL_COUNT, ModalOptions
 from sidprep.jobs.reduce import load_mesh, model_material

@@ -29,7 +29,8 @@ from sidprep.fe.linalg import single_threaded_blas
 from sidprep.fe.material import material_from_options, unit_system
 from sidprep.fe.matrices.deck import read_model
 from sidprep.fe.matrices.onto_model import imported_checks, imported_model
-from sidprep.fe.mesh import FEMesh, connected_parts, read_mesh
+from sidprep.fe.mesh import FEMesh, read_mesh
+from sidprep.fe.topology import connected_parts
 from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
     DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)

@@ -25,7 +25,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.fe.mesh import TET10_EDGES, boundary_faces
+from sidprep.fe.topology import TET10_EDGES, boundary_faces
 from sidprep.fe.ties import tie_map
 
 

@@ -51,7 +51,8 @@ from scipy.sparse.csgraph import connected_components
 from sidprep.errors import InputError
 from sidprep.fe.assemble import scalar_mass_matrix, stiffness_matrix, vector_mass
 from sidprep.fe.linalg import all_cores_blas, available_memory_bytes, estimate_peak_memory, factorize, single_threaded_blas
-from sidprep.fe.mesh import FEMesh, _face_table
+from sidprep.fe.mesh import FEMesh
+from sidprep.fe.topology import face_table
 from sidprep.fe.pardiso import Inertia, ldlt_inertia
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import (ReducedModel, block_gram, blockwise, craig_bampton, interior_operator,
@@ -90,7 +91,7 @@ COORDINATE_COPIES = 2
 def face_graph(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The cells' adjacency through shared faces in CSR form (xadj (ne + 1,), adjncy)."""
 
-    group, counts, _ = _face_table(np.asarray(cells)[:, :4])
+    group, counts, _ = face_table(np.asarray(cells)[:, :4])
     order = np.argsort(group, kind="stable")
     g = group[order]
     pair = np.flatnonzero((g[1:] == g[:-1]) & (counts[g[1:]] == 2))

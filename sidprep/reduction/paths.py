@@ -38,7 +38,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from sidprep.errors import InputError
-from sidprep.fe.mesh import TET10_EDGES
+from sidprep.fe.topology import TET10_EDGES
 from sidprep.sid.model import BodyPath
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.fe.assemble import shape_functions, shape_gradients
-from sidprep.fe.mesh import TET10_EDGES
+from sidprep.fe.topology import TET10_EDGES
 from sidprep.reduction.fe_checks import relieved_static_solve
 from sidprep.reduction.interfaces import linear_surface_triangles
 from sidprep.sid.stress import StressModes

@@ -21,7 +21,9 @@ import meshio
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.fe.mesh import FEMesh, TET_FACES, _abaqus_ids, _abaqus_lines, _file_sha256, read_mesh
+from sidprep.fe.mesh import FEMesh, file_sha256, read_mesh
+from sidprep.fe.readers.abaqus import abaqus_ids, abaqus_lines
+from sidprep.fe.topology import TET_FACES
 
 
 #: corner-node tetrahedra of one element, per meshio cell type (VTK node order)
@@ -60,7 +62,7 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
 def abaqus_types(path) -> set[str]:
     """The element types of the ``*ELEMENT`` blocks of an Abaqus / CalculiX deck (suffixes such as
     R, H, M, I dropped for the solid types of ``ABAQUS_NODES``)."""
-    return set().union(*(abaqus_types_of(line) for line in _abaqus_lines(path) if line[:8].upper() == "*ELEMENT"))
+    return set().union(*(abaqus_types_of(line) for line in abaqus_lines(path) if line[:8].upper() == "*ELEMENT"))
 
 
 def abaqus_types_of(line: str) -> set[str]:
@@ -71,7 +73,7 @@ def abaqus_types_of(line: str) -> set[str]:
 
 def _meshio(path):
 
-    text = "".join(_abaqus_lines(path)) if path.suffix.lower() == ".inp" else None
+    text = "".join(abaqus_lines(path)) if path.suffix.lower() == ".inp" else None
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             if text is None:
@@ -120,7 +122,7 @@ def solid_model(m, path) -> FEMesh:
             nodes = np.concatenate(nodes)
             node_sets[name] = np.unique(renumber[nodes[used[nodes]]])
     return FEMesh(points=points[keep], cells=np.concatenate(tets), node_ids=node_ids[keep], node_sets=node_sets,
-                  source=str(path), sha256=_file_sha256(path), surface=outer_surface(faces),
+                  source=str(path), sha256=file_sha256(path), surface=outer_surface(faces),
                   notes=(f"{path}: {', '.join(sorted({b.type for b in blocks}))} elements: K and M from the "
                          "FE code; paths interpolate linearly between corner nodes",))
 
@@ -145,7 +147,7 @@ def _node_ids(m, path) -> np.ndarray:
     if hasattr(m, "points_id"):
         return np.asarray(m.points_id, np.int64)
     if path.suffix.lower() == ".inp":
-        ids, _ = _abaqus_ids(_abaqus_lines(path))
+        ids, _ = abaqus_ids(abaqus_lines(path))
         if len(ids) == len(m.points):
             return ids
     return np.arange(1, len(m.points) + 1, dtype=np.int64)
@@ -165,7 +167,7 @@ def deck_elements(path) -> list[np.ndarray]:
         ids = _node_ids(m, path)
         return [ids[b.data] for b in m.cells if b.type in FAMILY]
     blocks, numbers, per = [], [], 0
-    for line in _abaqus_lines(path) + ["*END\n"]:
+    for line in abaqus_lines(path) + ["*END\n"]:
         if line.startswith("**"):
             continue
         if line.startswith("*"):
