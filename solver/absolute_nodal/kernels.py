@@ -166,12 +166,12 @@ def driver_angle(t, psi0, speed, delta, duration):  # pragma: no cover - compile
 
 
 @jit
-def _wrap(a):  # pragma: no cover - compiled
+def wrapped_angle(a):  # pragma: no cover - compiled
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
 @jit
-def _driver_value(X, V, A, nodes, n, e, at_end):  # pragma: no cover - compiled
+def driver_value(X, V, A, nodes, n, e, at_end):  # pragma: no cover - compiled
     """Tangent angle phi + theta at the driven end and its derivatives (beam_kinematics)."""
     phi, phid, phidd, th, thd, thdd = beam_kinematics(X, V, A, nodes, n, e)
     k = n - 1 if at_end else 0
@@ -209,14 +209,14 @@ def accelerations(t, y, params):  # pragma: no cover - compiled
         for r in range(nd):
             j, at_end = int(drv[r, 0]), drv[r, 1] > 0.5
             nodes, n, e = beam_nodes[j], beam_n[j], beam_e[j]
-            val, vald, quad = _driver_value(X, V, Z, nodes, n, e, at_end)
+            val, vald, quad = driver_value(X, V, Z, nodes, n, e, at_end)
             psi, psid, psidd = driver_angle(t, drv[r, 2], drv[r, 3], drv[r, 4], drv[r, 5])
-            err, errd = _wrap(val - psi), vald - psid
+            err, errd = wrapped_angle(val - psi), vald - psid
             rhs[r] = psidd - quad - 2.0 * alpha * errd - alpha * alpha * err
             for i in range(nf):
                 for c in range(2):
                     Z[free[i], c] = 1.0
-                    _, _, unit = _driver_value(X, V, Z, nodes, n, e, at_end)
+                    _, _, unit = driver_value(X, V, Z, nodes, n, e, at_end)
                     Z[free[i], c] = 0.0
                     G[r, 2 * i + c] = unit - quad
         MG = np.zeros((2 * nf, nd))            # M^-1 G^T

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, initial_vector, kernel_params, unpack
-from sidprep.solver.absolute_nodal.kernels import (_driver_value, _wrap, accelerations, beam_elastic, beam_kinematics,
-                                                   driver_angle)
+from sidprep.solver.absolute_nodal.kernels import (accelerations, beam_elastic, beam_kinematics, driver_angle, driver_value,
+                                                   wrapped_angle)
 from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver.results import BodyHistory, JointHistory, Result
@@ -100,8 +100,8 @@ def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.n
         k = -1 if asm.drv[r, 1] > 0.5 else 0
         nodes, n, e = asm.beam_nodes[j, :asm.beam_n[j]], asm.beam_n[j], asm.beam_e[j]
         for s in range(nt):
-            val = _driver_value(X[s], V[s], A[s], nodes, n, e, k == -1)[0]
-            derr[s] = max(derr[s], abs(_wrap(val - driver_angle(t[s], *asm.drv[r, 2:])[0])))
+            val = driver_value(X[s], V[s], A[s], nodes, n, e, k == -1)[0]
+            derr[s] = max(derr[s], abs(wrapped_angle(val - driver_angle(t[s], *asm.drv[r, 2:])[0])))
     notes = ("absolute nodal beams: every effect of the formulation is included (no effect selection); "
              "force of beam-beam revolutes not computed (NaN)",)
     return Result(t=t, bodies=bodies, joints=joints, markers=markers, energy=energy, constraint_error=derr,

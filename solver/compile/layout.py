@@ -19,8 +19,8 @@ from sidprep.solver.equations.constraints import ANGLE, NO_COORDINATE, SLIDE
 from sidprep.solver.equations.curves import CONSTANT_SPEED, SMOOTH_START, TABULATED
 from sidprep.solver.equations.forces import (FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_MOVING_MASS, FE_SPRING,
                                              FE_TORQUE)
-from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointTorque, SpringDamper, Table,
-                                         _MarkerLoad)
+from sidprep.solver.model.forces import (JointForce, JointFriction, MarkerLoad, MovingMass, PointTorque, SpringDamper,
+                                         Table)
 from sidprep.solver.model.bodies import PathMarker
 from sidprep.solver.model.joints import ConstantSpeed, SmoothStart
 
@@ -94,7 +94,7 @@ def pack_terms(terms) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (np.concatenate(parts) if parts else np.zeros(0)), off, flags
 
 
-class _Curves:
+class Curves:
     """Collects scalar piecewise polynomials (x, c (degree+1, k), period) into flat arrays."""
 
     def __init__(self):
@@ -126,7 +126,7 @@ class _Curves:
                 np.array(self.period, dtype=float))
 
 
-def motion_row(motion, curves: _Curves) -> tuple[int, np.ndarray, int]:
+def motion_row(motion, curves: Curves) -> tuple[int, np.ndarray, int]:
     """(kind, params [start, speed, ramp_time], curve index or -1) of a motion profile
     (ConstantSpeed, SmoothStart, TabulatedMotion; equations/curves.py motion_state)."""
     if isinstance(motion, ConstantSpeed):
@@ -136,7 +136,7 @@ def motion_row(motion, curves: _Curves) -> tuple[int, np.ndarray, int]:
     return TABULATED, np.zeros(3), curves.add(motion.x, motion.c)
 
 
-def add_path(path, curves: _Curves) -> int:
+def add_path(path, curves: Curves) -> int:
     """A BodyPath as consecutive cubic-spline curves over s: points (3), phi (3 nq, row a,
     column k at 3 + a nq + k), psi (3 nq, after phi); returns the first curve's index."""
     from scipy.interpolate import CubicSpline  # deferred: 0.42 CPU-s of import (paths, tables)
@@ -197,7 +197,7 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
     mk_active = np.array([id(m) in used for m in markers], dtype=np.int64)
     mk_pos = np.array([m.position for m in markers], dtype=float).reshape(-1, 3)
     mk_rot = np.array([m.rotation for m in markers], dtype=float).reshape(-1, 3, 3)
-    curves = _Curves()
+    curves = Curves()
     mk_path = np.full((len(markers), 3), -1, dtype=np.int64)     # [first path curve, motion curve, partner]
     mk_motion = np.zeros((len(markers), 4))                       # [kind, start, speed, ramp_time]
     partners = {id(j.marker1): mindex[id(j.marker2)] for j in system.joints if j.kind == "on_path"}
@@ -231,7 +231,7 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
     fe_par = np.zeros((len(system.forces), FE_PAR_COLUMNS))
     for i, fe in enumerate(system.forces):
         row, par = fe_int[i], fe_par[i]
-        if isinstance(fe, _MarkerLoad):
+        if isinstance(fe, MarkerLoad):
             row[0] = FE_TORQUE if isinstance(fe, PointTorque) else FE_FORCE
             row[1] = mindex[id(fe.marker)]
             row[3] = -1 if fe.argument is None else jindex[id(fe.argument)]

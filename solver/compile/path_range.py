@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.solver.equations.curves import motion_state
-from sidprep.solver.compile.layout import _Curves, motion_row
+from sidprep.solver.compile.layout import Curves, motion_row
 from sidprep.solver.model.bodies import PathMarker
 
 #: samples of s(t) over 0 .. t_end when looking for the time a motion leaves its path
@@ -41,7 +41,7 @@ def _span(m: PathMarker) -> tuple[float, float, float]:
 
 def _motion_on_path(m: PathMarker, t_end: float, errors: list, notes: list) -> None:
     """s(0) on the path (else an error); the first sampled time s(t) leaves it (a note)."""
-    curves = _Curves()
+    curves = Curves()
     kind, params, curve = motion_row(m.motion, curves)
     x, c = (m.motion.x, m.motion.c) if curve >= 0 else (np.zeros(2), np.zeros((4, 1)))
     s0, s1, tol = _span(m)

@@ -118,7 +118,7 @@ class Ground(Body):
         super().__init__(name)
 
 
-class _MassBody(Body):
+class MassBody(Body):
     """A body with 6 + nq coordinates; ``terms(effects, gravity)`` gives its BodyTerms."""
 
     @property
@@ -126,7 +126,7 @@ class _MassBody(Body):
         return 6 + self.nq
 
 
-class RigidBody(_MassBody):
+class RigidBody(MassBody):
     """A rigid body.
 
     Parameters
@@ -161,7 +161,7 @@ class RigidBody(_MassBody):
                          gravity=gravity)
 
 
-class FlexibleBody(_MassBody):
+class FlexibleBody(MassBody):
     """A flexible body described by SID data (sid-spec 3, 5).
 
     Parameters

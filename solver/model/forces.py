@@ -61,7 +61,7 @@ def _constant_or_table(value, what: str):
     return np.asarray(value, float)
 
 
-class _MarkerLoad:
+class MarkerLoad:
     """Force (``torque=False``) or torque on one marker, see PointForce / PointTorque."""
 
     torque = False
@@ -85,7 +85,7 @@ class _MarkerLoad:
         self.argument = argument
 
 
-class PointForce(_MarkerLoad):
+class PointForce(MarkerLoad):
     """Force on a marker, N.
 
     value : (3,) constant, or a scalar with ``direction``, or a Table (y rows 3-vectors or
@@ -95,7 +95,7 @@ class PointForce(_MarkerLoad):
     """
 
 
-class PointTorque(_MarkerLoad):
+class PointTorque(MarkerLoad):
     """Torque on a marker, N m; same arguments as PointForce."""
 
     torque = True

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.model.bodies import FlexibleBody, Ground, RigidBody, _MassBody
+from sidprep.solver.model.bodies import FlexibleBody, Ground, RigidBody, MassBody
 from sidprep.solver.model.forces import FORCE_ELEMENTS
 from sidprep.solver.model.joints import Driver, Joint
 
@@ -41,7 +41,7 @@ class System:
         self.effects = effects
         self.planar = planar
         self.ground = Ground()
-        self.bodies: list[_MassBody] = []
+        self.bodies: list[MassBody] = []
         self.joints: list[Joint] = []
         self.drivers: list[Driver] = []
         self.forces: list = []
