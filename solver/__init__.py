@@ -1,8 +1,8 @@
 """Floating-frame-of-reference (FFR) multibody solver that consumes SID files.
 
-The package reads as the flow of a simulation: ``model`` (bodies, markers, joints, drivers,
-force elements, effect names, System: descriptions and checks) -> ``equations`` (the one compiled
-implementation of the body equations, constraints, force elements and energies) -> ``compile``
+The package reads as the flow of a simulation: ``equations`` (the one compiled implementation of
+the body equations, constraints, force elements, energies and rotations) -> ``model`` (bodies,
+markers, joints, drivers, force elements, effect names, System: descriptions and checks) -> ``compile``
 (a System into the kernels' tables) -> ``integrators`` (settings, generalised-alpha, Runge-Kutta,
 consistent start, planar scenes) -> ``run`` (``simulate(system, t_end, settings)``: one
 simulation, owning its state) -> ``Result`` (results.py) ; scene files on top (scene.py,
