@@ -156,7 +156,8 @@ def test_cli_writes_a_sid_that_info_lists_and_rejects_bad_input(tmp_path):
 
 def test_beam_module_does_not_import_the_fe_side():
     code = ("import sys, sidprep.reduction.beam; bad = [m for m in sys.modules if m.startswith(('skfem', 'sidprep.fe.mesh', "
-            "'sidprep.fe.assemble', 'sidprep.fe.linalg', 'sidprep.reduction.modes', 'sidprep.reduction.stiffening'))]; print(bad)")
+            "'sidprep.fe.readers', 'sidprep.fe.validation', 'sidprep.fe.assemble', 'sidprep.fe.linalg', "
+            "'sidprep.reduction.modes', 'sidprep.reduction.stiffening'))]; print(bad)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "[]", r.stdout + r.stderr
 
