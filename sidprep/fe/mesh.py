@@ -158,7 +158,8 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
                   cell_sets=raw.cell_sets, source=str(path), sha256=file_sha256(path), notes=notes)
     n_parts, _ = connected_parts(mesh)
     if n_parts > 1:
-        mesh = replace(mesh, notes=mesh.notes + (f"mesh has {n_parts} disconnected parts; each adds 6 rigid-body modes",))
+        note = f"mesh has {n_parts} disconnected parts; each adds 6 rigid-body modes"
+        mesh = replace(mesh, notes=mesh.notes + (note,))
     return mesh
 
 
