@@ -57,6 +57,11 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
     return solid_model(m, path)
 
 
+def deck_lines(path) -> list[str]:
+    """The lines of an Abaqus / CalculiX deck, every ``*INCLUDE`` replaced by its file's lines."""
+    return _abaqus_lines(path)
+
+
 def abaqus_types(path) -> set[str]:
     """The element types of the ``*ELEMENT`` blocks of an Abaqus / CalculiX deck (suffixes such as
     R, H, M, I dropped for the solid types of ``ABAQUS_NODES``)."""
