@@ -12,11 +12,9 @@ import pytest
 import scipy.linalg as sla
 
 from sidprep.errors import InputError
-from sidprep.fe.material import builtin_material, unit_system
+from sidprep.fe.material import builtin_material
 from sidprep.fe.matrices import read_matrices
 from sidprep.fe.matrices.calculix import read_eigenvalues, tet_deck
-from sidprep.fe.matrices.deck import read_model
-from sidprep.fe.matrices.onto_model import imported_model
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.reduce import reduce
@@ -132,14 +130,6 @@ def test_piston_rod_from_ccx_matrices_matches_sidprep_assembly(tmp_path):
     np.testing.assert_allclose(imported.sid.frequencies_hz[eigen], own.sid.frequencies_hz[eigen],
                                rtol=ROD_FREQUENCY_RTOL)
     assert [n.name for n in imported.sid.nodes] == [n.name for n in own.sid.nodes]
-
-
-def test_units_mm_t_s_scale_k_and_m_to_si(block):
-    """The same numbers read as mm-t-s: K in N/mm (x 1e3 to N/m), M in t (x 1e3 to kg)."""
-    mesh = read_model(block / "block.inp")
-    si = imported_model(mesh, block / "block.sti", unit_system("si"))
-    mm = imported_model(mesh.scaled(1e-3), block / "block.sti", unit_system("mm-t-s"))
-    assert abs(mm.K - 1e3 * si.K).max() == 0 and abs(mm.M - 1e3 * si.M).max() == 0
 
 
 #: K and M of the .eig (binary) vs MATRIXSTORAGE's 13-digit ASCII of the same run's deck

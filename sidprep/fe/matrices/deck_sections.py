@@ -6,19 +6,19 @@ Read from the deck (``*INCLUDE`` followed; keywords and names case-insensitive, 
 * ``*ELEMENT, TYPE=..., ELSET=...`` blocks (data lines continued over several lines);
 * ``*ELSET, ELSET=...`` (element numbers, other set names, ``GENERATE`` ranges);
 * ``*SOLID SECTION, ELSET=..., MATERIAL=...``;
-* ``*MATERIAL, NAME=...`` with ``*ELASTIC`` (isotropic: E, nu on one data line; TYPE=ISO or none)
-  and ``*DENSITY``.
+* ``*MATERIAL, NAME=...`` with ``*ELASTIC`` (E, nu) and ``*DENSITY`` (their first data line; also
+  used by the unit check, sidprep.fe.plausibility).
 
 The stresses are those of sidprep.fe.element_stress.  Refused (InputError, one line): a deck that
 is not an ``.inp``, element types without a recovery rule there (named), an element without a
 solid section, a section naming an unknown material or set, a material without an isotropic,
-temperature-independent ``*ELASTIC``.  Point masses, springs and dashpots carry no stress and are
+temperature-independent ``*ELASTIC`` (one data line, TYPE=ISO or none).  Point masses, springs and dashpots carry no stress and are
 skipped.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,11 +37,15 @@ NO_STRESS = ("MASS", "ROTARYI", "SPRING", "DASHPOT", "GAP")
 
 @dataclass(frozen=True)
 class DeckMaterial:
-    """A material of the deck in its own units: E, nu, and rho (None without ``*DENSITY``)."""
+    """A material of the deck in its own units: E, nu, and rho (None when not given) from the first
+    data line of its cards; ``isotropic`` False for an anisotropic *ELASTIC, ``tabulated`` True when
+    a card holds several lines (a temperature table)."""
 
     E: float | None = None
     nu: float | None = None
     rho: float | None = None
+    isotropic: bool = True
+    tabulated: bool = False
 
 
 @dataclass(frozen=True)
@@ -62,21 +66,50 @@ def keyword(line: str) -> tuple[str, dict]:
     return words[0], {k.strip(): v.strip() for k, _, v in (w.partition("=") for w in words[1:] if w)}
 
 
-def read_sections(path) -> DeckSections:
-    """Parse the keywords of the module docstring (InputError on malformed data)."""
-    blocks, elsets, sections, materials = [], {}, {}, {}
-    key, params, data = "", {}, []
-    material = None
+def keyword_blocks(path):
+    """(keyword, parameters, data lines) of every keyword of the deck, in order (module docstring)."""
+    key, params, data = None, {}, []
+    for line in deck_lines(path):
+        if line.startswith("**") or not line.strip():
+            continue
+        if line.startswith("*"):
+            if key is not None:
+                yield key, params, data
+            (key, params), data = keyword(line), []
+        else:
+            data.append(line)
+    if key is not None:
+        yield key, params, data
 
-    def close():
-        nonlocal material
-        if key == "ELEMENT" and data:
+
+#: the keywords that define materials
+MATERIAL_KEYS = ("MATERIAL", "ELASTIC", "DENSITY")
+
+
+def deck_materials(path, cards=None) -> dict:
+    """{material name: DeckMaterial} of the deck's *MATERIAL, *ELASTIC and *DENSITY cards (``cards``:
+    those keyword blocks when already read, else the deck's)."""
+    materials, name = {}, None
+    for key, params, data in cards if cards is not None else keyword_blocks(path):
+        if key == "MATERIAL":
+            name = params.get("NAME")
+            materials.setdefault(name, DeckMaterial())
+        elif key in ("ELASTIC", "DENSITY") and name is not None:
+            materials[name] = material_data(materials[name], key, params, data, name, path)
+    return materials
+
+
+def read_sections(path) -> DeckSections:
+    """Parse the element, set and section keywords of the module docstring (InputError on malformed data)."""
+    blocks, elsets, sections, cards = [], {}, {}, []
+    for key, params, data in keyword_blocks(path):
+        if key in MATERIAL_KEYS:
+            cards.append((key, params, data))
+        elif key == "ELEMENT" and data and not params.get("TYPE", "").startswith(NO_STRESS):
             kind = params.get("TYPE", "")
-            if kind.startswith(NO_STRESS):
-                return
-            if kind not in ELEMENT_NODES:                   # shells, beams, ...: refused by deck_stress
+            if kind not in ELEMENT_NODES:                        # shells, beams, ...: refused by deck_stress
                 blocks.append((kind or "(no TYPE)", np.zeros(0, np.int64), None))
-                return
+                continue
             table = integer_table(data, ELEMENT_NODES[kind] + 1, path)
             blocks.append((kind, table[:, 0], table[:, 1:]))
             if "ELSET" in params:
@@ -88,22 +121,8 @@ def read_sections(path) -> DeckSections:
             if "ELSET" not in params or "MATERIAL" not in params:
                 raise InputError(f"{path}: a *SOLID SECTION without ELSET= or MATERIAL=; fix the deck")
             sections[params["ELSET"]] = params["MATERIAL"]
-        elif key == "MATERIAL":
-            material = params.get("NAME")
-            materials.setdefault(material, DeckMaterial())
-        elif key in ("ELASTIC", "DENSITY") and material is not None:
-            materials[material] = material_data(materials[material], key, params, data, material, path)
-
-    for line in deck_lines(path) + ["*END\n"]:
-        if line.startswith("**") or not line.strip():
-            continue
-        if line.startswith("*"):
-            close()
-            key, params = keyword(line)
-            data = []
-        else:
-            data.append(line)
-    return DeckSections(blocks, {k: np.asarray(v, np.int64) for k, v in elsets.items()}, sections, materials)
+    return DeckSections(blocks, {k: np.asarray(v, np.int64) for k, v in elsets.items()}, sections,
+                        deck_materials(path, cards))
 
 
 def integer_table(lines: list[str], per: int, path) -> np.ndarray:
@@ -139,22 +158,20 @@ def element_set(lines: list[str], known: dict, generate: bool, path) -> np.ndarr
 
 
 def material_data(m: DeckMaterial, key: str, params: dict, lines: list[str], name: str, path) -> DeckMaterial:
-    """``m`` with the values of an *ELASTIC (isotropic) or *DENSITY card."""
-    if key == "ELASTIC" and params.get("TYPE", "ISO") not in ("ISO", "ISOTROPIC"):
-        raise InputError(f"{path}: material {name}: *ELASTIC, TYPE={params['TYPE']}: sidprep's stresses use "
-                         "isotropic Hooke; give TYPE=ISO or drop --stress")
-    if len(lines) != 1:
-        raise InputError(f"{path}: material {name}: *{key} has {len(lines)} data lines (a temperature table?); "
-                         "sidprep reads one temperature-independent line")
+    """``m`` with the values of an *ELASTIC or *DENSITY card (its first data line)."""
+    if not lines:
+        raise InputError(f"{path}: material {name}: *{key} without a data line; fix the deck")
     try:
         values = [float(v.replace("D", "E").replace("d", "e")) for v in lines[0].split(",") if v.strip()]
     except ValueError:
         raise InputError(f"{path}: material {name}: *{key} data line {lines[0].strip()!r} is not numbers") from None
+    tabulated = m.tabulated or len(lines) > 1
     if key == "DENSITY":
-        return DeckMaterial(m.E, m.nu, values[0])
+        return replace(m, rho=values[0], tabulated=tabulated)
     if len(values) < 2:
         raise InputError(f"{path}: material {name}: *ELASTIC needs E, nu")
-    return DeckMaterial(values[0], values[1], m.rho)
+    return replace(m, E=values[0], nu=values[1], tabulated=tabulated,
+                   isotropic=params.get("TYPE", "ISO") in ("ISO", "ISOTROPIC"))
 
 
 def deck_stress(mesh, units) -> DeckStress:
@@ -206,6 +223,12 @@ def si_material(m: DeckMaterial, name: str, units, path) -> Material:
     """A deck material in SI (``units``: the deck's unit system), checked (sidprep.fe.material)."""
     if m.E is None:
         raise InputError(f"{path}: material {name} has no *ELASTIC; its stresses need E and nu")
+    if not m.isotropic:
+        raise InputError(f"{path}: material {name}: *ELASTIC is not isotropic; sidprep's stresses use isotropic "
+                         "Hooke: give TYPE=ISO or drop --stress")
+    if m.tabulated:
+        raise InputError(f"{path}: material {name}: *ELASTIC or *DENSITY is a table of several lines "
+                         "(temperatures); sidprep's stresses read one temperature-independent line")
     if not NU_RANGE[0] < m.nu < NU_RANGE[1]:
         raise InputError(f"{path}: material {name}: nu = {m.nu:g} outside ({NU_RANGE[0]:g}, {NU_RANGE[1]:g})")
     if m.rho is None:                          # no density to check the wave speed with: E and nu only
