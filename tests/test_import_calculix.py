@@ -4,12 +4,12 @@ C3D10 deck against sidprep's own assembly."""
 
 import os
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from calculix_run import run_ccx
 
 from sidprep.errors import InputError
 from sidprep.fe.material import builtin_material
@@ -38,12 +38,6 @@ HEX_VS_TET_RTOL = 1e-2
 #: frequencies to 1e-4 (CalculiX's C3D10 mass quadrature differs from the exact one by ~3e-5)
 ROD_MASS_RTOL = 1e-8
 ROD_FREQUENCY_RTOL = 1e-4
-
-
-def run_ccx(deck: Path) -> None:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1", "CCX_NPROC_EQUATION_SOLVER": "1"}
-    done = subprocess.run([CCX, deck.stem], cwd=deck.parent, env=env, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0 and "*ERROR" not in done.stdout, done.stdout[-2000:]
 
 
 @pytest.fixture(scope="module")

@@ -2,15 +2,12 @@
 CalculiX's own nodal stresses: a steel + aluminium block, clamped at x = 0, loaded through a rigid
 end face, run by the real ccx (the tests skip without it, as tests/test_import_calculix.py)."""
 
-import os
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from calculix_run import frd_block, needs_ccx, run_ccx
 
-from sidprep.errors import InputError
 from sidprep.fe.element_stress import SUPPORTED, element_rule
 from sidprep.fe.material import unit_system
 from sidprep.fe.matrices.deck import read_model
@@ -19,9 +16,6 @@ from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.reduce import reduce
 from sidprep.sid.stress import von_mises
 
-CCX = shutil.which("ccx")
-needs_ccx = pytest.mark.skipif(CCX is None, reason="CalculiX (ccx) is not installed: apt-get install calculix-ccx "
-                                                   "(.ci/run does); these tests run the real code")
 #: the block (m) and its elements per direction; x < SPLIT steel, x > SPLIT aluminium
 LENGTHS, DIVISIONS, SPLIT = (0.2, 0.05, 0.05), (6, 2, 2), 0.1
 #: the materials of the deck (SI): E (Pa), nu, rho (kg/m^3)
@@ -79,12 +73,6 @@ def block_mesh(kind: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def run_ccx(deck: Path) -> None:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1", "CCX_NPROC_EQUATION_SOLVER": "1"}
-    done = subprocess.run([CCX, deck.stem], cwd=deck.parent, env=env, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0 and "*ERROR" not in done.stdout, done.stdout[-2000:]
-
-
 def ccx_block(tmp: Path, kind: str) -> Path:
     """The block as ``kind`` elements run by ccx: its free matrices (block.sti/.mas/.dof) and the static
     solution clamped at END_A with FORCE on a *RIGID BODY of END_B (static.frd)."""
@@ -98,20 +86,6 @@ def ccx_block(tmp: Path, kind: str) -> Path:
     run_ccx(tmp / "block.inp")
     run_ccx(tmp / "static.inp")
     return tmp
-
-
-def frd_block(path: Path, name: str) -> dict:
-    """{node: values} of the result block ``name`` (DISP: 3, STRESS: 6) of a CalculiX .frd file."""
-    lines = path.read_text().splitlines()
-    start = next(k for k, line in enumerate(lines) if line.startswith(f" -4  {name}"))
-    width = 3 if name == "DISP" else 6
-    out = {}
-    for line in lines[start + 1:]:
-        if line.startswith(" -3"):
-            break
-        if line.startswith(" -1"):
-            out[int(line[3:13])] = np.array([float(line[13 + 12 * j:25 + 12 * j]) for j in range(width)])
-    return out
 
 
 @pytest.fixture(scope="module")
