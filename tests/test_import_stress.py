@@ -2,20 +2,27 @@
 CalculiX's own nodal stresses: a steel + aluminium block, clamped at x = 0, loaded through a rigid
 end face, run by the real ccx (the tests skip without it, as tests/test_import_calculix.py)."""
 
+import os
+import subprocess
+import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from calculix_run import frd_block, needs_ccx, run_ccx
 
+from sidprep.errors import InputError
 from sidprep.fe.element_stress import SUPPORTED, element_rule
 from sidprep.fe.material import unit_system
 from sidprep.fe.matrices.deck import read_model
 from sidprep.fe.matrices.deck_sections import deck_stress
+from sidprep.fe.mesh import TET10_EDGES
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.reduce import reduce
 from sidprep.sid.stress import von_mises
 
+ROOT = Path(__file__).resolve().parents[1]
 #: the block (m) and its elements per direction; x < SPLIT steel, x > SPLIT aluminium
 LENGTHS, DIVISIONS, SPLIT = (0.2, 0.05, 0.05), (6, 2, 2), 0.1
 #: the materials of the deck (SI): E (Pa), nu, rho (kg/m^3)
@@ -26,6 +33,9 @@ FORCE = 1e4
 HEX8 = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2, 2), (0, 2, 2)]
 HEX20 = HEX8 + [(1, 0, 0), (2, 1, 0), (1, 2, 0), (0, 1, 0), (1, 0, 2), (2, 1, 2), (1, 2, 2), (0, 1, 2),
                 (0, 0, 1), (2, 0, 1), (2, 2, 1), (0, 2, 1)]
+#: a hexahedron's corners (HEX8 order) as 6 positive tetrahedra around the diagonal 0-6 (Kuhn's split:
+#: the same face diagonals on opposite faces, so neighbouring hexahedra's tetrahedra conform)
+KUHN = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
 #: our recovery from ccx's own displacements vs ccx's nodal stresses, relative to the largest von
 #: Mises stress: ccx prints 6 digits (.frd E12.5) of both and its extrapolation matrices carry 5
 #: decimals (a27: up to 27 x 5e-6 of the largest stress; measured 1.2e-4 for C3D20, 1e-5 for the others)
@@ -35,38 +45,45 @@ RECOVERY_RTOL = 3e-4
 REDUCED_RTOL = 0.02
 
 
+def block_cells(kind: str) -> dict:
+    """{material: [element nodes as points of the doubled grid (i, j, k)]}: hexahedra, or each split
+    into KUHN tetrahedra (their mid-edge nodes are points of the doubled grid too)."""
+    cells = {name: [] for name in MATERIALS}
+    for k in range(DIVISIONS[2]):
+        for j in range(DIVISIONS[1]):
+            for i in range(DIVISIONS[0]):
+                name = "STEEL" if (i + 0.5) * LENGTHS[0] / DIVISIONS[0] < SPLIT else "ALU"
+                grid = [(2 * i + a, 2 * j + b, 2 * k + c) for a, b, c in (HEX20 if kind.startswith("C3D20") else HEX8)]
+                if kind.startswith(("C3D2", "C3D8")):
+                    cells[name].append(grid)
+                    continue
+                for tet in KUHN:
+                    c = [np.array(grid[t]) for t in tet]
+                    if kind == "C3D10":
+                        c += [(c[a] + c[b]) // 2 for a, b in TET10_EDGES]
+                    cells[name].append([tuple(int(v) for v in p) for p in c])
+    return cells
+
+
 def block_mesh(kind: str) -> str:
     """*NODE, *ELEMENT (two element sets, STEEL and ALU), node sets END_A (x = 0), END_B (x = L)."""
-    quadratic = kind.startswith("C3D20")
-    offsets = HEX20 if quadratic else HEX8
-    n = [2 * d + 1 for d in DIVISIONS]
-    ids, lines = {}, []
-    for k in range(n[2]):
-        for j in range(n[1]):
-            for i in range(n[0]):
-                odd = (i % 2) + (j % 2) + (k % 2)
-                if odd >= 2 or (odd and not quadratic):
-                    continue
-                ids[i, j, k] = len(ids) + 1
-                x = np.array([i, j, k]) / (np.array(n) - 1) * LENGTHS
-                lines.append(f"{ids[i, j, k]}, {x[0]:.10g}, {x[1]:.10g}, {x[2]:.10g}")
-    out = ["*NODE, NSET=NALL", *lines]
+    cells = block_cells(kind)
+    ids = {p: n + 1 for n, p in enumerate(sorted({p for c in cells.values() for e in c for p in e},
+                                                   key=lambda p: p[::-1]))}
+    scale = np.array(LENGTHS) / (2 * np.array(DIVISIONS))
+    out = ["*NODE, NSET=NALL"] + [f"{n}, " + ", ".join(f"{v:.10g}" for v in np.array(p) * scale) for p, n in ids.items()]
     e = 0
-    for name in MATERIALS:
+    for name, elements in cells.items():
         out.append(f"*ELEMENT, TYPE={kind}, ELSET={name}")
-        for k in range(DIVISIONS[2]):
-            for j in range(DIVISIONS[1]):
-                for i in range(DIVISIONS[0]):
-                    if ((i + 0.5) * LENGTHS[0] / DIVISIONS[0] < SPLIT) != (name == "STEEL"):
-                        continue
-                    e += 1
-                    nodes = [ids[2 * i + a, 2 * j + b, 2 * k + c] for a, b, c in offsets]
-                    out += [f"{e}, " + ", ".join(map(str, nodes[:15])) + ("," if len(nodes) > 15 else "")]
-                    out += [", ".join(map(str, nodes[15:]))] if len(nodes) > 15 else []
-    for name, i in (("END_A", 0), ("END_B", n[0] - 1)):
-        members = [v for (a, _, _), v in ids.items() if a == i]
+        for nodes in elements:
+            e += 1
+            numbers = [str(ids[p]) for p in nodes]
+            out += [f"{e}, " + ", ".join(numbers[:15]) + ("," if len(numbers) > 15 else "")]
+            out += [", ".join(numbers[15:])] if len(numbers) > 15 else []
+    for name, i in (("END_A", 0), ("END_B", 2 * DIVISIONS[0])):
+        members = [str(n) for p, n in ids.items() if p[0] == i]
         out.append(f"*NSET, NSET={name}")
-        out += [", ".join(map(str, members[s:s + 10])) for s in range(0, len(members), 10)]
+        out += [", ".join(members[s:s + 10]) for s in range(0, len(members), 10)]
     for name, (E, nu, rho) in MATERIALS.items():
         out += [f"*MATERIAL, NAME={name}", "*ELASTIC", f"{E:g}, {nu:g}", "*DENSITY", f"{rho:g}",
                 f"*SOLID SECTION, ELSET={name}, MATERIAL={name}"]
@@ -109,7 +126,7 @@ def test_extrapolation_matches_calculix_matrices():
 
 
 @needs_ccx
-@pytest.mark.parametrize("kind", ["C3D20R", "C3D20", "C3D8", "C3D8R"])
+@pytest.mark.parametrize("kind", ["C3D20R", "C3D20", "C3D8", "C3D8R", "C3D10", "C3D4"])
 def test_recovery_from_ccx_displacements_gives_ccx_stresses(kind, tmp_path):
     """Our recovery of each element type, fed ccx's own displacements, gives ccx's nodal stresses."""
     tmp = ccx_block(tmp_path, kind)
@@ -142,3 +159,45 @@ def test_reduced_stresses_match_ccx_at_each_materials_maximum(c3d20r):
         assert von_mises(ours[peak]) == pytest.approx(vm[peak], rel=REDUCED_RTOL), name
         assert np.abs(ours[peak] - theirs[peak]).max() < REDUCED_RTOL * vm[peak], name
     assert "deck's elements and materials" in sid.stress.method
+
+
+@needs_ccx
+def test_reduced_stress_refuses_element_types_without_a_rule(c3d20r, tmp_path):
+    """A deck with S4 skin shells (no recovery rule) besides its C3D20R: one line naming S4, exit 2,
+    nothing written."""
+    deck = tmp_path / "skin.inp"
+    mesh = (c3d20r / "mesh.inp").read_text()
+    end_b = read_model(c3d20r / "mesh.inp").node_sets["END_B"]
+    corners = [int(i) for i in read_model(c3d20r / "mesh.inp").node_ids[end_b][:4]]
+    deck.write_text(mesh + "*ELEMENT, TYPE=S4, ELSET=SKIN\n9001, " + ", ".join(map(str, corners)) + "\n")
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(deck), "--matrices",
+                           str(c3d20r / "block.sti"), "--interface", "END_A", "--interface", "END_B", "--stress",
+                           "-o", str(out / "b.sid.h5"), "-q"], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
+    assert done.returncode == 2, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "element type S4" in done.stderr
+    assert not out.exists() or not any(out.iterdir())
+
+
+@needs_ccx
+@pytest.mark.parametrize(("edit", "message"), [
+    (("*SOLID SECTION, ELSET=ALU, MATERIAL=ALU", ""), "have no \\*SOLID SECTION"),
+    (("*ELASTIC\n7e+10", "*ELASTIC, TYPE=ORTHO\n7e+10"), "not isotropic"),
+    (("*DENSITY\n2700", "*DENSITY\n2700\n2650, 100"), "table of several lines"),
+    (("MATERIAL=ALU", "MATERIAL=TITAN"), "unknown material TITAN"),
+    (("TYPE=C3D20R, ELSET=STEEL", "TYPE=C3D20RX, ELSET=STEEL"), "element type C3D20RX"),
+])
+def test_deck_without_evaluable_elements_or_materials_is_refused(c3d20r, tmp_path, edit, message):
+    mesh = read_model(c3d20r / "mesh.inp")
+    text = (c3d20r / "mesh.inp").read_text()
+    assert edit[0] in text
+    (tmp_path / "mesh.inp").write_text(text.replace(edit[0], edit[1]))
+    with pytest.raises(InputError, match=message):
+        deck_stress(replace(mesh, source=str(tmp_path / "mesh.inp")), unit_system("si"))
+
+
+def test_stress_needs_the_inp_deck(tmp_path):
+    mesh = read_model(ROOT / "data" / "meshes" / "bar.msh")
+    with pytest.raises(InputError, match="needs the Abaqus/CalculiX deck"):
+        deck_stress(mesh, unit_system("si"))

@@ -184,15 +184,16 @@ def deck_stress(mesh, units) -> DeckStress:
         raise InputError(f"{path}: --stress with --matrices needs the Abaqus/CalculiX deck (.inp) as MODEL: its "
                          "elements and *SOLID SECTION materials give the stresses; give the deck or drop --stress")
     deck = read_sections(path)
+    unsupported = sorted({kind for kind, _, _ in deck.blocks} - set(SUPPORTED))
+    if unsupported:
+        raise InputError(f"{path}: element type {', '.join(unsupported)}: no stress recovery for it; "
+                         f"sidprep recovers stresses of {', '.join(SUPPORTED)} (drop --stress)")
     material_of = element_materials(deck, path)
     lame = {name: si_material(deck.materials[name], name, units, path).lame for name in set(material_of.values())}
     ids = np.asarray(mesh.node_ids[:mesh.n_nodes], np.int64)
     sorter = np.argsort(ids)
     blocks = []
     for kind, numbers, nodes in deck.blocks:
-        if kind not in SUPPORTED:
-            raise InputError(f"{path}: element type {kind}: no stress recovery for it; "
-                             f"sidprep recovers stresses of {', '.join(SUPPORTED)} (drop --stress)")
         pos = np.clip(np.searchsorted(ids, nodes, sorter=sorter), 0, len(ids) - 1)
         rows = sorter[pos]
         if (ids[rows] != nodes).any():
