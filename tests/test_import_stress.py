@@ -201,3 +201,14 @@ def test_stress_needs_the_inp_deck(tmp_path):
     mesh = read_model(ROOT / "data" / "meshes" / "bar.msh")
     with pytest.raises(InputError, match="needs the Abaqus/CalculiX deck"):
         deck_stress(mesh, unit_system("si"))
+
+
+@pytest.mark.parametrize("kind", ["C3D20R", "C3D8", "C3D10"])
+def test_surface_scope_is_every_node_on_the_blocks_faces(kind, tmp_path):
+    """--stress surface of a deck: the nodes of its outer element faces, mid-edge nodes included,
+    = the nodes on the six planes of the box."""
+    (tmp_path / "mesh.inp").write_text(block_mesh(kind))
+    mesh = read_model(tmp_path / "mesh.inp")
+    x = mesh.points
+    on_faces = np.flatnonzero((np.isclose(x, 0) | np.isclose(x, np.array(LENGTHS))).any(axis=1))
+    np.testing.assert_array_equal(deck_stress(mesh, unit_system("si")).surface_nodes(), on_faces)

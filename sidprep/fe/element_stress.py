@@ -40,6 +40,9 @@ HEX_CORNERS = np.array([(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1),
 HEX20_EDGES = ((0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7))
 #: the 20 nodes of a C3D20 in reference coordinates
 HEX20_NODES = np.vstack([HEX_CORNERS, [(HEX_CORNERS[a] + HEX_CORNERS[b]) / 2 for a, b in HEX20_EDGES]])
+#: corner nodes of the faces of a hexahedron and of a tetrahedron (Abaqus / CalculiX order)
+HEX_FACES = ((0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7))
+TET_FACES = ((0, 1, 2), (0, 1, 3), (1, 2, 3), (0, 2, 3))
 #: elements per batch (temporaries ~ CHUNK * 27 * 20 * 3 * nc * 8 bytes)
 CHUNK = 256
 #: element types evaluated here (CalculiX names); the others are refused by name
@@ -144,6 +147,10 @@ class DeckStress:
     source: str = ""
     method: str = METHOD
 
+    def surface_nodes(self) -> np.ndarray:
+        """Sorted rows of the nodes on the outer faces of the elements (mid-edge nodes included)."""
+        return outer_face_rows(self.blocks)
+
     def nodal_stress(self, points: np.ndarray, U: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """Averaged nodal stress of displacement fields at chosen nodes.
 
@@ -172,6 +179,34 @@ class DeckStress:
                                      "fix its node order or mid-edge node positions") from None
                 add_to_nodes(total, count, row[cells], s)
         return (total / np.maximum(count, 1)[:, None]).reshape(len(nodes), 6, nc)
+
+
+def face_nodes(kind: str) -> tuple[int, list[np.ndarray]]:
+    """(corners per face k, [node positions of each face of an element type: its k corners, then
+    for quadratic types the mid-edge nodes of its edges])."""
+    tet = kind in ("C3D4", "C3D10")
+    faces, edges, corners = (TET_FACES, TET10_EDGES, 4) if tet else (HEX_FACES, HEX20_EDGES, 8)
+    mid = {frozenset(e): corners + n for n, e in enumerate(edges)}
+    quadratic = kind in ("C3D10", "C3D20", "C3D20R")
+    return len(faces[0]), [np.array(list(f) + ([mid[frozenset((f[i], f[i - 1]))] for i in range(len(f))]
+                                               if quadratic else [])) for f in faces]
+
+
+def outer_face_rows(blocks) -> np.ndarray:
+    """Sorted node rows of the faces that belong to one element only (the outer surface, with the
+    mid-edge nodes of quadratic elements); faces are matched by their corner nodes."""
+    keys, nodes = {}, {}
+    for block in blocks:
+        k, faces = face_nodes(block.kind)
+        for f in faces:
+            keys.setdefault(k, []).append(np.sort(block.rows[:, f[:k]], axis=1))
+            nodes.setdefault(k, []).append(block.rows[:, f])
+    out = [np.zeros(0, np.int64)]
+    for k, corners in keys.items():
+        _, inverse, counts = np.unique(np.concatenate(corners), axis=0, return_inverse=True, return_counts=True)
+        outer = np.split(counts[inverse.ravel()] == 1, np.cumsum([len(a) for a in nodes[k]])[:-1])
+        out += [a[once].ravel() for a, once in zip(nodes[k], outer)]
+    return np.unique(np.concatenate(out))
 
 
 def add_to_nodes(total: np.ndarray, count: np.ndarray, rows: np.ndarray, values: np.ndarray) -> None:

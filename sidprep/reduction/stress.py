@@ -92,14 +92,17 @@ def surface_nodes(mesh) -> np.ndarray:
     return np.unique(linear_surface_triangles(mesh))
 
 
-def stress_nodes(mesh, scope: str) -> np.ndarray:
-    """Node indices of a scope (SCOPES): the outer surface's or all."""
-    return surface_nodes(mesh) if scope == "surface" else np.arange(mesh.n_nodes)
+def stress_nodes(mesh, scope: str, material=None) -> np.ndarray:
+    """Node indices of a scope (SCOPES): the outer surface's (of the deck's own element faces for a
+    DeckStress ``material``, mid-edge nodes included) or all."""
+    if scope != "surface":
+        return np.arange(mesh.n_nodes)
+    return material.surface_nodes() if isinstance(material, DeckStress) else surface_nodes(mesh)
 
 
 def stress_modes(mesh, material, Phi_fe: np.ndarray, scope: str = "surface") -> StressModes:
     """The modal stresses of the basis Phi_fe (3 n_nodes, nq) at the surface nodes or all nodes."""
-    nodes = stress_nodes(mesh, scope)
+    nodes = stress_nodes(mesh, scope, material)
     modes = nodal_stress(mesh, material, Phi_fe, nodes)
     method = material.method if isinstance(material, DeckStress) else METHOD
     return StressModes(mesh.node_ids[nodes].astype(np.int64), mesh.points[nodes], modes, scope, method)
@@ -123,7 +126,7 @@ def stress_check(red, mesh, material, stress: StressModes) -> dict:
     P = np.zeros((red.im.n_model, len(loads)))
     P[loads, np.arange(len(loads))] = 1.0
     U_full = np.asarray(red.im.T @ relieved_static_solve(red, P))
-    nodes = stress_nodes(mesh, stress.scope)
+    nodes = stress_nodes(mesh, stress.scope, material)
     away = ~np.isin(nodes, np.concatenate([i.nodes for i in red.im.interfaces]))
     full = nodal_stress(mesh, material, U_full, nodes[away])            # (ns, 6, nl)
     q = (red.Phi_model[loads].T) / ((2 * np.pi * red.basis.frequencies_hz) ** 2)[:, None]
