@@ -84,14 +84,17 @@ def test_wrong_unit_system_is_one_line_naming_the_right_one(decks, deck, given, 
 
 
 def test_numbers_of_no_unit_system_are_refused_with_the_systems_named():
-    """mm, kg, N (density 7.85e-6 kg/mm^3, E 2.1e5 N/mm^2 as in mm-t-s): 7.85e-6 kg/m^3 as SI,
-    7.85e6 kg/m^3 as mm-t-s, neither a solid's."""
+    """A deck in mm, kg, s (force 1e-3 N, stress kPa: steel E = 2.1e8, rho = 7.85e-6) fits neither
+    system: E 2.1e14 Pa and rho 7.85e6 kg/m^3 as mm-t-s, rho 7.85e-6 kg/m^3 as SI.  Its mass and
+    volume alone (no material cards, e.g. a Nastran export) read as mm-t-s give a mean density of
+    7.85e6 kg/m^3, which point masses on a light part can reach: accepted."""
     mass, volume = 3.925, 0.5e6                                 # kg and mm^3 of the steel block
-    assert solid_unit_systems(mass, volume) == []
-    assert solid_unit_systems(mass / 1e3, volume) == ["mm-t-s"]
+    assert solid_unit_systems(mass, volume, [2.1e8], [7.85e-6]) == []
+    assert solid_unit_systems(mass, volume) == ["mm-t-s"]
     assert solid_unit_systems(BLOCK_MASS_KG, 0.5e-3, [210e9], [7850.0]) == ["si"]
+    assert solid_unit_systems(BLOCK_MASS_KG / 1e3, 0.5e6, [210e3], [7.85e-9]) == ["mm-t-s"]
     with pytest.raises(InputError, match="fit none of si, mm-t-s"):
-        check_model_units("b.sti", unit_system("si"), mass, volume, 200.0)
-    # a deck whose mass fits but whose modulus is given in the other system: refused as well
+        check_model_units("b.sti", unit_system("si"), mass, volume, 200.0, [2.1e8], [7.85e-6])
+    # mass and density fit SI, the modulus is in MPa: refused, naming it
     with pytest.raises(InputError, match="E = 2.1e"):
         check_model_units("b.sti", unit_system("si"), BLOCK_MASS_KG, 0.5e-3, 0.2, [210e3])

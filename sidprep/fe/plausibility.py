@@ -29,10 +29,12 @@ MAX_PART_MASS_KG = 1e6
 #: than ~10 c/L; the lower factor is multiplied by the slenderness (smallest/largest edge)
 FREQUENCY_BAND = (1e-2, 10.0)
 
-#: mean density of a solid model (kg/m^3, mass over element volume): foams (~30) to osmium (22 590),
-#: with room for point masses on light parts (x 20); the wrong one of sidprep's unit systems is off
-#: by 1e12 (steel in mm-t-s read as SI: 7.85e-9 kg/m^3; SI read as mm-t-s: 7.85e15)
-DENSITY_RANGE_KG_M3 = (1.0, 5e5)
+#: density of a solid material (kg/m^3): foams (~30, with a margin) to osmium (22 590)
+DENSITY_RANGE_KG_M3 = (1.0, 3e4)
+#: mean density of a model (kg/m^3): the mass of M over the volume of its elements, point masses
+#: included (up to 1e5 x steel's for heavy masses on light parts).  The wrong one of sidprep's unit
+#: systems is off by 1e12 (steel in mm-t-s read as SI: 7.85e-9 kg/m^3; SI read as mm-t-s: 7.85e15)
+MEAN_DENSITY_RANGE_KG_M3 = (1.0, 1e9)
 #: Young's modulus of a solid (Pa): elastomers (1 MPa and up) to diamond (1.2 TPa).  Every engineering
 #: solid's modulus in MPa is below 1e6 (steel 2.1e5), so a modulus in MPa read as Pa falls out
 MODULUS_RANGE_PA = (1e6, 2e12)
@@ -88,15 +90,17 @@ def solid_unit_systems(mass: float, volume: float, moduli=(), densities=()) -> l
 
     Returns
     -------
-    list of the names whose SI values of the mean density, the moduli and the densities all lie in
-    DENSITY_RANGE_KG_M3 and MODULUS_RANGE_PA.
+    list of the names whose SI values of the mean density, the densities and the moduli lie in
+    MEAN_DENSITY_RANGE_KG_M3, DENSITY_RANGE_KG_M3 and MODULUS_RANGE_PA.
     """
+    def within(values, bounds) -> bool:
+        return all(bounds[0] <= v <= bounds[1] for v in values)
+
     def fits(u: UnitSystem) -> bool:
-        rho = [mass * u.mass_to_kg / (volume * u.length_to_m ** 3)] if mass > 0 and volume > 0 else []
-        rho += [d * u.density_to_kg_m3 for d in densities]
-        E = [m * u.stress_to_pa for m in moduli]
-        return (all(DENSITY_RANGE_KG_M3[0] <= r <= DENSITY_RANGE_KG_M3[1] for r in rho)
-                and all(MODULUS_RANGE_PA[0] <= e <= MODULUS_RANGE_PA[1] for e in E))
+        mean = [mass * u.mass_to_kg / (volume * u.length_to_m ** 3)] if mass > 0 and volume > 0 else []
+        return (within(mean, MEAN_DENSITY_RANGE_KG_M3)
+                and within([d * u.density_to_kg_m3 for d in densities], DENSITY_RANGE_KG_M3)
+                and within([e * u.stress_to_pa for e in moduli], MODULUS_RANGE_PA))
     return [name for name, u in UNIT_SYSTEMS.items() if fits(u)]
 
 
