@@ -65,12 +65,14 @@ def block_cells(kind: str) -> dict:
     return cells
 
 
-def block_mesh(kind: str) -> str:
-    """*NODE, *ELEMENT (two element sets, STEEL and ALU), node sets END_A (x = 0), END_B (x = L)."""
+def block_mesh(kind: str, units: str = "si") -> str:
+    """*NODE, *ELEMENT (two element sets, STEEL and ALU), node sets END_A (x = 0), END_B (x = L), the
+    materials; numbers in ``units``."""
+    u = unit_system(units)
     cells = block_cells(kind)
     ids = {p: n + 1 for n, p in enumerate(sorted({p for c in cells.values() for e in c for p in e},
                                                    key=lambda p: p[::-1]))}
-    scale = np.array(LENGTHS) / (2 * np.array(DIVISIONS))
+    scale = np.array(LENGTHS) / (2 * np.array(DIVISIONS)) / u.length_to_m
     out = ["*NODE, NSET=NALL"] + [f"{n}, " + ", ".join(f"{v:.10g}" for v in np.array(p) * scale) for p, n in ids.items()]
     e = 0
     for name, elements in cells.items():
@@ -85,17 +87,18 @@ def block_mesh(kind: str) -> str:
         out.append(f"*NSET, NSET={name}")
         out += [", ".join(members[s:s + 10]) for s in range(0, len(members), 10)]
     for name, (E, nu, rho) in MATERIALS.items():
-        out += [f"*MATERIAL, NAME={name}", "*ELASTIC", f"{E:g}, {nu:g}", "*DENSITY", f"{rho:g}",
+        out += [f"*MATERIAL, NAME={name}", "*ELASTIC", f"{E / u.stress_to_pa:g}, {nu:g}", "*DENSITY",
+                f"{rho / u.density_to_kg_m3:g}",
                 f"*SOLID SECTION, ELSET={name}, MATERIAL={name}"]
     return "\n".join(out) + "\n"
 
 
-def ccx_block(tmp: Path, kind: str) -> Path:
+def ccx_block(tmp: Path, kind: str, units: str = "si") -> Path:
     """The block as ``kind`` elements run by ccx: its free matrices (block.sti/.mas/.dof) and the static
-    solution clamped at END_A with FORCE on a *RIGID BODY of END_B (static.frd)."""
-    (tmp / "mesh.inp").write_text(block_mesh(kind))
+    solution clamped at END_A with FORCE on a *RIGID BODY of END_B (static.frd); numbers in ``units``."""
+    (tmp / "mesh.inp").write_text(block_mesh(kind, units))
     (tmp / "block.inp").write_text("*INCLUDE, INPUT=mesh.inp\n*STEP\n*FREQUENCY, SOLVER=MATRIXSTORAGE\n12\n*END STEP\n")
-    ref = (LENGTHS[0], LENGTHS[1] / 2, LENGTHS[2] / 2)
+    ref = np.array([LENGTHS[0], LENGTHS[1] / 2, LENGTHS[2] / 2]) / unit_system(units).length_to_m
     (tmp / "static.inp").write_text(
         f"*INCLUDE, INPUT=mesh.inp\n*NODE\n99999, {ref[0]}, {ref[1]}, {ref[2]}\n*BOUNDARY\nEND_A, 1, 3\n"
         f"*RIGID BODY, NSET=END_B, REF NODE=99999\n*STEP\n*STATIC\n*CLOAD\n99999, 3, {FORCE}\n"
@@ -108,6 +111,11 @@ def ccx_block(tmp: Path, kind: str) -> Path:
 @pytest.fixture(scope="module")
 def c3d20r(tmp_path_factory):
     return ccx_block(tmp_path_factory.mktemp("c3d20r"), "C3D20R")
+
+
+@pytest.fixture(scope="module")
+def c3d20r_mm(tmp_path_factory):
+    return ccx_block(tmp_path_factory.mktemp("c3d20r_mm"), "C3D20R", "mm-t-s")
 
 
 def test_extrapolation_matches_calculix_matrices():
@@ -140,18 +148,22 @@ def test_recovery_from_ccx_displacements_gives_ccx_stresses(kind, tmp_path):
 
 
 @needs_ccx
-def test_reduced_stresses_match_ccx_at_each_materials_maximum(c3d20r):
+@pytest.mark.parametrize("units", ["si", "mm-t-s"])
+def test_reduced_stresses_match_ccx_at_each_materials_maximum(c3d20r, c3d20r_mm, units):
     """The SID's modal stresses times the reduced static solution under FORCE at the END_B master
     (frame clamped at END_A: the *BOUNDARY of the static run) against ccx's static nodal stresses,
-    at the node of each material's largest von Mises stress."""
-    result = reduce(c3d20r / "mesh.inp", ReduceOptions(matrices=str(c3d20r / "block.sti"), interfaces=("END_A", "END_B"),
-                                                        frame="END_A", stress="all", modes=6, check_frequencies=False))
+    at the node of each material's largest von Mises stress; the same block in mm-t-s (ccx's
+    stresses in MPa, the SID's in Pa)."""
+    folder = c3d20r if units == "si" else c3d20r_mm
+    result = reduce(folder / "mesh.inp", ReduceOptions(matrices=str(folder / "block.sti"), units=units, frame="END_A",
+                                                       interfaces=("END_A", "END_B"), stress="all", modes=6,
+                                                       check_frequencies=False))
     sid = result.sid
     node = next(n for n in sid.nodes if n.name == "END_B")
     q = np.linalg.solve(sid.Ke.M0, node.phi.M0.T @ np.array([0.0, 0.0, FORCE]))
     ours = sid.stress.at(q)[0]
-    ccx = frd_block(c3d20r / "static.frd", "STRESS")
-    theirs = np.array([ccx[int(i)] for i in sid.stress.node_ids])
+    ccx = frd_block(folder / "static.frd", "STRESS")
+    theirs = np.array([ccx[int(i)] for i in sid.stress.node_ids]) * unit_system(units).stress_to_pa
     x = sid.stress.points[:, 0]
     for name, part in (("STEEL", x < SPLIT - 1e-9), ("ALU", x > SPLIT + 1e-9)):
         vm = von_mises(theirs)
