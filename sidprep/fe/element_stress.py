@@ -16,9 +16,10 @@ CalculiX's nodal stress (``*NODE FILE``/``*EL FILE``, S; src/extrapolate.f):
 
 In all cases the extrapolation is E = C pinv(N_f(xi_g)): N_f the functions of the fitted
 (corner or full) node set at the Gauss points xi_g, C the map of the fitted nodes to all nodes.
-Shape functions in the Abaqus / CalculiX node order: the serendipity hexahedra of Zienkiewicz,
-Taylor & Zhu (2013, section 6.5) as in the CalculiX manual (Dhondt, section 6.2.1 C3D8 / 6.2.3
-C3D20); the tetrahedra of sidprep.fe.assemble (C3D10 order = sidprep's tet10 order).
+Shape functions in the Abaqus / CalculiX node order: the trilinear and serendipity hexahedra of
+Zienkiewicz, Taylor & Zhu (2013, chapter 6), as in Dhondt's CalculiX CrunchiX User's Manual
+(section 6.2, element types) and src/shape8h.f, shape20h.f; the tetrahedra of sidprep.fe.assemble
+(C3D10 order = sidprep's tet10 order).
 Components in sidprep.sid.stress.STRESS_ORDER (xx yy zz xy yz zx), Pa.
 """
 
