@@ -4,19 +4,17 @@ C3D10 deck against sidprep's own assembly."""
 
 import os
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from calculix_run import run_ccx
 
 from sidprep.errors import InputError
-from sidprep.fe.material import builtin_material, unit_system
+from sidprep.fe.material import builtin_material
 from sidprep.fe.matrices import read_matrices
 from sidprep.fe.matrices.calculix import read_eigenvalues, tet_deck
-from sidprep.fe.matrices.deck import read_model
-from sidprep.fe.matrices.onto_model import imported_model
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.reduce import reduce
@@ -40,12 +38,6 @@ HEX_VS_TET_RTOL = 1e-2
 #: frequencies to 1e-4 (CalculiX's C3D10 mass quadrature differs from the exact one by ~3e-5)
 ROD_MASS_RTOL = 1e-8
 ROD_FREQUENCY_RTOL = 1e-4
-
-
-def run_ccx(deck: Path) -> None:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1", "CCX_NPROC_EQUATION_SOLVER": "1"}
-    done = subprocess.run([CCX, deck.stem], cwd=deck.parent, env=env, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0 and "*ERROR" not in done.stdout, done.stdout[-2000:]
 
 
 @pytest.fixture(scope="module")
@@ -132,14 +124,6 @@ def test_piston_rod_from_ccx_matrices_matches_sidprep_assembly(tmp_path):
     np.testing.assert_allclose(imported.sid.frequencies_hz[eigen], own.sid.frequencies_hz[eigen],
                                rtol=ROD_FREQUENCY_RTOL)
     assert [n.name for n in imported.sid.nodes] == [n.name for n in own.sid.nodes]
-
-
-def test_units_mm_t_s_scale_k_and_m_to_si(block):
-    """The same numbers read as mm-t-s: K in N/mm (x 1e3 to N/m), M in t (x 1e3 to kg)."""
-    mesh = read_model(block / "block.inp")
-    si = imported_model(mesh, block / "block.sti", unit_system("si"))
-    mm = imported_model(mesh.scaled(1e-3), block / "block.sti", unit_system("mm-t-s"))
-    assert abs(mm.K - 1e3 * si.K).max() == 0 and abs(mm.M - 1e3 * si.M).max() == 0
 
 
 #: K and M of the .eig (binary) vs MATRIXSTORAGE's 13-digit ASCII of the same run's deck

@@ -28,6 +28,7 @@ from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_mat
 from sidprep.fe.linalg import single_threaded_blas
 from sidprep.fe.material import material_from_options, unit_system
 from sidprep.fe.matrices.deck import read_model
+from sidprep.fe.matrices.deck_sections import deck_stress
 from sidprep.fe.matrices.onto_model import imported_checks, imported_model
 from sidprep.fe.mesh import FEMesh, read_mesh
 from sidprep.fe.topology import connected_parts
@@ -339,10 +340,12 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
     if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
         with ph("import", str(o.matrices)):
             imported = imported_model(mesh, o.matrices, units, len(interfaces))
+            material = deck_stress(mesh, units) if o.stress else material   # the deck's elements and materials
         mesh = imported.mesh                              # with the rotation nodes of beams and shells
         assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
         imported = replace(imported, K=None)              # K freed once projected (peak memory); M kept for the checks
-        notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); material not used"]
+        notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); "
+                                    + ("stresses from the deck's elements and materials" if o.stress else "material not used")]
     else:
         check_parts_held(mesh, interfaces, source)
         with ph("assemble", f"{mesh.n_dof} DOF"):

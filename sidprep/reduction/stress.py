@@ -5,21 +5,22 @@ For each element, the displacement gradient of a field u is evaluated at the ele
 from the shape-function gradients of sidprep.fe.assemble (H = sum_b u_b (x) grad N_b), the strain
 eps = (H + H^T) / 2 and the isotropic Hooke stress sigma = lambda tr(eps) I + 2 mu eps; the values
 of all elements sharing a node are averaged (unweighted, the usual nodal averaging of CalculiX and
-Nastran; one material per mesh, so there are no material borders to respect).  Components in
+Nastran; one material per mesh, so there are no material borders to respect).  A model whose K and
+M were imported gets the stresses of its deck's own elements and materials instead
+(sidprep.fe.element_stress.DeckStress, passed where a Material is otherwise).  Components in
 sidprep.sid.stress.STRESS_ORDER, Pa per unit modal coordinate.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from sidprep.fe.assemble import shape_functions, shape_gradients
+from sidprep.fe.element_stress import DeckStress, add_to_nodes, hooke
 from sidprep.fe.topology import TET10_EDGES
 from sidprep.reduction.fe_checks import relieved_static_solve
 from sidprep.reduction.interfaces import linear_surface_triangles
 from sidprep.sid.stress import StressModes
-
 
 #: where modal stresses are kept: the outer surface's nodes (default) or every node
 SCOPES = ("surface", "all")
@@ -56,20 +57,19 @@ def element_nodal_stress(X: np.ndarray, Ue: np.ndarray, order: int, lame: tuple[
     _, dN = shape_functions(order, element_node_coordinates(order))
     G, _ = shape_gradients(X, dN, np.ones(dN.shape[0]), first)        # (ne, p, b, j) = dN_b/dx_j at node p
     H = np.einsum("ebik,epbj->epijk", Ue, G, optimize=True)            # du_i/dx_j at node p, field k
-    lam, mu = lame
-    trace = H[:, :, 0, 0] + H[:, :, 1, 1] + H[:, :, 2, 2]
-    return np.stack([lam * trace + 2 * mu * H[:, :, 0, 0], lam * trace + 2 * mu * H[:, :, 1, 1],
-                     lam * trace + 2 * mu * H[:, :, 2, 2], mu * (H[:, :, 0, 1] + H[:, :, 1, 0]),
-                     mu * (H[:, :, 1, 2] + H[:, :, 2, 1]), mu * (H[:, :, 2, 0] + H[:, :, 0, 2])], axis=2)
+    return hooke(H, *lame)
 
 
 def nodal_stress(mesh, material, U: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """Averaged nodal stress of displacement fields at the chosen nodes.
 
-    mesh : FEMesh (m); material : Material; U : (3 n_nodes, nc) fields, DOF 3 i + c, m;
-    nodes : (ns,) node indices.  Returns (ns, 6, nc) in STRESS_ORDER, Pa.  Only the elements
-    that touch a chosen node are evaluated.
+    mesh : FEMesh (m); material : Material (of the tet4/tet10 mesh) or DeckStress (an imported
+    deck's elements and materials); U : (3 n_nodes, nc) fields, DOF 3 i + c, m; nodes : (ns,) node
+    indices.  Returns (ns, 6, nc) in STRESS_ORDER, Pa.  Only the elements that touch a chosen node
+    are evaluated.
     """
+    if isinstance(material, DeckStress):
+        return material.nodal_stress(mesh.points, U, nodes)
     nodes = np.asarray(nodes, dtype=np.int64)
     nc = U.shape[1]
     row = np.full(mesh.n_nodes, -1, dtype=np.int64)
@@ -82,12 +82,7 @@ def nodal_stress(mesh, material, U: np.ndarray, nodes: np.ndarray) -> np.ndarray
         e = elements[start:start + CHUNK]
         cells = mesh.cells[e]
         s = element_nodal_stress(mesh.points[cells], U3[cells], mesh.order, material.lame, int(e[0]))
-        r = row[cells].ravel()
-        keep = r >= 0
-        scatter = sp.csr_matrix((np.ones(keep.sum()), (r[keep], np.flatnonzero(keep))),
-                                shape=(len(nodes), r.size))
-        total += scatter @ s.reshape(r.size, 6 * nc)
-        count += np.bincount(r[keep], minlength=len(nodes))
+        add_to_nodes(total, count, row[cells], s)
     return (total / count[:, None]).reshape(len(nodes), 6, nc)
 
 
@@ -97,16 +92,20 @@ def surface_nodes(mesh) -> np.ndarray:
     return np.unique(linear_surface_triangles(mesh))
 
 
-def stress_nodes(mesh, scope: str) -> np.ndarray:
-    """Node indices of a scope (SCOPES): the outer surface's or all."""
-    return surface_nodes(mesh) if scope == "surface" else np.arange(mesh.n_nodes)
+def stress_nodes(mesh, scope: str, material=None) -> np.ndarray:
+    """Node indices of a scope (SCOPES): the outer surface's (of the deck's own element faces for a
+    DeckStress ``material``, mid-edge nodes included) or all."""
+    if scope != "surface":
+        return np.arange(mesh.n_nodes)
+    return material.surface_nodes() if isinstance(material, DeckStress) else surface_nodes(mesh)
 
 
 def stress_modes(mesh, material, Phi_fe: np.ndarray, scope: str = "surface") -> StressModes:
     """The modal stresses of the basis Phi_fe (3 n_nodes, nq) at the surface nodes or all nodes."""
-    nodes = stress_nodes(mesh, scope)
+    nodes = stress_nodes(mesh, scope, material)
     modes = nodal_stress(mesh, material, Phi_fe, nodes)
-    return StressModes(mesh.node_ids[nodes].astype(np.int64), mesh.points[nodes], modes, scope, METHOD)
+    method = material.method if isinstance(material, DeckStress) else METHOD
+    return StressModes(mesh.node_ids[nodes].astype(np.int64), mesh.points[nodes], modes, scope, method)
 
 
 def stress_check(red, mesh, material, stress: StressModes) -> dict:
@@ -127,7 +126,7 @@ def stress_check(red, mesh, material, stress: StressModes) -> dict:
     P = np.zeros((red.im.n_model, len(loads)))
     P[loads, np.arange(len(loads))] = 1.0
     U_full = np.asarray(red.im.T @ relieved_static_solve(red, P))
-    nodes = stress_nodes(mesh, stress.scope)
+    nodes = stress_nodes(mesh, stress.scope, material)
     away = ~np.isin(nodes, np.concatenate([i.nodes for i in red.im.interfaces]))
     full = nodal_stress(mesh, material, U_full, nodes[away])            # (ns, 6, nl)
     q = (red.Phi_model[loads].T) / ((2 * np.pi * red.basis.frequencies_hz) ** 2)[:, None]

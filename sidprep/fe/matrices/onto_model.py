@@ -35,6 +35,7 @@ from sidprep.errors import InputError
 from sidprep.fe.linalg import rigid_body_modes
 from sidprep.fe.matrices import FEMatrices, read_matrices
 from sidprep.fe.matrices.numbers import indefinite_entries
+from sidprep.fe.plausibility import check_imported_units
 
 #: K_ij^2 > K_ii K_jj (1 + this) for a stored entry: K is indefinite
 MINOR_RTOL = 1e-9
@@ -71,6 +72,7 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     if len(owners) and not n_interfaces:
         raise InputError(f"{path}: {len(owners)} nodes have rotational DOFs (beams, shells); such models need "
                          "at least one interface: give --interface NAME")
+    check_imported_units(mesh, M, units, path)           # the model's own numbers fit --units (before the run)
     rotating = rotation_mesh(mesh, owners)
     if units.force_to_n != units.length_to_m:
         K = K * (units.force_to_n / units.length_to_m)
