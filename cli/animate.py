@@ -22,7 +22,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from sidprep.cli.options import default_output
     from sidprep.errors import InputError
-    from sidprep.view.pages import write_mechanism_movie, write_mechanism_page
+    from sidprep.view.mechanism import write_mechanism_page
+    from sidprep.view.movie import write_mechanism_movie
 
     out = default_output(args.results, ".html", args.output)
     if out.suffix.lower() not in MOVIE_SUFFIXES:

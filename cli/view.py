@@ -17,7 +17,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from sidprep.cli.options import default_output
-    from sidprep.view.pages import write_mode_page
+    from sidprep.view.modes import write_mode_page
 
     path = write_mode_page(args.sid, default_output(args.sid, ".html", args.output), args.obj)
     print(f"wrote {path}")

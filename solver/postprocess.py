@@ -23,6 +23,12 @@ from sidprep.solver.stiffening_work import base_layout
 ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
 
 
+def joint_marker_names(constraint) -> tuple[str, str]:
+    """Names of the markers a joint connects (for a driver: those of its joint)."""
+    joint = getattr(constraint, "joint", constraint)
+    return joint.marker1.name, joint.marker2.name
+
+
 def post_constants(run, stiffening: bool) -> PostConstants:
     """The PostConstants of ``run`` (solver.run.Run)."""
     system, L = run.system, run.L
@@ -73,7 +79,7 @@ def postprocess(run, s, setup, out=None) -> Result:
     joints = {ch.name: JointHistory(ch.name, getattr(ch, "kind", "driver"), out.force[:, ci].copy(),
                                     out.torque[:, ci].copy(), out.force_local[:, ci].copy(),
                                     out.torque_local[:, ci].copy(), out.coord[:, ci, 0].copy(),
-                                    out.coord[:, ci, 1].copy(), out.coord[:, ci, 2].copy())
+                                    out.coord[:, ci, 1].copy(), out.coord[:, ci, 2].copy(), joint_marker_names(ch))
               for ci, ch in enumerate(constraints)}
     energy = {kind: out.energy[:, i].copy() for i, kind in enumerate(ENERGY_KINDS[:4])}
     energy["dissipated"] = s.work[:, 1].copy()

@@ -14,7 +14,7 @@ its unit in the attribute ``units``)::
         q, qd              (nt, nq)        1, 1/s modal coordinates and rates
         acceleration       (nt, 6 + nq)           [dv_O/dt, omega_dot, q_ddot]
     /markers/<name>/position (nt, 3)       m      inertial
-    /joints/<name>/        attrs: kind; force, torque (nt, 3) reaction on body 2, inertial;
+    /joints/<name>/        attrs: kind, markers (JSON list: marker 1, marker 2); force, torque (nt, 3) reaction on body 2, inertial;
                            force_local, torque_local (marker-1 components); coordinate, rate,
                            effort (nt,) joint angle/slide, its rate, driver effort
     /energy/<kind>         (nt,)           J      kinetic, strain, gravity, ..., total
@@ -71,7 +71,8 @@ class JointHistory:
 
     force, torque (nt, 3), N / N m, inertial components; force_local, torque_local (nt, 3) in
     marker-1 components; coordinate, rate (nt,) joint angle (rad) or slide (m) and its rate
-    (NaN for joints without a coordinate); effort (nt,) driver torque/force along z1 (drivers).
+    (NaN for joints without a coordinate); effort (nt,) driver torque/force along z1 (drivers);
+    markers: the names of marker 1 and marker 2 (of the driven joint for a driver).
     """
 
     name: str
@@ -83,6 +84,7 @@ class JointHistory:
     coordinate: np.ndarray
     rate: np.ndarray
     effort: np.ndarray
+    markers: tuple[str, ...] = ()
 
 
 @dataclass
@@ -256,6 +258,7 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
         for name, j in result.joints.items():
             g = f.create_group(f"joints/{name}")
             g.attrs["kind"] = j.kind
+            g.attrs["markers"] = json.dumps(list(j.markers))
             for qty, unit in _JOINT_UNITS.items():
                 _put(g, qty, getattr(j, qty), unit)
         g = f.create_group("energy")
@@ -289,7 +292,8 @@ def read_results(path: str | os.PathLike) -> ResultsFile:
                              "pass the file written by `sidprep simulate`")
         bodies = {name: BodyHistory(name, **{qty: g[qty][()] for qty in _BODY_ARRAYS})
                   for name, g in f.get("bodies", {}).items()}
-        joints = {name: JointHistory(name, str(g.attrs["kind"]), **{qty: g[qty][()] for qty in _JOINT_UNITS})
+        joints = {name: JointHistory(name, str(g.attrs["kind"]), **{qty: g[qty][()] for qty in _JOINT_UNITS},
+                                     markers=tuple(json.loads(g.attrs.get("markers", "[]"))))
                   for name, g in f.get("joints", {}).items()}
         result = Result(
             t=f["time"][()], bodies=bodies, joints=joints,

@@ -81,7 +81,7 @@ def test_view_bad_obj_is_one_line_error(rod_sid, tmp_path, capsys):
 def test_cartop_hull_follows_its_nodes():
     from sidprep.sid.io import read_sid
     from sidprep.sid.surface import node_points
-    from sidprep.view.pages import body_surface
+    from sidprep.view.modes import body_surface
 
     sid = read_sid(CARTOP)
     surface = body_surface(sid, "cartop")

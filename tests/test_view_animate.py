@@ -55,7 +55,7 @@ def results(tmp_path_factory):
 
 def test_rigid_body_follows_closed_form(results):
     from sidprep.sid.surface import surface_motion
-    from sidprep.view.pages import mechanism_surfaces
+    from sidprep.view.mechanism import mechanism_surfaces
 
     rf, surfaces = mechanism_surfaces(results)
     b, s = rf.result.bodies["block"], surfaces["block"]

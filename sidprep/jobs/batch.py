@@ -446,8 +446,9 @@ def write_report(report: BatchReport) -> dict:
     return files
 
 
-def study_plot(report: BatchReport) -> str | None:
-    """OUTDIR/study.png: first elastic frequencies against the one numeric swept parameter, if any."""
+def study_figure(report: BatchReport):
+    """The matplotlib figure of the study plot (``study_plot``), or None without one numeric
+    swept parameter; an axis of whole-number values gets whole-number ticks."""
     ok = [r for r in report.records if r["status"] != "failed" and r.get("frequencies_hz")]
     numeric = sorted({k for r in ok for k, v in r.get("params", {}).items()
                       if isinstance(v, (int, float)) and not isinstance(v, bool)})
@@ -456,6 +457,7 @@ def study_plot(report: BatchReport) -> str | None:
     import matplotlib  # deferred: 1.2 s import, plots only
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # deferred: 1.2 s import, plots only
+    from matplotlib.ticker import MaxNLocator  # deferred: with matplotlib
 
 
     key = numeric[0]
@@ -473,6 +475,18 @@ def study_plot(report: BatchReport) -> str | None:
     ax.set_ylabel("elastic eigenfrequency [Hz]")
     ax.legend(fontsize=7)
     ax.grid(True, alpha=0.3)
+    if all(float(r["params"][key]).is_integer() for r in ok):
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    return fig
+
+
+def study_plot(report: BatchReport) -> str | None:
+    """OUTDIR/study.png: first elastic frequencies against the one numeric swept parameter, if any."""
+    fig = study_figure(report)
+    if fig is None:
+        return None
+    import matplotlib.pyplot as plt  # deferred: 1.2 s import, plots only
+
     path = Path(report.outdir) / "study.png"
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
