@@ -64,7 +64,7 @@ LAYERS = (
     # the analytical Beam builds a SID in memory (scene ``type = "beam"``) from its closed form and
     # its material table, never from a mesh
     Layer("solver", ("solver/",), ("base", "sid"), ("sidprep.reduction.beam", "sidprep.fe.material")),
-    Layer("view", ("sidprep/view/",), ("base", "sid"), ("sidprep.solver.results",)),
+    Layer("view", ("sidprep/view/",), ("base", "sid"), ("sidprep.solver.results", "sidprep.solver.stress")),
     Layer("api", ("sidprep/__init__.py",), ("base", "sid", "fe", "reduction", "jobs", "solver", "view")),
     Layer("cli", ("cli/",), ("base", "sid", "fe", "reduction", "jobs", "solver", "view", "api")),
 )
@@ -483,8 +483,8 @@ def test_the_solver_reaching_the_fe_side_fails(tree, code):
 
 @pytest.mark.parametrize("target", ["sidprep.fe.mesh", "sidprep.jobs.options"])
 def test_the_view_importing_fe_or_jobs_fails(tree, target):
-    append(tree / "sidprep" / "view" / "pages.py", f"import {target}\n")
-    assert [b for b in layer_breaches(tree) if "sidprep.view" in b] == [f"sidprep.view.pages (view) imports {target} "
+    append(tree / "sidprep" / "view" / "modes.py", f"import {target}\n")
+    assert [b for b in layer_breaches(tree) if "sidprep.view" in b] == [f"sidprep.view.modes (view) imports {target} "
                                                                          f"({target.split('.')[1]})"]
 
 
