@@ -36,6 +36,14 @@ class Ties:
     masters: np.ndarray
     weights: np.ndarray
 
+    def dependent_dofs(self) -> np.ndarray:
+        """(3k,) the tied nodes' DOFs 3 s + c."""
+        return (3 * self.slaves[:, None] + np.arange(3)).ravel()
+
+    def dof_map(self, n_nodes: int) -> sp.csr_matrix:
+        """The (3n, 3n) map of FE DOFs u = S u (:func:`tie_map`)."""
+        return tie_map(self, n_nodes)
+
     @staticmethod
     def joined(ties: list["Ties"]) -> "Ties | None":
         """All constraints of ``ties`` in one (None for none)."""

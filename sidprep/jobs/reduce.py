@@ -39,7 +39,7 @@ from sidprep.jobs.parts import PartsSettings, parts_reducer
 from sidprep.progress import Phases, peak_memory_mb
 from sidprep.reduction.craig_bampton import craig_bampton
 from sidprep.reduction.fe_checks import STATIC_CHECK_TOL, fe_checks, structured_checks
-from sidprep.reduction.interfaces import (KINDS, SELECTIONS, SELECTORS, check_patch, interface_model,
+from sidprep.reduction.interfaces import (KINDS, SELECTIONS, SELECTORS, Interface, check_patch, interface_model,
     linear_surface_triangles, make_interface, rigid_modes_model, select_patch, tied_interface_model)
 from sidprep.reduction.modes import modal_basis, modal_damping, mode_labels
 from sidprep.reduction.paths import fe_path, located_paths
@@ -134,6 +134,39 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
     selection = {k: v for k, v in spec.items() if k not in INTERFACE_KEYS} or spec.get("node_set")
     return make_interface(mesh, spec["name"], selection=selection, kind=spec.get("kind", "rbe2"),
                           master_point=spec.get("master_point"))
+
+
+def imported_interfaces(imported, specs, o: ReduceOptions, length_to_m: float):
+    """(Interfaces, options) of a reduction from imported matrices (sidprep.fe.matrices.onto_model):
+    a spec naming a rigid body is its reference and rotation nodes (the FE code's own 6-DOF master);
+    a clamped export gets an interface on its supports (an RBE2 on clamped solid nodes, or a rigid
+    body's two nodes), which carries the frame (the options' frame set to it, first in the list
+    unless a spec names it); default interfaces that hold dependent nodes are left out."""
+    mesh = imported.mesh
+    dependent = set() if mesh.ties is None else set(mesh.ties.slaves.tolist())
+    clamp = None
+    if len(imported.clamped):
+        if o.frame not in ("free", imported.clamp_name):
+            raise InputError(f"frame = {o.frame!r}: the matrices are clamped at {len(imported.clamped)} nodes "
+                             f"({imported.clamp_name}); the frame of a clamped export is its support: omit --frame "
+                             f"or give --frame {imported.clamp_name}")
+        x = mesh.points[imported.clamped]
+        if imported.clamp_kind == "rbe2":
+            check_patch(imported.clamp_name, x, np.ones(len(x)))
+        clamp = Interface(imported.clamp_name, imported.clamped, x.mean(axis=0), imported.clamp_kind)
+        o = replace(o, frame=imported.clamp_name)
+    names = [parse_interface(s)[0].upper() if isinstance(s, str) else None for s in specs]
+    out = [clamp] if clamp is not None and imported.clamp_name.upper() not in names else []
+    for spec, name in zip(specs, names):
+        if clamp is not None and name == imported.clamp_name.upper():
+            out.append(clamp)                              # the supports carry the frame
+        elif name is not None and name in imported.rigid_bodies:
+            ref, rot = imported.rigid_bodies[name]
+            out.append(Interface(parse_interface(spec)[0], np.array([ref, rot]), mesh.points[ref].copy(), "node"))
+        elif o.interfaces or name is None or not dependent.intersection(
+                mesh.node_sets.get(parse_interface(spec)[0], np.zeros(0, np.int64)).tolist()):
+            out.append(interface_from_spec(mesh, spec, length_to_m))
+    return out, o
 
 
 def default_interfaces(mesh) -> list[str]:
@@ -334,19 +367,22 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
     mesh, source = load_mesh(mesh_in, o, ph)
     notes = list(mesh.notes) + material_notes
     paths = located_paths(mesh, o.paths, units.length_to_m)
-    interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in (o.interfaces or default_interfaces(mesh))]
-    check_mode_count(o, mesh.n_dof, len(interfaces))
+    specs = o.interfaces or default_interfaces(mesh)
     imported = None
     if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
         with ph("import", str(o.matrices)):
-            imported = imported_model(mesh, o.matrices, units, len(interfaces))
+            imported = imported_model(mesh, o.matrices, units, len(specs))
             material = deck_stress(mesh, units) if o.stress else material   # the deck's elements and materials
-        mesh = imported.mesh                              # with the rotation nodes of beams and shells
+        mesh = imported.mesh                              # with rotation nodes and the deck's constraints
+        interfaces, o = imported_interfaces(imported, specs, o, units.length_to_m)
         assembled, Ms = {"K": imported.K, "M": imported.M}, imported.Ms
         imported = replace(imported, K=None)              # K freed once projected (peak memory); M kept for the checks
-        notes = list(mesh.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); "
+        notes = list(mesh.notes) + list(imported.notes) + [f"stiffness and mass: {o.matrices} ({imported.fmt}); "
                                     + ("stresses from the deck's elements and materials" if o.stress else "material not used")]
     else:
+        interfaces = [interface_from_spec(mesh, s, units.length_to_m) for s in specs]
+    check_mode_count(o, mesh.n_dof, len(interfaces))
+    if not o.matrices:
         check_parts_held(mesh, interfaces, source)
         with ph("assemble", f"{mesh.n_dof} DOF"):
             pattern = block_pattern(mesh.cells, mesh.n_nodes)

@@ -26,7 +26,6 @@ import scipy.sparse as sp
 
 from sidprep.errors import InputError
 from sidprep.fe.topology import TET10_EDGES, boundary_faces
-from sidprep.fe.ties import tie_map
 
 
 KINDS = ("rbe2", "rbe3")
@@ -40,8 +39,10 @@ class Interface:
     """One interface: patch nodes coupled to a 6-DOF master.
 
     name : str; nodes : (k,) int64 node indices of the patch; master_point : (3,) position of
-    the master in the mesh frame (m); kind : "rbe2" or "rbe3"; weights : (k,) RBE3 weights
-    (tributary areas, m^2), uniform when None.
+    the master in the mesh frame (m); kind : "rbe2" or "rbe3", or "node": the master is an FE node
+    pair that already has 6 DOFs (nodes = [translation node, rotation node], e.g. a rigid body's
+    reference and rotation nodes of an imported model); weights : (k,) RBE3 weights (tributary
+    areas, m^2), uniform when None.
     """
 
     name: str
@@ -256,7 +257,7 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
     deps, averaging = [], []                           # per interface: dependent FE DOFs, RBE3 W
     for itf in interfaces:
         dofs = (3 * itf.nodes[:, None] + np.arange(3)).ravel()
-        W = None if itf.kind == "rbe2" else rbe3_averaging(points[itf.nodes], _weights(itf), itf.master_point)
+        W = None if itf.kind in ("rbe2", "node") else rbe3_averaging(points[itf.nodes], _weights(itf), itf.master_point)
         d = dofs if W is None else dofs[best_columns(W, 6)]
         dependent[d] = True
         deps.append(d), averaging.append(W)
@@ -266,7 +267,9 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
     master_dofs = len(retained) + np.arange(6 * len(interfaces)).reshape(-1, 6)
     rows, cols, vals = [retained], [col[retained]], [np.ones(len(retained))]
     for itf, d, W, m in zip(interfaces, deps, averaging, master_dofs):
-        if W is None:
+        if itf.kind == "node":                             # the FE code's own 6-DOF node: its DOFs are the master
+            rows.append(d), cols.append(m), vals.append(np.ones(6))
+        elif W is None:
             R = rigid_rows(points[itf.nodes] - itf.master_point).reshape(-1, 6)
             rows.append(np.repeat(d, 6)), cols.append(np.tile(m, len(d))), vals.append(R.ravel())
         else:
@@ -299,8 +302,9 @@ def rigid_modes_model(im: InterfaceModel, points: np.ndarray) -> np.ndarray:
 
 
 def tied_interface_model(im: InterfaceModel, ties) -> InterfaceModel:
-    """The interface model with the tied nodes' constraints (sidprep.fe.ties.Ties) imposed:
-    u_FE = S T u_model (sidprep.fe.ties.tie_map), the tied nodes' own columns dropped.  A tied node
+    """The interface model with the tied nodes' constraints imposed (sidprep.fe.ties.Ties, or the
+    constraint equations of an import, sidprep.fe.matrices.constraints.Constraints):
+    u_FE = S T u_model (``ties.dof_map``), the dependent DOFs' own columns dropped.  A tied node
     may be neither in an interface patch nor the master of another tie (one-line InputError)."""
 
     if ties is None:
@@ -314,8 +318,7 @@ def tied_interface_model(im: InterfaceModel, ties) -> InterfaceModel:
         raise InputError("ties: a tied node is also a master node of another tie; tie each surface to an "
                          "untied one (chains of ties are not resolved)")
     n_nodes = im.T.shape[0] // 3
-    tied_dofs = (3 * ties.slaves[:, None] + np.arange(3)).ravel()
-    keep = ~np.isin(im.retained, tied_dofs)
+    keep = ~np.isin(im.retained, ties.dependent_dofs())
     cols = np.r_[np.flatnonzero(keep), np.arange(len(im.retained), im.T.shape[1])]
-    T = (tie_map(ties, n_nodes) @ im.T)[:, cols].tocsr()
+    T = (ties.dof_map(n_nodes) @ im.T)[:, cols].tocsr()
     return InterfaceModel(T, im.master_dofs - int((~keep).sum()), im.retained[keep], im.interfaces)

@@ -10,7 +10,6 @@ is refused (export the model without ``D`` constraints).
 
 from __future__ import annotations
 
-
 import numpy as np
 import scipy.sparse as sp
 

@@ -15,12 +15,14 @@ from __future__ import annotations
 import contextlib
 import io
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import meshio
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.fe.matrices.keywords import deck_text_path, single_node_block
 from sidprep.fe.mesh import FEMesh, file_sha256, read_mesh
 from sidprep.fe.readers.abaqus import abaqus_ids, abaqus_lines
 from sidprep.fe.topology import TET_FACES
@@ -51,12 +53,27 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
         raise InputError(f"{path}: file not found; check the path")
     if path.suffix.lower() in (".msh", ".geo", ".step", ".stp", ".brep", ".iges", ".igs"):
         return read_mesh(path, size=size, order=order)
+    if path.suffix.lower() == ".inp" and single_node_block(path) is not None:
+        return several_node_blocks(path)
     if path.suffix.lower() == ".inp" and abaqus_types(path) <= {"C3D4", "C3D10"}:
         return read_mesh(path)                             # a tetrahedral deck: read once, as a sidprep mesh
     m = _meshio(path)
     if {b.type for b in m.cells if b.type in FAMILY} <= {"tetra", "tetra10"}:
         return read_mesh(path)
     return solid_model(m, path)
+
+
+def several_node_blocks(path) -> FEMesh:
+    """MODEL of a deck with several ``*NODE`` blocks (as CalculiX reads it: sidprep.fe.matrices.keywords),
+    read from a copy with one block; messages and the mesh name ``path``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        flat = deck_text_path(path, tmp)
+        try:
+            m = read_model(flat)
+        except InputError as exc:
+            raise InputError(str(exc).replace(str(flat), str(path))) from None
+    return replace(m, source=str(path), sha256=file_sha256(path),
+                   notes=tuple(n.replace(str(flat), str(path)) for n in m.notes))
 
 
 def abaqus_types(path) -> set[str]:

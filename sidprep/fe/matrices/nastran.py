@@ -90,14 +90,20 @@ def nastran_real(text: str) -> float:
     return float(t)
 
 
-def cards(path):
+def cards(path, bulk_only: bool = False):
     """Yield the fields (stripped strings) of each card: small, large (``*``) or free (``,``) field,
-    continuation lines (``+``, ``*`` or blank first field) appended; comments (``$``) skipped."""
+    continuation lines (``+``, ``*`` or blank first field) appended; comments (``$``) skipped.
+    ``bulk_only``: a whole input deck, read from its ``BEGIN BULK`` line on (when it has one)."""
     card = None
     with open(path, errors="replace") as f:
+        in_bulk = not (bulk_only and any(x.upper().startswith("BEGIN BULK") for x in f))
+        f.seek(0)
         for line in f:
             line = line.rstrip("\r\n")
-            if not line.strip() or line.startswith("$"):
+            if not in_bulk:
+                in_bulk = line.upper().startswith("BEGIN BULK")
+                continue
+            if not line.strip() or line.startswith("$") or line.upper().startswith("ENDDATA"):
                 continue
             head = line[:8].strip()
             continuation = head.startswith(("+", "*")) or not head
