@@ -22,11 +22,12 @@ def run_ccx(deck: Path) -> None:
     assert done.returncode == 0 and "*ERROR" not in done.stdout, done.stdout[-2000:]
 
 
-def frd_block(path: Path, name: str) -> dict:
-    """{node: values} of the nodal result block ``name`` (DISP: 3 values, STRESS: 6, xx yy zz xy yz zx)
-    of a CalculiX .frd file (short format: node number in columns 4-13, values 12 wide)."""
+def frd_block(path: Path, name: str, index: int = 0) -> dict:
+    """{node: values} of the ``index``-th nodal result block ``name`` (DISP: 3 values, STRESS: 6, xx yy
+    zz xy yz zx; a frequency step writes one block per mode) of a CalculiX .frd file (short format:
+    node number in columns 4-13, values 12 wide)."""
     lines = path.read_text().splitlines()
-    start = next(k for k, line in enumerate(lines) if line.startswith(f" -4  {name}"))
+    start = [k for k, line in enumerate(lines) if line.startswith(f" -4  {name}")][index]
     width = 3 if name == "DISP" else 6
     out = {}
     for line in lines[start + 1:]:

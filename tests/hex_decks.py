@@ -1,14 +1,12 @@
-"""Small hexahedral CalculiX decks (steel bars in SI) and the ccx runner, for the import tests."""
+"""Small hexahedral CalculiX decks (steel bars in SI) run by ccx (tests/calculix_run.py), and the same
+models as Nastran decks and DMIG punches, for the import tests."""
 
-import os
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+from calculix_run import run_ccx
 
-CCX = shutil.which("ccx")
 #: steel of every deck (Pa, -, kg/m^3)
 E, NU, RHO = 210e9, 0.3, 7850.0
 #: C3D20 corner then mid-edge nodes as offsets on the doubled grid (Abaqus order)
@@ -16,12 +14,6 @@ C3D20 = [(0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2
          (1, 0, 0), (2, 1, 0), (1, 2, 0), (0, 1, 0), (1, 0, 2), (2, 1, 2), (1, 2, 2), (0, 1, 2),
          (0, 0, 1), (2, 0, 1), (2, 2, 1), (0, 2, 1)]
 C3D8 = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
-
-
-def run_ccx(deck: Path) -> None:
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1", "CCX_NPROC_EQUATION_SOLVER": "1"}
-    done = subprocess.run([CCX, deck.stem], cwd=deck.parent, env=env, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0 and "*ERROR" not in done.stdout, done.stdout[-2000:]
 
 
 #: six corner tetrahedra of a hexahedron around its diagonal 0-6 (conforming on a structured grid)
@@ -124,18 +116,3 @@ def bdf(path, xyz: dict, lines, cards=()):
             out += ["CHEXA   " + "".join(f"{v:<8d}" for v in [e, 1, *nodes[:6]]) + "+",
                     "+       " + "".join(f"{v:<8d}" for v in nodes[6:])]
     Path(path).write_text("\n".join(out + list(cards) + ["ENDDATA"]) + "\n")
-
-
-def frd_modes(path) -> list[dict]:
-    """ccx's own mode shapes from a ``.frd`` (``*NODE FILE`` U): per mode {node: (ux, uy, uz)}; the
-    ``-1`` lines hold the node in columns 4-13 and three 12-character values (ccx's frd format)."""
-    modes, current = [], None
-    for line in Path(path).read_text().splitlines():
-        if line.startswith(" -4  DISP"):
-            current = {}
-        elif current is not None and line.startswith(" -1"):
-            current[int(line[3:13])] = [float(line[13 + 12 * k:25 + 12 * k]) for k in range(3)]
-        elif current is not None and line.startswith(" -3"):
-            modes.append(current)
-            current = None
-    return modes

@@ -11,7 +11,8 @@ import sys
 import meshio
 import numpy as np
 import pytest
-from hex_decks import CCX, RHO, E, end_sets, hex_bar, material, write_pair, write_punch
+from calculix_run import needs_ccx
+from hex_decks import RHO, E, end_sets, hex_bar, material, write_pair, write_punch
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices import read_matrices
@@ -19,8 +20,7 @@ from sidprep.fe.matrices.calculix import read_eigenvalues
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.reduce import reduce
 
-pytestmark = pytest.mark.skipif(CCX is None, reason="CalculiX (ccx) is not installed: apt-get install calculix-ccx "
-                                                    "(.ci/run does); these tests run the real code")
+pytestmark = needs_ccx
 
 #: the slender cantilever (m): L / h = 50, 20 x 1 x 1 C3D20
 LENGTHS, DIVISIONS = np.array([1.0, 0.02, 0.02]), (20, 1, 1)
