@@ -27,6 +27,7 @@ import numpy as np
 from sidprep import __version__
 from sidprep.errors import InputError
 from sidprep.fe.mesh import read_mesh
+from sidprep.fe.readers.gmsh import GEOMETRY_SUFFIXES
 from sidprep.jobs.executor import task_pool
 from sidprep.jobs.guard import folder_lock
 from sidprep.jobs.jobfile import check_inside, job_from_table, split_job_table
@@ -40,8 +41,7 @@ from sidprep.tables import checked_table, read_toml
 
 #: fraction of the available memory a batch may plan for
 MEMORY_FRACTION = 0.8
-#: file endings meshed by gmsh (DOF unknown before meshing: the estimate uses GEOMETRY_DOF_GUESS)
-GEOMETRY_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".iges", ".igs")
+#: DOF assumed for a geometry file meshed by gmsh (GEOMETRY_SUFFIXES: unknown before meshing)
 GEOMETRY_DOF_GUESS = 100_000
 #: the first elastic frequencies kept in a job's record
 RECORD_FREQUENCIES = 6

@@ -12,19 +12,17 @@ DOF).  Stiffness and mass come from the FE code (sidprep.fe.matrices), never fro
 
 from __future__ import annotations
 
-import contextlib
-import io
 import tempfile
 from dataclasses import replace
 from pathlib import Path
 
-import meshio
 import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices.keywords import deck_text_path, single_node_block
 from sidprep.fe.mesh import FEMesh, file_sha256, read_mesh
 from sidprep.fe.readers.abaqus import abaqus_ids, abaqus_lines
+from sidprep.fe.readers.meshio import meshio_read
 from sidprep.fe.topology import TET_FACES
 
 
@@ -57,7 +55,7 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
         return several_node_blocks(path)
     if path.suffix.lower() == ".inp" and abaqus_types(path) <= {"C3D4", "C3D10"}:
         return read_mesh(path)                             # a tetrahedral deck: read once, as a sidprep mesh
-    m = _meshio(path)
+    m = meshio_read(path, abaqus_lines(path) if path.suffix.lower() == ".inp" else None)
     if {b.type for b in m.cells if b.type in FAMILY} <= {"tetra", "tetra10"}:
         return read_mesh(path)
     return solid_model(m, path)
@@ -86,22 +84,6 @@ def abaqus_types_of(line: str) -> set[str]:
     """{the element type} of one ``*ELEMENT`` keyword line (solid types without their R/H/M/I suffix)."""
     kind = dict(w.split("=", 1) for w in (x.strip().upper() for x in line.split(",")[1:]) if "=" in w).get("TYPE", "")
     return {kind.rstrip("RHIM") if kind.rstrip("RHIM") in ABAQUS_NODES else kind}
-
-
-def _meshio(path):
-
-    text = "".join(abaqus_lines(path)) if path.suffix.lower() == ".inp" else None
-    try:
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            if text is None:
-                return meshio.read(path)
-            with tempfile.TemporaryDirectory() as tmp:      # *INCLUDE resolved (sidprep.fe.mesh)
-                flat = Path(tmp) / path.name
-                flat.write_text(text)
-                return meshio.read(flat, file_format="abaqus")
-    except (Exception, SystemExit) as exc:
-        raise InputError(f"{path}: meshio could not read it ({type(exc).__name__}: "
-                         f"{(str(exc).strip().splitlines() or [''])[0]}); check that the file is complete") from None
 
 
 def solid_model(m, path) -> FEMesh:
@@ -180,7 +162,7 @@ def deck_elements(path) -> list[np.ndarray]:
     other formats through meshio."""
     path = Path(path)
     if path.suffix.lower() != ".inp":
-        m = _meshio(path)
+        m = meshio_read(path)
         ids = _node_ids(m, path)
         return [ids[b.data] for b in m.cells if b.type in FAMILY]
     blocks, numbers, per = [], [], 0

@@ -20,6 +20,26 @@ from sidprep.fe.readers.abaqus import abaqus_ids, abaqus_lines
 from sidprep.fe.readers.gmsh import GEOMETRY_SUFFIXES
 
 
+def meshio_read(path: Path, deck_lines: list[str] | None = None):
+    """meshio's mesh of ``path``, quietly (meshio prints warnings and errors itself and exits on some
+    broken files); an Abaqus / CalculiX deck is read from ``deck_lines``, its lines with every
+    ``*INCLUDE`` resolved (meshio does not resolve them).  InputError when meshio fails."""
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            if deck_lines is None:
+                return meshio.read(path)
+            with tempfile.TemporaryDirectory() as tmp:
+                flat = Path(tmp) / path.name
+                flat.write_text("".join(deck_lines))
+                return meshio.read(flat, file_format="abaqus")
+    except (Exception, SystemExit) as exc:  # ReadError, ValueError, KeyError, SystemExit, ...
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise InputError(
+            f"{path}: meshio could not read it ({type(exc).__name__}: {msg}); "
+            "check that the file is complete and valid"
+        ) from None
+
+
 def read_meshio(path) -> RawMesh:
     """Any volume format meshio reads (module docstring), as read: the checks follow in
     ``sidprep.fe.validation``."""
@@ -30,21 +50,7 @@ def read_meshio(path) -> RawMesh:
         )
         raise InputError(f"{path}: unknown mesh file extension '{suffix}'; use one of {known}")
     deck_lines = abaqus_lines(path) if suffix == ".inp" else None
-    try:  # meshio prints warnings and errors itself, and exits on some broken files
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            if deck_lines is None:
-                m = meshio.read(path)
-            else:  # meshio does not resolve *INCLUDE: give it the included text inline
-                with tempfile.TemporaryDirectory() as tmp:
-                    flat = Path(tmp) / path.name
-                    flat.write_text("".join(deck_lines))
-                    m = meshio.read(flat, file_format="abaqus")
-    except (Exception, SystemExit) as exc:  # ReadError, ValueError, KeyError, SystemExit, ...
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise InputError(
-            f"{path}: meshio could not read it ({type(exc).__name__}: {msg}); "
-            "check that the file is complete and valid"
-        ) from None
+    m = meshio_read(path, deck_lines)
     volume = {"tetra", "tetra10", "hexahedron", "hexahedron20", "hexahedron27", "wedge",
               "wedge15", "pyramid", "pyramid13", "tetra20"}  # fmt: skip
     types = {b.type for b in m.cells}
