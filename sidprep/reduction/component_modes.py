@@ -14,7 +14,8 @@ where the part is held, sidprep.reduction.part_tasks):
    LDL^T); their sum S on G \\ b is the whole model's exact Schur complement, summed as the parts'
    blocks arrive into dense blocks between the cuts (sidprep.reduction.coarse_space.static_schur,
    sidprep.reduction.block_ldlt.CutBlocks); with a frequency limit, the whole model's count of
-   fixed-interface modes below it comes first (Wittrick-Williams over the parts, ``count_below``);
+   fixed-interface modes below it comes first (Wittrick-Williams over the parts,
+   sidprep.reduction.coarse_space.count_below);
 2. the coarse space: b kept; every cut (the coarse DOFs shared by one set of parts) reduced to its
    lowest interface modes, eigenvectors of S and M on the cut (characteristic constraint modes;
    Castanier, Tan & Pierre 2001): u_G = R c (sidprep.reduction.coarse_space.coarse_space);
