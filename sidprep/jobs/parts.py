@@ -40,7 +40,7 @@ from sidprep.reduction.component_modes import interface_count, reduce_parts_to_c
 from sidprep.reduction.craig_bampton import ReducedModel
 from sidprep.reduction.part_tasks import PartArgs, PartTask, by_part, part_peak_bytes, task_peak_bytes
 from sidprep.reduction.partition import PartModel, part_models, partition_cells
-from sidprep.reduction.substructured import parts_reduced_model
+from sidprep.reduction.substructured import SubstructuredSolver, parts_reduced_model
 
 
 #: times a part is run again after its worker was lost
@@ -313,8 +313,8 @@ def reduce_in_parts(run: PartsRun, im, K_model, M_model, boundary, n_modes=None,
         raise
     if run.notes is not None:
         run.notes.append(parts_note(parts, len(coarse), assembly, reductions, tasks.sent_mb, components))
-    return parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2, factor[0],
-                               tasks)                     # steps 5, 6; empties ``reductions``: the parts' modes freed
+    solver = SubstructuredSolver(parts, reductions, assembly, boundary, K_model.shape[0], factor[0], tasks)
+    return parts_reduced_model(K_model, M_model, solver, level2)    # steps 5, 6 (the parts' modes freed)
 
 
 def parts_note(parts, n_coarse: int, assembly, reductions, sent: float, components: bool) -> str:

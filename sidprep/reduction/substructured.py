@@ -124,28 +124,25 @@ class SubstructuredSolver:
         return count_below(self.parts, self.space.coarse, red.held, sigma, self.tasks)
 
 
-def parts_reduced_model(K_model, M_model, boundary, parts, reductions, assembly, level2, coarse_factor,
-                        tasks: PartTaskRunner | None = None) -> ReducedModel:
+def parts_reduced_model(K_model, M_model, solver: SubstructuredSolver, level2: ReducedModel) -> ReducedModel:
     """Steps 5 and 6: the ReducedModel of the whole model in model DOFs, as ``craig_bampton`` returns it
-    (basis with the boundary columns first: the EXACT constraint modes by the substructured solve;
-    then the refined fixed-interface modes; K, M projected from the model matrices), with the
-    substructured K_ii solver as its factor (``coarse_factor``, ``tasks``: see there).  The list
-    ``reductions`` is emptied once the basis is recovered: the parts' modes, (n, ~60) together, are
-    not kept beside it (the driver's peak)."""
+    (basis with the boundary columns first: the EXACT constraint modes by the substructured
+    ``solver``; then the second level's (``level2``) fixed-interface modes recovered and refined; K, M
+    projected from the model matrices), with ``solver`` as its factor.  The solver's list of the
+    parts' reductions is emptied once the basis is recovered: the parts' modes, (n, ~60) together,
+    are not kept beside it (the driver's peak)."""
 
-    n = K_model.shape[0]
-    solver = SubstructuredSolver(parts, reductions, assembly, boundary, n, coarse_factor, tasks)
+    n, boundary = K_model.shape[0], solver.boundary
     nb = len(boundary)
     basis = np.zeros((n, level2.basis.shape[1]))
     psi, _ = solver.constraint_modes_and_recovery(K_model, level2.basis[:, nb:], out=basis[:, nb:])
-    reductions.clear()                                    # the solver's too: the recovery is done
+    solver.reductions.clear()                             # the recovery is done
     interior = np.ones(n, bool)
     interior[boundary] = False
     basis[boundary, :nb] = np.eye(nb)
     basis[interior, :nb] = psi
     f, basis[interior, nb:] = refined_modes(K_model, M_model, interior, solver, basis[interior, nb:])
-    return ReducedModel(basis, project(K_model, basis), project(M_model, basis),
-                        np.asarray(boundary, dtype=np.int64), f, solver)
+    return ReducedModel(basis, project(K_model, basis), project(M_model, basis), boundary, f, solver)
 
 
 def refined_modes(K, M, interior, solver, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
