@@ -31,7 +31,7 @@ from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs.parts import check_parts_fit
 from sidprep.jobs.reduce import reduce
 from sidprep.reduction.interfaces import interface_model
-from sidprep.reduction.parts import part_models
+from sidprep.reduction.partition import part_models
 from sidprep.sid.io import read_sid
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -209,3 +210,34 @@ def test_the_summary_is_readable_at_80_columns():
     first_column = "".join(line.split("  ")[0].strip() for line in text.splitlines()[4:])
     assert all(n in first_column for n in names) and "…" not in text
     assert "warn 5.8 %" in text and "passed" in text
+
+
+def kill_local_workers() -> None:
+    """SIGKILL every spawned worker of this process, back once each is dead (a zombie, not reaped here)."""
+    import psutil
+
+    workers = [c for c in psutil.Process().children() if "spawn_main" in " ".join(c.cmdline())]
+    for w in workers:
+        w.kill()
+    for w in workers:
+        while w.is_running() and w.status() != psutil.STATUS_ZOMBIE:
+            time.sleep(0.01)
+
+
+def test_a_worker_killed_under_a_job_fails_that_job_alone_and_the_batch_goes_on(tmp_path):
+    # SIGKILL of both local workers as the first job starts: that job fails as "worker lost", the
+    # others run on workers started afresh (the killed ones are seen dead before a job is sent)
+    jobs = jobs_from_meshes([BAR] * 3, ReduceOptions(modes=2, check_frequencies=False))
+    jobs = [replace(job, name=f"bar{k}") for k, job in enumerate(jobs)]
+    killed = []
+
+    def progress(record, done, total, running):
+        if running and not killed:
+            kill_local_workers()
+            killed.append(running[0])
+
+    report = run_batch(jobs, BatchOptions(outdir=str(tmp_path), workers=2, obj=False), progress=progress)
+    status = {r["name"]: r["status"] for r in report.records}
+    assert status.pop(killed[0]) == "failed" and set(status.values()) == {"ok"}
+    failed = next(r for r in report.records if r["name"] == killed[0])
+    assert failed["error"].startswith("worker lost: BrokenProcessPool") and report.exit_code == 1

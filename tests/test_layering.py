@@ -102,10 +102,8 @@ MAX_PARAMETERS = 8
 WIDE_FUNCTIONS = {
     "sidprep/fe/linalg.py:eigen_modes": (11, "the eigen solver's keyword options with one default each, as scipy's eigsh"),
     "sidprep/fe/linalg.py:_iterative_modes": (10, "eigen_modes' options passed on unchanged to its iterative branch"),
-    "sidprep/jobs/parts.py:reduce_parts": (9, "the parts' tasks, partition, coarse space and modal targets of one run"),
     "sidprep/jobs/reduce.py:reduce_body": (12, "ReduceOptions' fields as keywords, for callers without a job"),
     "sidprep/reduction/modes.py:modal_basis": (9, "keyword options of the second FEMBS step, one default each"),
-    "sidprep/reduction/parts.py:parts_reduced_model": (9, "the pieces of a parts run the whole model's basis is made of"),
     "sidprep/sid/model.py:sid_invariants": (12, "the optional SID fields as keywords (sid-spec 4.2-4.7)"),
     "solver/integrators/initial.py:assemble_positions": (10, "the layout's state arrays of the consistent start"),
     "solver/integrators/initial.py:damped_gauss_newton": (10, "the layout's state arrays of the consistent start"),

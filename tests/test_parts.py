@@ -1,10 +1,12 @@
-"""A model reduced in parts (``sidprep reduce --parts N``, sidprep.reduction.parts, sidprep.jobs.parts).
+"""A model reduced in parts (``sidprep reduce --parts N``: sidprep.reduction.component_modes and its
+modules, sidprep.jobs.parts).
 
 Independent references: the monolithic Craig-Bampton reduction of the same model (frequencies,
 mass properties), a direct sparse solve with the whole model's K_ii (the substructured solve), a
 full-model eigen solve (the eigenvalue count over the parts and the certified frequency bounds).
 """
 
+import gc
 import json
 import os
 import signal
@@ -29,11 +31,17 @@ from sidprep.fe.material import material_from_options
 from sidprep.fe.mesh import read_mesh
 from sidprep.jobs.options import ReduceOptions
 from sidprep.jobs import parts as jp
+from sidprep.jobs.held_parts import HeldParts, NotHeld
 from sidprep.jobs.parts import PART_RETRIES, PartFailed, PartLost, PartsSettings, check_parts_fit, parts_reducer
 from sidprep.jobs.reduce import default_interfaces, interface_from_spec, reduce
 from sidprep.progress import peak_memory_mb, resident_memory_bytes, return_freed_memory
 from sidprep.reduction.interfaces import interface_model
-from sidprep.reduction import parts as rp
+from sidprep.reduction import block_ldlt as ldlt
+from sidprep.reduction import coarse_space as cs
+from sidprep.reduction import component_modes as cm
+from sidprep.reduction import part_tasks as pt
+from sidprep.reduction import partition
+from sidprep.reduction import substructured as sub
 
 ROOT = Path(__file__).resolve().parents[1]
 ROD = ROOT / "data" / "meshes" / "piston_rod.msh"
@@ -76,10 +84,10 @@ def full_model(path):
 
 def test_partition_gives_connected_balanced_parts_with_few_shared_faces():
     mesh = read_mesh(ROD)
-    labels = rp.partition_cells(mesh.cells, 4)
+    labels = partition.partition_cells(mesh.cells, 4)
     sizes = np.bincount(labels)
     assert len(sizes) == 4 and sizes.max() <= BALANCE * sizes.mean()
-    xadj, adjncy = rp.face_graph(mesh.cells)
+    xadj, adjncy = partition.face_graph(mesh.cells)
     owner = np.repeat(np.arange(len(mesh.cells)), np.diff(xadj))
     cut = np.count_nonzero(labels[owner] != labels[adjncy]) // 2
     assert cut < 0.05 * len(adjncy) // 2                      # few faces between parts
@@ -94,15 +102,15 @@ def test_partition_gives_connected_balanced_parts_with_few_shared_faces():
 def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     mesh, material, im, K, M = full_model(BAR)
     b = im.master_dofs.ravel()
-    labels = rp.partition_cells(mesh.cells, 8)
-    parts, coarse = rp.part_models(mesh, material, labels, im, b)
-    S = rp.static_schur(parts, coarse, b, out_of_core=True)     # the solves below read S's factor from disk
-    space, coarse_factor = rp.coarse_space(parts, coarse, b, S, M, n_interface=24), rp.schur_factor(S)
+    labels = partition.partition_cells(mesh.cells, 8)
+    parts, coarse = partition.part_models(mesh, material, labels, im, b)
+    S = cs.static_schur(parts, coarse, b, out_of_core=True)     # the solves below read S's factor from disk
+    space, coarse_factor = cs.coarse_space(parts, coarse, b, S, M, n_interface=24), cs.schur_factor(S)
     assert all(isinstance(step.L, np.memmap) for step in coarse_factor.steps)
-    tasks = rp.InProcess(parts)
-    reductions = tasks(rp.reduce_part, [(space.part_map(k), 40) for k in range(len(parts))])
-    assembly = rp.assemble_parts(reductions, space)
-    solver = rp.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor, tasks)
+    tasks = pt.InProcess(parts)
+    reductions = tasks(cm.reduce_part, [(space.part_map(k), 40) for k in range(len(parts))])
+    assembly = cm.assemble_parts(reductions, space)
+    solver = sub.SubstructuredSolver(parts, reductions, assembly, b, K.shape[0], coarse_factor, tasks)
     interior = np.ones(K.shape[0], bool)
     interior[b] = False
     r = np.random.default_rng(1).standard_normal((interior.sum(), 3))
@@ -111,12 +119,12 @@ def test_substructured_solve_is_exact_and_counts_the_full_models_eigenvalues():
     # the cuts are reduced (24 interface modes each), the constraint modes of b stay exact
     assert space.R.shape[1] < len(coarse)
     # each part's coordinates, counted before any task (the memory check), are those the coarse space gave it
-    np.testing.assert_array_equal(rp.coordinates_per_part(parts, coarse, b, 24),
+    np.testing.assert_array_equal(cs.coordinates_per_part(parts, coarse, b, 24),
                                   [len(space.columns(p)) for p in range(len(parts))])
     psi_ref = -spla.spsolve(K[interior][:, interior].tocsc(), K[interior][:, b].toarray())
     assert np.abs(solver.constraint_modes_and_recovery(K, None)[0] - psi_ref).max() < SOLVE_RTOL * np.abs(psi_ref).max()
     # each part's K_II was factored once (by its Craig-Bampton reduction), for three solves
-    assert tasks(rp.part_factorisations, [()] * len(parts)) == [1] * len(parts)
+    assert tasks(pt.part_factorisations, [()] * len(parts)) == [1] * len(parts)
     # the count over the parts against a full-model eigen solve (free body: 6 rigid modes first)
     f = eigen_modes(K, M, count=12, backend="cholmod").frequencies_hz
     held = type("Red", (), {"held": None})()
@@ -146,9 +154,9 @@ def test_the_coarse_count_by_blocks_between_cuts_is_sylvesters_count_of_the_whol
     parts = [np.r_[groups[0], groups[1]], np.r_[groups[1], groups[2], groups[3]], np.r_[groups[3], groups[4]],
              np.r_[groups[2], groups[4]]]
     for shift in (-2.0, 0.5, 3.0):
-        blocks, twin = rp.CutBlocks(groups, 30, parts), rp.CutBlocks(groups, 30, parts)
-        disk = rp.CutBlocks(groups, 30, parts, out_of_core=True)      # blocks and factor in mapped files
-        streamed = rp.CutBlocks(groups, 30, parts, count_only=True)   # eliminated as the blocks arrive
+        blocks, twin = ldlt.CutBlocks(groups, 30, parts), ldlt.CutBlocks(groups, 30, parts)
+        disk = ldlt.CutBlocks(groups, 30, parts, out_of_core=True)      # blocks and factor in mapped files
+        streamed = ldlt.CutBlocks(groups, 30, parts, count_only=True)   # eliminated as the blocks arrive
         A = summed_random_blocks(rng, parts, 30, shift, blocks, twin, disk, streamed)
         assert len(streamed.neighbours) < len(groups)              # group 0 went once parts 0 and 1 were in
         assert blocks.planned_bytes() == sum(B.nbytes for B in blocks.blocks.values())   # the out-of-core test
@@ -182,8 +190,8 @@ def test_the_block_ldlt_counts_and_solves_like_dense_algebra_on_any_grouping(siz
     held = [rng.choice(len(groups), size=rng.integers(1, min(3, len(groups)) + 1), replace=False)
             for _ in range(rng.integers(1, 5))] + [[k] for k in range(len(groups))]
     positions = [np.concatenate([groups[k] for k in part]) for part in held]
-    blocks, twin = rp.CutBlocks(groups, n, positions), rp.CutBlocks(groups, n, positions)
-    streamed = rp.CutBlocks(groups, n, positions, count_only=True)   # counted as the blocks arrive
+    blocks, twin = ldlt.CutBlocks(groups, n, positions), ldlt.CutBlocks(groups, n, positions)
+    streamed = ldlt.CutBlocks(groups, n, positions, count_only=True)   # counted as the blocks arrive
     A = summed_random_blocks(rng, positions, n, shift, blocks, twin, streamed)
     eig = np.linalg.eigvalsh(A)
     if np.abs(eig).min() < 1e-8 * np.abs(eig).max():
@@ -209,11 +217,9 @@ def test_piston_rod_in_4_parts_on_the_local_pool_matches_the_monolithic_reductio
 
 
 def test_bar_in_8_parts_on_a_dask_local_cluster_matches_the_monolithic_reduction(monkeypatch):
-    import sidprep.jobs.parts as jobs_parts
-
     distributed = pytest.importorskip("distributed")
-    monkeypatch.setattr(jobs_parts, "INTERFACE_PER_MODE", 1.0)     # few interface modes: the cuts are reduced
-    monkeypatch.setattr(jobs_parts, "INTERFACE_MIN_MODES", 12)
+    monkeypatch.setattr(cm, "INTERFACE_PER_MODE", 1.0)             # few interface modes: the cuts are reduced
+    monkeypatch.setattr(cm, "INTERFACE_MIN_MODES", 12)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         mono, parts = monolithic_and_parts(BAR, 8, scheduler=client)
@@ -234,7 +240,7 @@ def test_a_dask_worker_for_parts_stops_where_dask_would_pause_it_and_gets_large_
 
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, memory_limit="2GB",
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
-        pool = task_pool(client, pinned=True)
+        pool = task_pool(client)
         with dask.config.set({"distributed.worker.memory.pause": 0.5}):
             assert worker_memory_bytes(pool) == pytest.approx(0.5 * 2e9)
         with dask.config.set({"distributed.worker.memory.pause": False}):
@@ -257,7 +263,7 @@ def test_a_local_pools_workers_share_what_the_driver_leaves(monkeypatch):
     from sidprep.jobs.parts import LOCAL_DRIVER_SHARE, worker_memory_bytes
 
     monkeypatch.setenv("SIDPREP_MEMORY_LIMIT", "10G")
-    pool = task_pool(None, 2, pinned=True)
+    pool = task_pool(None, 2)
     try:
         assert worker_memory_bytes(pool) == pytest.approx((1 - LOCAL_DRIVER_SHARE) * 10 * 2**30 / 2)
     finally:
@@ -272,12 +278,10 @@ def coarse_note(result, n_parts: int) -> tuple[int, int]:
 
 
 def test_parts_short_of_modes_run_a_second_round_and_match_the_monolithic_reduction(monkeypatch):
-    import sidprep.jobs.parts as jobs_parts
-
-    monkeypatch.setattr(jobs_parts, "PART_FIRST_ROUND", 0.01)      # first round: PART_MIN_MODES per part
+    monkeypatch.setattr(cm, "PART_FIRST_ROUND", 0.01)      # first round: PART_MIN_MODES per part
     mono, parts = monolithic_and_parts(ROD, 4, workers=2)
     note = next(n for n in parts.notes if "reduced in 4 parts" in n)
-    assert int(note.split(" part modes")[0].split()[-1]) > 4 * jobs_parts.PART_MIN_MODES   # some ran again
+    assert int(note.split(" part modes")[0].split()[-1]) > 4 * cm.PART_MIN_MODES   # some ran again
     assert_same_body(mono, parts, ROD)
 
 
@@ -408,7 +412,7 @@ def test_workers_that_keep_dying_stop_the_run_with_one_line_naming_the_part():
 DISK_LIMIT_SCRIPT = """
 import resource, signal
 from sidprep.errors import InputError
-from sidprep.reduction.parts import disk_zeros
+from sidprep.reduction.block_ldlt import disk_zeros
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)                # a file past the limit: EFBIG, not a kill
 resource.setrlimit(resource.RLIMIT_FSIZE, (2**20, 2**20))    # files of at most 1 MiB: a disk that is full
 disk_zeros((100, 100))[:] = 1.0                              # 80 kB: fits
@@ -425,7 +429,7 @@ def test_an_out_of_core_coarse_problem_without_room_on_disk_stops_with_one_line_
     n = 3_000_000                                             # one dense cut: 72 TB planned
     with pytest.raises(InputError, match=r"^coarse problem out of core: .* GB do not fit in the temporary "
                                          r"directory .*; set TMPDIR to a disk with room") as exc:
-        rp.CutBlocks([np.arange(n)], n, [np.arange(n)], out_of_core=True)
+        ldlt.CutBlocks([np.arange(n)], n, [np.arange(n)], out_of_core=True)
     assert "\n" not in str(exc.value)
     run = subprocess.run([sys.executable, "-c", DISK_LIMIT_SCRIPT], capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300)
@@ -460,26 +464,26 @@ def schur_task_peak_bytes(K, n_rows: int, tmp_path) -> float:
 
 def test_the_schur_tasks_dense_blocks_stay_within_the_copies_the_estimate_counts(tmp_path):
     # the measured peak RSS (an independent reference) of the sparse LDL^T with its dense Schur block,
-    # over the same LDL^T without it: at most rp.SCHUR_DENSE_COPIES (nb, nb) arrays
+    # over the same LDL^T without it: at most pt.SCHUR_DENSE_COPIES (nb, nb) arrays
     _, _, _, K, _ = full_model(ROD)
     nb = 3000
     extra = schur_task_peak_bytes(K, nb, tmp_path) - schur_task_peak_bytes(K, 0, tmp_path)
-    assert 8.0 * nb ** 2 <= extra <= rp.SCHUR_DENSE_COPIES * 8.0 * nb ** 2
+    assert 8.0 * nb ** 2 <= extra <= pt.SCHUR_DENSE_COPIES * 8.0 * nb ** 2
 
 
 def test_a_part_larger_than_a_worker_is_refused_before_it_starts_with_the_parts_that_fit(tmp_path):
     mesh, material, im, K, M = full_model(ROD)
     b = im.master_dofs.ravel()
-    parts, coarse = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 2), im, b)
-    coordinates = rp.coordinates_per_part(parts, coarse, b, jp.interface_count(30))
-    need = max(rp.part_peak_bytes(p, c) for p, c in zip(parts, coordinates))
+    parts, coarse = partition.part_models(mesh, material, partition.partition_cells(mesh.cells, 2), im, b)
+    coordinates = cs.coordinates_per_part(parts, coarse, b, cm.interface_count(30))
+    need = max(pt.part_peak_bytes(p, c) for p, c in zip(parts, coordinates))
     memory = 0.9 * need / MEMORY_HEADROOM
     with pytest.raises(InputError, match=r"parts = 2: part \d/2 \(\d+ of 16029 DOF\) needs .* use --parts (\d+)") as exc:
         check_parts_fit(parts, mesh.n_dof, memory, coordinates=coordinates)
     suggested = int(exc.value.args[0].split("use --parts ")[1].split()[0])
-    finer, coarse = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, suggested), im, b)
+    finer, coarse = partition.part_models(mesh, material, partition.partition_cells(mesh.cells, suggested), im, b)
     check_parts_fit(finer, mesh.n_dof, memory,              # the suggestion fits
-                    coordinates=rp.coordinates_per_part(finer, coarse, b, jp.interface_count(30)))
+                    coordinates=cs.coordinates_per_part(finer, coarse, b, cm.interface_count(30)))
     limit = 2 * memory / (1 - jp.LOCAL_DRIVER_SHARE)        # two local workers with ``memory`` each
     env = {**os.environ, "PYTHONPATH": str(ROOT), "SIDPREP_MEMORY_LIMIT": str(int(limit))}
     run = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(ROD), "--parts", "2", "--workers",
@@ -508,16 +512,16 @@ def test_each_part_is_factored_once_where_it_is_held_and_a_worker_killed_after_i
         interior[b] = False
         r = np.random.default_rng(2).standard_normal((interior.sum(), 2))
         x_ref = spla.spsolve(K[interior][:, interior].tocsc(), r)
-        made = tasks(rp.part_factorisations, [()] * 4)      # by the parts' reductions (a second round: 2)
+        made = tasks(pt.part_factorisations, [()] * 4)      # by the parts' reductions (a second round: 2)
         sent = tasks.sent_mb
         for _ in range(3):                                  # later solves send right-hand sides only
             assert np.abs(solver.solve(r) - x_ref).max() < SOLVE_RTOL * np.abs(x_ref).max()
-        assert tasks(rp.part_factorisations, [()] * 4) == made and tasks.sent_mb == sent
+        assert tasks(pt.part_factorisations, [()] * 4) == made and tasks.sent_mb == sent
         victim = pool_workers()[0]
         victim.kill()
         victim.wait(10)
         assert np.abs(solver.solve(r) - x_ref).max() < SOLVE_RTOL * np.abs(x_ref).max()
-        after = tasks(rp.part_factorisations, [()] * 4)
+        after = tasks(pt.part_factorisations, [()] * 4)
         again = [p for p in range(4) if after[p] != made[p]]
         assert tasks.sent_mb > sent and all(after[p] == 1 for p in again)   # re-sent, factored once more
     finally:
@@ -526,49 +530,50 @@ def test_each_part_is_factored_once_where_it_is_held_and_a_worker_killed_after_i
 
 def test_a_worker_releases_held_parts_while_its_resident_memory_exceeds_its_budget_and_makes_one_again_unsent():
     mesh, material, im, K, M = full_model(ROD)
-    parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
+    parts, _ = partition.part_models(mesh, material, partition.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
     unbounded = float("inf")
-    jp._HELD.clear()                                        # parts other tests left in this process count too
+    store = HeldParts()                                     # what one worker process holds
     for p in (0, 1):
-        assert jp.held_task(("run", p), parts[p], unbounded, rp.part_factorisations) == 0
-        jp.held_task(("run", p), None, unbounded, rp.HeldPart.factor)
+        assert store.task(("run", p), parts[p], unbounded, pt.part_factorisations) == 0
+        store.task(("run", p), None, unbounded, pt.HeldPart.factor)
+    gc.collect()                                            # what earlier tests left is freed before, not during
     return_freed_memory()
     before = resident_memory_bytes()
-    jp.held_task(("run", 2), parts[2], unbounded, rp.HeldPart.factor)
+    store.task(("run", 2), parts[2], unbounded, pt.HeldPart.factor)
     return_freed_memory()
     held_2 = resident_memory_bytes() - before               # part 2's matrices and factor, measured
-    held = jp._HELD[("run", 2)].part
+    held = store.parts[("run", 2)].part
     assert held_2 > sum(A.data.nbytes + A.indices.nbytes for A in (held.K, held.M))   # more than its matrices
     # with room for two parts' worth the next task releases one; in a cycle over the parts the one
     # just used is needed last: part 1 (used after part 0) goes
     budget = before + 0.5 * held_2
-    jp.held_task(("run", 2), None, budget, rp.part_factorisations)
-    assert [key[1] for key, h in jp._HELD.items() if key[0] == "run" and h.holds] == [0, 2]
+    store.task(("run", 2), None, budget, pt.part_factorisations)
+    assert [key[1] for key, h in store.parts.items() if key[0] == "run" and h.holds] == [0, 2]
     assert resident_memory_bytes() <= budget
     # a released part's task runs without the part sent again: K_BI K_II^-1 r against a direct solve
-    part = rp.assembled(parts[1])
+    part = partition.assembled(parts[1])
     r = np.random.default_rng(0).standard_normal((len(part.interior), 2))
     I, B = part.interior, part.boundary
     expected = part.K[B][:, I] @ spla.spsolve(part.K[I][:, I].tocsc(), r)
-    np.testing.assert_allclose(jp.held_task(("run", 1), None, unbounded, rp.part_coarse_load, r), expected,
+    np.testing.assert_allclose(store.task(("run", 1), None, unbounded, pt.part_coarse_load, r), expected,
                                rtol=1e-9, atol=1e-9 * np.abs(expected).max())
-    assert jp.held_task(("run", 1), None, unbounded, rp.part_factorisations) == 2   # made again once
-    with pytest.raises(jp.NotHeld):                         # a worker that never held the part asks for it
-        jp.held_task(("run", 7), None, unbounded, rp.part_factorisations)
-    jp.release_run("run")
-    assert not [key for key in jp._HELD if key[0] == "run"]
+    assert store.task(("run", 1), None, unbounded, pt.part_factorisations) == 2   # made again once
+    with pytest.raises(NotHeld):                         # a worker that never held the part asks for it
+        store.task(("run", 7), None, unbounded, pt.part_factorisations)
+    store.release_run("run")
+    assert not [key for key in store.parts if key[0] == "run"]
 
 
 def test_a_task_that_fails_on_a_living_worker_stops_the_run_naming_the_part_without_retries():
     mesh, material, im, K, M = full_model(ROD)
-    parts, _ = rp.part_models(mesh, material, rp.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
+    parts, _ = partition.part_models(mesh, material, partition.partition_cells(mesh.cells, 3), im, im.master_dofs.ravel())
     tasks = jp.PartTasks(PartsSettings(3, workers=1), parts)
     try:
-        assert tasks(rp.part_factorisations, {0: ()}) == [0]
+        assert tasks(pt.part_factorisations, {0: ()}) == [0]
         worker = pool_workers()
         wrong = np.zeros((3, 1))                            # not the part's own DOFs: the solve raises
         with pytest.raises(PartFailed, match=r"^part 1/3: part_coarse_load failed: ValueError"):
-            tasks(rp.part_coarse_load, {0: (wrong,)})
+            tasks(pt.part_coarse_load, {0: (wrong,)})
         assert pool_workers() == worker                     # the same process: nothing was lost or renewed
     finally:
         tasks.close()

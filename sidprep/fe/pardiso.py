@@ -8,7 +8,7 @@ pivots (iparm[21], iparm[22]) and, on request (iparm[35] = 1 with ``perm`` marki
 dense Schur complement of a trailing block, A_BB - A_BI A_II^-1 A_IB, then with the inertia of A_II.
 
 By Sylvester's law of inertia the pivot signs are the eigenvalue signs: the count of the
-Wittrick-Williams algorithm (sidprep.reduction.parts).  Intel oneMKL Developer Reference, "oneMKL
+Wittrick-Williams algorithm (sidprep.reduction.coarse_space.count_below).  Intel oneMKL Developer Reference, "oneMKL
 PARDISO - Parallel Direct Sparse Solver Interface" (pardiso, iparm).
 """
 

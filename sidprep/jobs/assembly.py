@@ -32,7 +32,7 @@ from sidprep.jobs.reduce import (FEModel, ReductionResult, check_mode_count, che
     interface_from_spec, load_mesh, model_material, reduce_fe_model)
 from sidprep.progress import Phases
 from sidprep.reduction.interfaces import linear_surface_triangles
-from sidprep.reduction.parts import GivenMatrices, part_fe_matrices
+from sidprep.reduction.partition import GivenMatrices, part_fe_matrices
 from sidprep.reduction.paths import located_paths
 
 
@@ -72,7 +72,7 @@ def check_one_material(job, materials) -> None:
 
 
 def component_matrices(mesh, cells, material, imported, nodes):
-    """(K (3n, 3n), Ms (n, n), the part's material for sidprep.reduction.parts.part_models) of one
+    """(K (3n, 3n), Ms (n, n), the part's material for sidprep.reduction.partition.part_models) of one
     component on the joined mesh: assembled from its cells with its material, or the FE code's
     matrices placed on its joined nodes ``nodes``."""
     if imported is None:

@@ -378,7 +378,8 @@ def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, p
 
 def _run_pending(todo, options, client, records, cache, progress, total):
     pool = task_pool(options.scheduler, options.workers, client)
-    budget = options.memory_limit_mb or getattr(pool, "memory_mb", None) or MEMORY_FRACTION * available_memory_mb()
+    cluster_mb = sum(pool.worker_memory_limits() or []) / 2**20     # a Dask cluster's workers' limits
+    budget = options.memory_limit_mb or cluster_mb or MEMORY_FRACTION * available_memory_mb()
     queue = []
     for job, key in todo:                                   # DOF and memory before starting; bad mesh -> record
         try:
@@ -394,7 +395,7 @@ def _run_pending(todo, options, client, records, cache, progress, total):
             planned = sum(m for _, _, m in running.values())
             while queue and len(running) < pool.workers and (not running or planned + queue[0][2] <= budget):
                 job, key, mem = queue.pop(0)
-                running[pool.run(run_job, job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
+                running[pool.submit(run_job, job, str(cache.parent), options.sid_fem, options.obj)] = (job, key, mem)
                 planned += mem
                 if progress:
                     progress(None, len(records), total, [j.name for j, _, _ in running.values()])

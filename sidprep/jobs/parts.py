@@ -1,15 +1,18 @@
 """A reduction in parts as tasks (``sidprep reduce MESH --parts N [--scheduler ADDRESS]``).
 
-The mesh is partitioned, every part's Craig-Bampton reduction runs as a task on the executor of
-``sidprep batch`` (sidprep.jobs.executor.task_pool: a local process pool, or a Dask cluster), and the
-driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduction.parts).
+``reduce_in_parts`` is the driver: the flow of a run, top-down, in the steps of component mode
+synthesis (sidprep.reduction.component_modes).  The mesh is partitioned and each part described
+(sidprep.reduction.partition); every part's work runs as tasks on the executor of ``sidprep batch``
+(sidprep.jobs.executor: a local process pool, or a Dask cluster) through ``PartTasks``, the
+sidprep.reduction.part_tasks.PartTaskRunner of this package; the driver sums the coarse problem,
+assembles, reduces the coarse DOFs and recovers the model.
 
 * Memory: before any part starts, each part's largest task (its reduction, or its Schur task with the
-  dense blocks on its coarse DOFs) is estimated (sidprep.reduction.parts.part_peak_bytes) against one
-  worker's memory; a part that does not fit is refused with the ``parts`` that would fit.
-* Parts held where they are reduced (``PartTasks``): each part is pinned to one worker, which holds
-  its matrices (sent once) and its K_II factor (made once) for the whole run; later tasks send
-  right-hand sides only.
+  dense blocks on its coarse DOFs) is estimated (sidprep.reduction.part_tasks.part_peak_bytes) against
+  one worker's memory; a part that does not fit is refused with the ``parts`` that would fit.
+* Parts held where they are reduced: each part is pinned to one worker, which holds its matrices
+  (sent once) and its K_II factor (made once) for the whole run (sidprep.jobs.held_parts); later
+  tasks send right-hand sides only.
 * Faults: a task whose worker is lost (killed, out of memory) is run again - its part sent and
   factored again - on the restarted slot (local pool) or another worker (Dask), up to PART_RETRIES
   times; then the run stops with one line naming the part.  A task that raises an error of its own
@@ -19,39 +22,31 @@ driver assembles, reduces the coarse DOFs and recovers the model (sidprep.reduct
 
 from __future__ import annotations
 
-import threading
 import uuid
 import weakref
-from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
+from typing import Any
 
 import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.linalg import MEMORY_HEADROOM, available_memory_bytes
-from sidprep.jobs.executor import task_pool
-from sidprep.progress import resident_memory_bytes, return_freed_memory
-from sidprep.reduction.parts import (PART_CUTOFF, HeldPart, assemble_parts, coarse_space, coordinates_per_part,
-    count_below, part_models, part_peak_bytes, partition_cells, parts_reduced_model, reduce_part,
-    schur_factor, second_level, short_parts, static_schur, task_peak_bytes)
+from sidprep.jobs.executor import Executor, task_pool
+from sidprep.jobs.held_parts import NotHeld, PartFailed, held_task, release_run
+from sidprep.reduction.coarse_space import coarse_space, coordinates_per_part, count_below, schur_factor, static_schur
+from sidprep.reduction.component_modes import interface_count, reduce_parts_to_cutoff
+from sidprep.reduction.craig_bampton import ReducedModel
+from sidprep.reduction.part_tasks import PartArgs, PartTask, by_part, part_peak_bytes, task_peak_bytes
+from sidprep.reduction.partition import PartModel, part_models, partition_cells
+from sidprep.reduction.substructured import SubstructuredSolver, parts_reduced_model
 
 
 #: times a part is run again after its worker was lost
 PART_RETRIES = 2
 #: seconds between checks, while part tasks run, for tasks pinned to a worker that is gone
 SLOT_CHECK_S = 5.0
-#: fewest fixed-interface modes of a part in the first round, which asks PART_FIRST_ROUND x
-#: PART_CUTOFF^2 x (second-level modes / parts): a part of 1/N of the body has about 1/N of its modes
-#: below a frequency, and about PART_CUTOFF^2 times as many below PART_CUTOFF x it (measured 2.4-4.4
-#: on the piston rod and the bar); parts short of PART_CUTOFF x the top frequency run again (a second
-#: round costs a whole part reduction, the margin less)
-PART_MIN_MODES = 12
-PART_FIRST_ROUND = 1.25
-#: interface modes kept on every cut: INTERFACE_PER_MODE x the second level's fixed-interface modes
-#: (n_modes, or the whole model's count below fmax), at least INTERFACE_MIN_MODES (tests/test_parts.py:
-#: 1e-4 agreement with the monolithic reduction on the piston rod and the bar)
-INTERFACE_PER_MODE = 2.0
-INTERFACE_MIN_MODES = 24
 #: most parts suggested when a part does not fit a worker
 MAX_SUGGESTED_PARTS = 4096
 #: the share of the available memory a local pool leaves to its driver, beyond the model it holds
@@ -64,10 +59,6 @@ class PartLost(RuntimeError):
     """A part's task failed PART_RETRIES + 1 times because its worker was lost."""
 
 
-class PartFailed(RuntimeError):
-    """A part's task raised an error of its own (its worker lives): not run again."""
-
-
 @dataclass(frozen=True)
 class PartsSettings:
     """How a model is reduced in parts: ``n_parts`` parts, on the Dask cluster ``scheduler`` (its
@@ -78,19 +69,18 @@ class PartsSettings:
     workers: int | None = None
 
 
-def worker_memory_bytes(pool) -> float:
-    """Memory one worker may use: the smallest Dask worker memory limit times the fraction at which a
-    Dask worker pauses (``dask_pause_fraction``), or the available memory
-    (sidprep.fe.linalg.available_memory_bytes, SIDPREP_MEMORY_LIMIT) less LOCAL_DRIVER_SHARE of it,
-    shared by the local workers."""
+def worker_memory_bytes(pool: Executor) -> float:
+    """Memory one worker of ``pool`` may use: the smallest Dask worker
+    memory limit times the fraction at which a Dask worker pauses (``dask_pause_fraction``), or the
+    available memory (sidprep.fe.linalg.available_memory_bytes, SIDPREP_MEMORY_LIMIT) less
+    LOCAL_DRIVER_SHARE of it, shared by the local workers."""
 
-    client = getattr(pool, "client", None)
-    if client is not None:
-        limits = [w.get("memory_limit") or 0 for w in client.scheduler_info()["workers"].values()]
-        if limits and min(limits) > 0:
-            return float(min(limits)) * dask_pause_fraction()
-        return available_memory_bytes()
-    return (1.0 - LOCAL_DRIVER_SHARE) * available_memory_bytes() / max(pool.workers, 1)
+    limits = pool.worker_memory_limits()
+    if limits is None:
+        return (1.0 - LOCAL_DRIVER_SHARE) * available_memory_bytes() / max(pool.workers, 1)
+    if limits and min(limits) > 0:
+        return min(limits) * dask_pause_fraction()
+    return available_memory_bytes()
 
 
 def dask_pause_fraction() -> float:
@@ -111,7 +101,7 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False, 
     ``coordinates``, ``coordinates_per_part``, if known) exceeds ``memory`` (bytes, one worker), naming
     the ``parts`` that would fit (``components``: an assembly's, whose split is the user's).  Returns
     the resident bytes a worker may have when a task starts, the largest task's peak left beside it:
-    the bound of the parts it holds (their matrices and K_II factors, ``held_part``)."""
+    the bound of the parts it holds (their matrices and K_II factors, sidprep.jobs.held_parts)."""
 
     coordinates = np.zeros(len(parts), dtype=np.int64) if coordinates is None else coordinates
     need = [part_peak_bytes(p, c) for p, c in zip(parts, coordinates)]
@@ -132,73 +122,6 @@ def check_parts_fit(parts, n_dof: int, memory: float, components: bool = False, 
                      f"needs ~{need[worst] / gb:.2f} GB, a worker has {memory / gb:.2f} GB; {advice}")
 
 
-class NotHeld(LookupError):
-    """A part task reached a worker that does not hold the part (a new one): send it again."""
-
-
-#: per worker process: (run id, part index) -> HeldPart, least recently used first; its lock (a Dask
-#: worker runs tasks in threads)
-_HELD: OrderedDict = OrderedDict()
-_HELD_LOCK = threading.Lock()
-
-
-def held_task(key: tuple, part, budget: float, fn, *args):
-    """``fn(HeldPart, *args)`` in a worker with the part ``key`` it holds (``held_part``).  An error of
-    the task's own (the part's assembly included) is PartFailed, naming the part: it is not retried."""
-    held = None
-    try:
-        held = held_part(key, part, budget)
-        return fn(held, *args)
-    except (InputError, MemoryError, NotHeld):             # the user's error; out of memory: the worker's
-        raise
-    except Exception as exc:                               # the task's own error: the same again on a retry
-        name = (held.description if held is not None else part).name
-        raise PartFailed(f"{name}: {fn.__name__} failed: {type(exc).__name__}: {exc}") from None
-    finally:                                               # the task's temporaries, not kept as heap; the
-        release_others(key, budget)                        # worker idles within its budget, as it starts
-
-
-def held_part(key: tuple, part, budget: float) -> HeldPart:
-    """The HeldPart ``key`` this worker holds; ``part`` (a PartModel, or None when the worker should
-    hold it already: NotHeld otherwise) is held from now on.  While the worker's resident memory
-    (``resident_memory_bytes``, its freed heap returned first) exceeds ``budget`` - what it may hold
-    when a task starts, the task's own peak left beside it (``check_parts_fit``) - the most recently
-    used other part whose matrices or factor are held is released (``HeldPart.release``): measured,
-    not estimated, since a worker also holds its interpreter and what its transfers left (a 2.4M-DOF
-    run's 5 GB workers sat at 3.4 GB between tasks with 2 GB of parts estimated held, and a count
-    task on top of that stopped them).  The tasks of a round visit a worker's parts in the same order
-    every round, so the part just used is the one needed last (least recently used first would
-    release each part just before its next task).  Its task assembles the part, outside the lock, so
-    a worker's threads assemble parts side by side."""
-    with _HELD_LOCK:
-        held = _HELD.get(key)
-        if held is None:
-            if part is None:
-                raise NotHeld(key)
-            held = _HELD[key] = HeldPart(part)
-        _HELD.move_to_end(key)
-    release_others(key, budget)
-    return held
-
-
-def release_others(key: tuple, budget: float) -> None:
-    """Give the freed heap back, then release the most recently used held part other than ``key``
-    while the worker's resident memory exceeds ``budget`` (``held_part``)."""
-    with _HELD_LOCK:
-        others = [h for k, h in _HELD.items() if k != key and h.holds]
-        return_freed_memory()
-        while others and resident_memory_bytes() > budget:
-            others.pop().release()
-            return_freed_memory()
-
-
-def release_run(run: str) -> None:
-    """Drop every part of the run ``run`` this worker holds."""
-    with _HELD_LOCK:
-        for key in [k for k in _HELD if k[0] == run]:
-            del _HELD[key]
-
-
 def homes(parts, slots: list) -> list:
     """Each part's worker: the largest parts first, each to the slot holding the fewest DOFs."""
     load = dict.fromkeys(slots, 0)
@@ -210,18 +133,18 @@ def homes(parts, slots: list) -> list:
 
 
 class PartTasks:
-    """fn, [args per part] -> [fn(HeldPart of part p, *args[p]) per part] as tasks, each part pinned to
-    one worker of one pool kept from the parts' reductions to the checks (the substructured solves
-    and the certified count, sidprep.reduction.parts.SubstructuredSolver, run after the reducer
+    """The PartTaskRunner (sidprep.reduction.part_tasks) on an executor: each part pinned to one worker
+    of one pool kept from the parts' reductions to the checks (the substructured solves and the
+    certified count, sidprep.reduction.substructured.SubstructuredSolver, run after the driver
     returned).  A part's matrices are sent once, with its first task; its worker holds it and its
     K_II factor (``held_task``; its resident memory at a task's start bounded by ``budget`` bytes) so
     later tasks send right-hand sides only.  A part whose worker was lost (killed, out of memory) is
     sent again with its task, to the fresh process of its slot (or another Dask worker), up to
     PART_RETRIES times; then PartLost.  The pool is closed with ``close`` or when this object is garbage-collected."""
 
-    def __init__(self, settings: PartsSettings, parts):
+    def __init__(self, settings: PartsSettings, parts: list[PartModel]):
         self.settings, self.parts = settings, parts
-        self.pool = task_pool(settings.scheduler, settings.workers, pinned=True)
+        self.pool = task_pool(settings.scheduler, settings.workers)
         weakref.finalize(self, self.pool.close)
         self.run = uuid.uuid4().hex
         self.home = homes(parts, self.pool.slots)
@@ -229,11 +152,10 @@ class PartTasks:
         self.sent_mb = 0.0
         self.budget = float("inf")
 
-    def __call__(self, fn, args, consume=None, meanwhile=None) -> list | None:
-        """``args``: a list (every part) or {part index: args} (those parts; results in its order).  With
-        ``consume``: consume(p, result) as each part's result arrives (none kept), and None.
-        ``meanwhile()``: the driver's own work, run once the tasks are handed out (while they run)."""
-        args = args if isinstance(args, dict) else dict(enumerate(args))
+    def __call__(self, fn: PartTask, args: PartArgs, consume: Callable[[int, Any], None] | None = None,
+                 meanwhile: Callable[[], None] | None = None) -> list | None:
+        """The round (``PartTaskRunner``); ``meanwhile()`` runs once the tasks are handed out."""
+        args = by_part(args)
         results: dict = {}
         lost = dict.fromkeys(args, 0)
         todo = list(args)
@@ -275,7 +197,7 @@ class PartTasks:
                         consume(p, result)
         return None if consume is not None else [results[p] for p in args]
 
-    def submit(self, p: int, fn, args: tuple):
+    def submit(self, p: int, fn: PartTask, args: tuple):
         """Part p's task on its worker, with the part's matrices unless the worker holds them."""
         part = None if p in self.sent else self.parts[p]
         if part is not None:
@@ -323,59 +245,6 @@ class PartTasks:
             self.pool.close()
 
 
-def reduce_parts(tasks: PartTasks, parts, coarse, boundary, M_model, memory, n_modes=None, fmax=None,
-                 components: bool = False):
-    """The coarse space from the parts' exact static Schur complements (one round of tasks), then rounds
-    of part reductions until every part's modes reach PART_CUTOFF x the second level's highest
-    fixed-interface frequency; returns (reductions in part order, Assembly, second-level ReducedModel,
-    the factor of the exact coarse Schur complement).  With ``fmax``, the parts' reductions are checked
-    against ``memory`` (``check_parts_fit``, ``components``) once the count gives their coordinates."""
-
-    wanted = n_modes
-    if fmax is not None:                                # the whole model's fixed-interface modes below fmax
-        wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
-        tasks.budget = check_parts_fit(parts, M_model.shape[0], memory, components,
-                                       coordinates_per_part(parts, coarse, boundary, interface_count(wanted)))
-    schur = [static_schur(parts, coarse, boundary, tasks)]
-    space = coarse_space(parts, coarse, boundary, schur[0], M_model, interface_count(wanted))
-    factor: list = []
-
-    def factor_schur() -> None:
-        """The coarse Schur complement factored (and dropped) while the first reductions run."""
-        factor.append(schur_factor(schur.pop()))
-
-    reductions: dict = {}
-
-    def run_round(requests: dict, meanwhile=None) -> None:
-        order = sorted(requests)
-        done = tasks(reduce_part, {p: (space.part_map(p), *requests[p], memory) for p in order}, meanwhile=meanwhile)
-        reductions.update(zip(order, done))
-
-    if fmax is not None:
-        first = {p: (None, PART_CUTOFF * fmax) for p in range(len(parts))}
-    else:
-        count = max(PART_MIN_MODES, int(np.ceil(PART_FIRST_ROUND * PART_CUTOFF ** 2 * n_modes / len(parts))))
-        first = dict.fromkeys(range(len(parts)), (count, None))
-    run_round(first, factor_schur)
-    asked = {p: f for p, (_, f) in first.items() if f is not None}
-    while True:
-        ordered = [reductions[p] for p in range(len(parts))]
-        assembly = assemble_parts(ordered, space)
-        level2 = second_level(assembly, n_modes=n_modes, fmax=fmax)
-        needed = PART_CUTOFF * float(level2.fixed_interface_hz.max(initial=0.0))
-        short = [p for p in short_parts(ordered, parts, needed) if asked.get(p, 0.0) < needed]
-        if not short:
-            break
-        asked.update(dict.fromkeys(short, needed))
-        run_round(dict.fromkeys(short, (None, needed)))
-    return ordered, assembly, level2, factor[0]
-
-
-def interface_count(wanted: int | None) -> int:
-    """Interface modes kept on every cut for ``wanted`` second-level fixed-interface modes."""
-    return max(INTERFACE_MIN_MODES, int(np.ceil(INTERFACE_PER_MODE * (wanted or 0))))
-
-
 def sent_mb(items) -> float:
     """MiB of the arrays of PartModels (to the workers, their PartFE and materials included) or
     PartReductions (back), once each."""
@@ -391,39 +260,69 @@ def array_bytes(x) -> int:
     return sum(array_bytes(v) for v in vars(x).values()) if hasattr(x, "__dict__") else 0
 
 
-def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None, components=None):
-    """The Craig-Bampton step of sidprep.jobs.reduce.reduce_body done in parts: a function
-    (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel; ``notes`` gets one line on
-    the parts (sizes, modes, peak memory of the workers).  ``components`` : (labels (ne,), names) of
-    an assembly's components (sidprep.jobs.assembly) as the parts, ``material`` then one per
+@dataclass(frozen=True)
+class PartsRun:
+    """What a reduction in parts is given beside the model: the ``mesh``; ``material``, one Material or
+    one per part (an assembly's components: a Material or GivenMatrices each); ``labels`` (ne,), the part
+    of every cell; ``names``, one per part (an assembly's components, sidprep.jobs.assembly; None: a
+    METIS partition's "part k/N"); ``settings``; ``notes``, a list that gets one line on the parts."""
+
+    mesh: object
+    material: object
+    labels: np.ndarray
+    names: list | None
+    settings: PartsSettings
+    notes: list | None = None
+
+
+def parts_reducer(mesh, material, settings: PartsSettings, notes: list | None = None,
+                  components=None) -> Callable[..., ReducedModel]:
+    """The Craig-Bampton step of sidprep.jobs.reduce.reduce_body done in parts (``reduce_in_parts``): a
+    function (im, K_model, M_model, boundary, n_modes=, fmax=) -> ReducedModel.  ``components`` :
+    (labels (ne,), names) of an assembly's components as the parts, ``material`` then one per
     component; default a METIS partition into ``settings.n_parts``."""
-
     labels, names = components if components is not None else (partition_cells(mesh.cells, settings.n_parts), None)
+    return partial(reduce_in_parts, PartsRun(mesh, material, labels, names, settings, notes))
 
-    def reducer(im, K_model, M_model, boundary, n_modes=None, fmax=None):
 
-        parts, coarse = part_models(mesh, material, labels, im, boundary, names)
-        tasks = PartTasks(settings, parts)
-        try:
-            memory = worker_memory_bytes(tasks.pool)
-            coordinates = None if n_modes is None else coordinates_per_part(parts, coarse, boundary,
-                                                                               interface_count(n_modes))
-            tasks.budget = check_parts_fit(parts, mesh.n_dof, memory, names is not None, coordinates)
-            ordered, assembly, level2, coarse_factor = reduce_parts(tasks, parts, coarse, boundary, M_model, memory,
-                                                                    n_modes, fmax, names is not None)
-        except BaseException:
-            tasks.close()
-            raise
-        if notes is not None:
-            notes.append(f"reduced in {len(parts)} {'components' if names else 'parts'} of "
-                         f"{min(len(p.dofs) for p in parts)}-"
-                         f"{max(len(p.dofs) for p in parts)} DOF, {len(coarse)} coarse DOF in {assembly.space.R.shape[1]} "
-                         f"coordinates, "
-                         f"{sum(len(r.frequencies_hz) for r in ordered)} part modes up to "
-                         f"{min(r.top_hz for r in ordered):.4g}-{max(r.top_hz for r in ordered):.4g} Hz; "
-                         f"worker peak {max(r.peak_memory_mb for r in ordered):.0f} MiB; "
-                         f"{tasks.sent_mb:.0f} MiB of parts sent to the workers, {sent_mb(ordered):.0f} MiB back")
-        return parts_reduced_model(K_model, M_model, boundary, parts, ordered, assembly, level2, coarse_factor,
-                                   tasks)                 # empties ``ordered``: the parts' modes are freed
+def reduce_in_parts(run: PartsRun, im, K_model, M_model, boundary, n_modes=None, fmax=None) -> ReducedModel:
+    """The driver: K_model, M_model (model DOFs after the interfaces ``im``) reduced on ``boundary`` with
+    n_modes fixed-interface modes, or all below fmax Hz, as sidprep.reduction.craig_bampton.craig_bampton
+    reduces them in one piece - in the steps of sidprep.reduction.component_modes, every part's work a
+    task where the part is held.  The ReducedModel's factor is the substructured solver, whose tasks
+    keep their pool (``interior_factor.tasks.close()``, or when it is freed)."""
 
-    return reducer
+    components = run.names is not None
+    parts, coarse = part_models(run.mesh, run.material, run.labels, im, boundary, run.names)
+    tasks = PartTasks(run.settings, parts)
+    try:
+        memory = worker_memory_bytes(tasks.pool)          # every part's largest task against one worker
+        wanted = n_modes
+        if fmax is not None:                              # the whole model's fixed-interface modes below fmax
+            tasks.budget = check_parts_fit(parts, run.mesh.n_dof, memory, components)
+            wanted = count_below(parts, coarse, boundary, (2 * np.pi * fmax) ** 2, tasks)
+        tasks.budget = check_parts_fit(parts, run.mesh.n_dof, memory, components,
+                                       coordinates_per_part(parts, coarse, boundary, interface_count(wanted)))
+        S = static_schur(parts, coarse, boundary, tasks)                                          # step 1
+        space = coarse_space(parts, coarse, boundary, S, M_model, interface_count(wanted))        # step 2
+        factor = []                                                                               # steps 3, 4:
+        reductions, assembly, level2 = reduce_parts_to_cutoff(parts, space, tasks, memory, n_modes, fmax,
+                                                               meanwhile=lambda: factor.append(schur_factor(S)))
+    except BaseException:
+        tasks.close()
+        raise
+    if run.notes is not None:
+        run.notes.append(parts_note(parts, len(coarse), assembly, reductions, tasks.sent_mb, components))
+    solver = SubstructuredSolver(parts, reductions, assembly, boundary, K_model.shape[0], factor[0], tasks)
+    return parts_reduced_model(K_model, M_model, solver, level2)    # steps 5, 6 (the parts' modes freed)
+
+
+def parts_note(parts, n_coarse: int, assembly, reductions, sent: float, components: bool) -> str:
+    """The line on a reduction in parts: sizes, coarse DOFs and coordinates, modes, the workers' peak
+    memory and the MiB sent (``sent``) and returned."""
+    return (f"reduced in {len(parts)} {'components' if components else 'parts'} of "
+            f"{min(len(p.dofs) for p in parts)}-{max(len(p.dofs) for p in parts)} DOF, {n_coarse} coarse DOF in "
+            f"{assembly.space.R.shape[1]} coordinates, {sum(len(r.frequencies_hz) for r in reductions)} part modes up "
+            f"to {min(r.top_hz for r in reductions):.4g}-{max(r.top_hz for r in reductions):.4g} Hz; worker peak "
+            f"{max(r.peak_memory_mb for r in reductions):.0f} MiB; {sent:.0f} MiB of parts sent to the workers, "
+            f"{sent_mb(reductions):.0f} MiB back")

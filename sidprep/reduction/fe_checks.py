@@ -68,7 +68,7 @@ def eigenvalue_count(red, sigma: float) -> int | None:
     included, by Sylvester's law of inertia with the interior eliminated first (Wittrick-Williams):
     count = #{fixed-interface eigenvalues < sigma} + #{negative eigenvalues of S}, with S the exact
     dynamic Schur complement (:func:`dynamic_schur`).  None when it cannot be certified.  A reduction
-    in parts counts over its parts (its factor's ``eigenvalue_count``, sidprep.reduction.parts).
+    in parts counts over its parts (its factor's ``eigenvalue_count``, sidprep.reduction.substructured).
     """
     cb = red.cb
     by_parts = getattr(cb.interior_factor, "eigenvalue_count", None)
