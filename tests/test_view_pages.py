@@ -16,7 +16,6 @@ import plotly.io
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.sid.io.obj import write_obj
 from sidprep.solver import BodyHistory, Result
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver.results import JointHistory, write_results
