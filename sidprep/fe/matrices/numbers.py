@@ -15,8 +15,12 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from sidprep.fe.matrices.scanner import scan_table
-from sidprep.fe.matrices.triangles import indefinite_entries, mirror_counts, mirror_fill
+try:
+    from sidprep.fe.matrices.scanner import scan_table
+    from sidprep.fe.matrices.triangles import indefinite_entries, mirror_counts, mirror_fill
+except ModuleNotFoundError as exc:          # a source checkout whose extensions were never built
+    raise ImportError(f"{exc}: sidprep's compiled modules are not built in this checkout; run `pip install -e .` "
+                      "in it (a C compiler and Python's headers are needed)") from exc
 
 __all__ = ["indefinite_entries", "mirrored", "table_blocks"]
 
