@@ -21,6 +21,7 @@ from pathlib import Path
 
 from Cython.Build import cythonize
 from setuptools import Extension, setup
+from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 
 #: the Cython modules, each compiled from the .pyx file of its dotted name
@@ -41,6 +42,18 @@ def extensions() -> list[Extension]:
     modules += [Extension(name, [name.replace(".", "/") + ".pyx"], extra_compile_args=flags) for name in CYTHON_MODULES]
     return cythonize(modules, compiler_directives={"language_level": 3}, shared_utility_qualified_name=CYTHON_SHARED,
                      quiet=True)
+
+
+class BuildExtensionsIntoSourceToo(build_ext):
+    """build_ext, then each extension also copied beside its .pyx (as ``pip install -e .`` places
+    them): a source checkout imports its own sidprep first (``python -m pytest`` from the clone after
+    ``pip install .``, as CI runs the suite, or ``python -m sidprep.cli.main`` there), and that
+    finds its compiled modules too."""
+
+    def run(self):
+        super().run()
+        if not self.inplace:
+            self.copy_extensions_to_source()
 
 
 def prebuild_enabled() -> bool:
@@ -73,4 +86,4 @@ class BuildWithKernels(build_py):
                   file=sys.stderr)
 
 
-setup(cmdclass={"build_py": BuildWithKernels}, ext_modules=extensions())
+setup(cmdclass={"build_py": BuildWithKernels, "build_ext": BuildExtensionsIntoSourceToo}, ext_modules=extensions())
