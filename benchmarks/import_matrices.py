@@ -16,7 +16,7 @@ process, alternating, ``--repeat`` times each:
 
 Both start from the mesh in memory (reading MODEL is the same for both).  Medians and their ratio,
 with the 1-minute load average (the machine is shared).  Issue 25's target: import <= 1.2x assembly
-at 100k DOF.  The first import compiles the number scanner (numba, cached afterwards): not timed.
+at 100k DOF.  The first import warms up (page cache, first calls): not timed.
 
     python benchmarks/import_matrices.py --dof 100000 --repeat 5
 """
@@ -81,7 +81,7 @@ def main() -> None:
             subprocess.run(["ccx", "bar_eig"], cwd=tmp, env=env, check=True, capture_output=True)
             sources["import .eig"] = tmp / "bar_eig.eig"
         for source in sources.values():
-            imported_model(mesh, source, si)                        # compile the scanner (cached)
+            imported_model(mesh, source, si)                        # warm-up: page cache, first calls
         times = {"assemble": [], **{k: [] for k in sources}}
         with single_threaded_blas():
             for _ in range(args.repeat):

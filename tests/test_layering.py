@@ -134,16 +134,18 @@ MAX_FLAT_MODULES = 10
 #: (docs/architecture.md), and the lazy Python API (sidprep/__init__.py) is made of such imports
 IMPORTS_AT_TOP = ("sidprep", "solver")
 DEFERRED = re.compile(r"#\s*deferred:\s*\S")
+#: the module a line of a Cython file imports or cimports
+CYTHON_IMPORT = re.compile(r"^\s*(?:from|c?import)\s+([\w.]+)", re.M)
 
 
 # ---------------------------------------------------------------------------------------------
 # The import graph
 # ---------------------------------------------------------------------------------------------
 def module_files(root: Path = ROOT) -> dict[str, Path]:
-    """{installed module name: file} of every module of the three source folders."""
+    """{installed module name: file} of every module of the three source folders (Cython's too)."""
     mods = {}
     for folder, name in INSTALLED_AS.items():
-        for path in (root / folder).rglob("*.py"):
+        for path in [*(root / folder).rglob("*.py"), *(root / folder).rglob("*.pyx")]:
             parts = [p for p in path.relative_to(root / folder).with_suffix("").parts if p != "__init__"]
             mods[".".join([name, *parts])] = path
     return mods
@@ -195,6 +197,8 @@ def parsed(text: str) -> tuple[ast.Module, tuple[ast.AST, ...]]:
 
 def imported_modules(name: str, path: Path, mods) -> set[str]:
     """The project modules ``name`` reaches anywhere in its file (module docstring)."""
+    if path.suffix == ".pyx":                          # Cython, not Python: its import and cimport lines
+        return {owner(m, mods) for m in CYTHON_IMPORT.findall(path.read_text())} - {None, name}
     return set(module_edges(name, path.name == "__init__.py", path.read_text(), frozenset(mods)))
 
 

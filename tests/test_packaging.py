@@ -1,6 +1,7 @@
 """One import namespace: sidprep, sidprep.solver, sidprep.cli (issue 12). Every package folder of the
 repository is listed in pyproject.toml under the name it installs as, so a wheel holds all of it."""
 
+import ast
 from pathlib import Path
 
 try:
@@ -33,3 +34,23 @@ def test_no_generic_top_level_names_in_the_source():
                     or stripped.startswith(("from solver.", "import solver.", "from cli.", "import cli.")):
                 offenders.append(f"{path.relative_to(ROOT)}:{n}: {stripped}")
     assert not offenders, "\n".join(offenders)
+
+
+def setup_constant(name: str):
+    """A literal constant of setup.py (read, not run: running it would start a build)."""
+    tree = ast.parse((ROOT / "setup.py").read_text())
+    values = [ast.literal_eval(node.value) for node in tree.body
+              if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == name for t in node.targets)]
+    assert len(values) == 1, f"setup.py assigns {name} {len(values)} times"
+    return values[0]
+
+
+def test_every_cython_module_is_built_and_portable():
+    """Each .pyx file is a compiled module of setup.py (one list, no file left unbuilt), its package is
+    installed, and no flag ties the build to the machine that compiles it (-march=native)."""
+    modules = setup_constant("CYTHON_MODULES")
+    found = {".".join(p.relative_to(ROOT).with_suffix("").parts) for top in INSTALLED_AS for p in (ROOT / top).rglob("*.pyx")}
+    assert set(modules) == found
+    packages = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    assert {m.rpartition(".")[0] for m in modules} <= set(packages)
+    assert not [a for a in setup_constant("COMPILE_ARGS") if a.startswith(("-march", "-mtune", "-mcpu"))]

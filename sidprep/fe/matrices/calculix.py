@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -31,6 +30,7 @@ from sidprep.errors import InputError
 from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
 from sidprep.fe.matrices.deck import deck_elements
 from sidprep.fe.matrices.numbers import mirrored
+from sidprep.fe.matrices.triangles import lower_dofs
 
 #: the layout read here, as written by CalculiX 2.11-2.21 (matrixstorage.c, arpack.c)
 FORMAT_VERSION = "calculix-matrixstorage 2.20"
@@ -158,30 +158,6 @@ def lower_structure(elements, nodes) -> tuple[np.ndarray, np.ndarray]:
     graph = sp.csr_matrix((np.ones(int(keep.sum()), np.int8), (a[keep], b[keep])), shape=(len(nodes),) * 2)
     graph.sum_duplicates()                                # node b >= a of each node a, sorted
     return lower_dofs(graph.indptr.astype(np.int64), graph.indices.astype(np.int64))
-
-
-@numba.njit(cache=True)
-def lower_dofs(indptr, indices):
-    """DOF (columns, rows) of the strict lower triangle of the node graph (upper node triangle in CSR,
-    rows sorted): column 3 a + ca holds rows 3 b + cb > 3 a + ca for every neighbour b >= a."""
-    total = 0
-    for a in range(len(indptr) - 1):
-        k = indptr[a + 1] - indptr[a]
-        total += 3 * 3 * k - 6                             # minus the diagonal block's upper part
-    cols = np.empty(total, np.int64)
-    rows = np.empty(total, np.int64)
-    pos = 0
-    for a in range(len(indptr) - 1):
-        for ca in range(3):
-            col = 3 * a + ca
-            for k in range(indptr[a], indptr[a + 1]):
-                for cb in range(3):
-                    row = 3 * indices[k] + cb
-                    if row > col:
-                        cols[pos] = col
-                        rows[pos] = row
-                        pos += 1
-    return cols, rows
 
 
 def tet_deck(mesh, path, material, step: str = "*FREQUENCY, SOLVER=MATRIXSTORAGE\n10") -> None:
