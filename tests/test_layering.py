@@ -89,12 +89,6 @@ PACKAGE_METADATA = {"__version__"}
 RUNTIME_IMPORTS = {
     "sidprep.solver.equations.aot": "unpickles a compiled kernel by the module name stored with it",
 }
-#: packages that load their modules by name at run time, which import the package back: the edges of
-#: that load are left out of the cycle check only, each with its reason
-LOADS_BY_NAME = {
-    "sidprep.fe.matrices": "loads its reader modules by file ending, and they import FEMatrices, symmetric_matrix "
-                           "and text_blocks from it (the fix: those in a module of their own)",
-}
 #: at most this many parameters (``self`` counts): a function that needs more takes a named structure
 #: (a frozen dataclass of options, a model, a layout)
 MAX_PARAMETERS = 8
@@ -389,20 +383,8 @@ def documented_rows(root: Path = ROOT) -> tuple[list[str], list[str]]:
 # ---------------------------------------------------------------------------------------------
 # The tree as it is
 # ---------------------------------------------------------------------------------------------
-def graph_without_loads_by_name(root: Path = ROOT) -> dict[str, set[str]]:
-    """The import graph without the run-time loads of LOADS_BY_NAME (their modules' static imports stay)."""
-    graph = import_graph(root)
-    mods = module_files(root)
-    for package in LOADS_BY_NAME:
-        tree = ast.parse(mods[package].read_text())
-        static = {owner(n.module if isinstance(n, ast.ImportFrom) else a.name, mods) for n in ast.walk(tree)
-                  if isinstance(n, (ast.Import, ast.ImportFrom)) for a in n.names}
-        graph[package] = graph[package] & static
-    return graph
-
-
 def test_no_import_cycle():
-    assert cycles(graph_without_loads_by_name()) == []
+    assert cycles(import_graph()) == []
 
 
 def test_imports_follow_the_layers():

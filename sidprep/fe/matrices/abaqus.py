@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
+from sidprep.fe.matrices.record import FEMatrices, symmetric_matrix, text_blocks
 
 #: the layout read here (Abaqus 6.9 - 2024, FORMAT=MATRIX INPUT)
 FORMAT_VERSION = "abaqus-mtx matrix-input 2024"

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices
+from sidprep.fe.matrices.record import FEMatrices
 
 #: the layout read here: ansys-mapdl-reader 0.5x (MAPDL .full of releases 14.5 - 2024 R2)
 FORMAT_VERSION = "ansys-full (ansys-mapdl-reader 0.5x)"

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices, symmetric_matrix, text_blocks
+from sidprep.fe.matrices.record import FEMatrices, symmetric_matrix, text_blocks
 from sidprep.fe.matrices.deck import deck_elements
 from sidprep.fe.matrices.numbers import mirrored
 from sidprep.fe.matrices.triangles import lower_dofs

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices
+from sidprep.fe.matrices.record import FEMatrices
 from sidprep.fe.matrices.constraints import constraint_map, rigid_equations
 from sidprep.fe.matrices.deck import deck_elements
 

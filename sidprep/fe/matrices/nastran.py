@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.fe.matrices import FEMatrices, symmetric_matrix
+from sidprep.fe.matrices.record import FEMatrices, symmetric_matrix
 
 #: the layout read here (MSC Nastran 2024 / NX Nastran 2312 QRG, DMIG)
 FORMAT_VERSION = "nastran-dmig-punch 2024"
