@@ -80,6 +80,7 @@ SOLVER_LAYERS = (
     Layer("run", ("solver/run.py", "solver/postprocess.py", "solver/linear.py", "solver/stiffening_work.py")),
     Layer("scenes", ("solver/scene_tables.py", "solver/scene.py", "solver/absolute_nodal/", "solver/animation.py",
                      "solver/stress.py", "solver/fatigue.py", "solver/prebuild.py")),
+    Layer("studies", ("solver/converge.py",)),
     Layer("solver api", ("solver/__init__.py",)),
 )
 #: names a package's ``__init__`` defines that every layer may read: the version, set before anything

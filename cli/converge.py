@@ -1,0 +1,132 @@
+"""``sidprep converge SCENE.toml``: what accuracy costs on your own scene, and the cheapest setting
+that meets a tolerance (sidprep.solver.converge)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+from sidprep.cli.options import process_setup
+from sidprep.cli.simulate import positive
+from sidprep.solver.integrators.settings import METHODS
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "converge", help="run a scene on a ladder of solver settings; the cheapest one that meets --tol",
+        description="Runs the scene on a ladder of solver settings (per method: steps h0*2, h0, h0/2, ... or rtol "
+                    "1e-3, 1e-4, ...; generalised-alpha at the scene's rho_inf and 0.6; the other effects choice), "
+                    "estimates each run's error by Richardson extrapolation of the finest runs (with the observed "
+                    "order), and prints a table of method, step, rho_inf, effects, CPU-s and error per signal, the "
+                    "cheapest setting whose estimated error meets --tol and the [solver] lines to paste. Exit 2 "
+                    "when no setting meets it.")
+    p.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
+    p.add_argument("--signal", action="append", default=[], metavar="NAME",
+                   help="a signal to converge (repeatable; default: the scene's [output] signals but energy.*)")
+    p.add_argument("--tol", type=positive, default=None, metavar="REL",
+                   help="error to meet, relative to each signal's range (default 1e-3)")
+    p.add_argument("--window", type=float, nargs=2, metavar=("T0", "T1"),
+                   help="run to T1 (s) and compare on [T0, T1] (default: 0 to the scene's t_end)")
+    p.add_argument("--method", action="append", choices=METHODS, metavar="METHOD",
+                   help=f"a method to ladder (repeatable; default all: {', '.join(METHODS)})")
+    p.add_argument("--step", type=positive, metavar="H0", help="the ladders' h0 in s (default the scene's step)")
+    p.add_argument("--levels", type=int, default=None, metavar="N", help="rungs per ladder (default 5, >= 3)")
+    p.add_argument("--no-effects", action="store_true", help="do not run the other effects choice")
+    p.add_argument("--workers", type=int, help="parallel runs (default: cores, or the cluster's threads)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("-o", "--output", metavar="PLOT.png", help="write the Pareto plot (error against CPU-s)")
+    p.add_argument("--json", action="store_true", help="print the study as one JSON object on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run, process_setup=process_setup)
+
+
+def options_from_args(args):
+    """The ConvergeOptions of the command line (only the options given; the rest their defaults)."""
+    from dataclasses import replace
+
+    from sidprep.solver.converge import ConvergeOptions
+
+    given = {"signals": tuple(args.signal), "tol": args.tol, "levels": args.levels, "step": args.step,
+             "window": tuple(args.window) if args.window else None,
+             "methods": tuple(dict.fromkeys(args.method)) if args.method else None,
+             "effects": False if args.no_effects else None}
+    return replace(ConvergeOptions(), **{k: v for k, v in given.items() if v is not None})
+
+
+def print_table(report) -> None:
+    """One row per run: method, step or rtol, rho_inf, effects, CPU-s, error per signal (absolute
+    and relative), the lowest observed order of its ladder, the energy balance error."""
+    print(f"{report.scene}: t = {report.window[0]:g}-{report.window[1]:g} s, reference: Richardson extrapolation of "
+          f"{report.reference} (observed order "
+          + ", ".join(f"{n} {p:.2f}" for n, p in report.orders.items() if math.isfinite(p)) + ")")
+    head = ["method", "step / rtol", "rho_inf", "effects", "CPU-s"] + [f"{n} abs | rel" for n in report.signals] \
+        + ["order", "energy bal."]
+    print(" | ".join(head))
+    for r in report.runs:
+        s = r.setting
+        cells = [s.method, f"rtol {s.rtol:.0e}" if s.rtol else f"{s.h:.4g}",
+                 "-" if s.rho_inf is None else f"{s.rho_inf:g}", str(s.effects), f"{r.cpu_s:.3g}"]
+        if r.failed:
+            print(" | ".join(cells + [f"failed: {r.failed}"]))
+            continue
+        cells += [f"{e.absolute:.2e} | {e.relative:.2e}" for e in r.errors]
+        orders = [e.order for e in r.errors if e.order is not None]
+        cells += [f"{min(orders):.2f}" if orders else "-",
+                  "-" if r.energy_balance_error is None else f"{r.energy_balance_error:.1e}"]
+        print(" | ".join(cells))
+    if report.effects_change is not None:
+        print(f"the other effects choice changes the signals by {report.effects_change:.2e} of their range")
+    print(f"{len(report.runs)} runs, {report.wall_s:.1f} s wall; kernels loaded once per process "
+          f"({report.warm_up_cpu_s:.2f} CPU-s, not counted in the runs)")
+
+
+def run(args) -> int:
+    from sidprep.solver.converge import plot_pareto
+    from sidprep.solver.results import json_safe
+
+    from sidprep.jobs.executor import task_pool
+
+    options = options_from_args(args)
+    pool = task_pool(args.scheduler, args.workers)
+    try:
+        report = with_progress(args.scene, options, pool, args.quiet)
+    finally:
+        pool.close()
+    if args.output:
+        plot_pareto(report, args.output)
+    if args.json:
+        print(json.dumps(json_safe(report.as_dict())))
+    else:
+        print_table(report)
+    rec = report.recommendation()                     # InputError (exit 2) when no setting meets --tol
+    if not args.json:
+        print(f"cheapest setting meeting --tol {report.tol:g}: {rec.setting.label}, estimated error "
+              f"{rec.estimated_error:.2e}, {rec.cpu_s:.3g} CPU-s; paste into [solver]:\n{rec.setting.toml()}")
+    return 0
+
+
+def with_progress(scene, options, pool, quiet: bool):
+    """converge() with a rich progress bar of the runs on stderr (none when quiet)."""
+    from dataclasses import replace
+
+    from sidprep.solver.converge import converge
+
+    if quiet or not sys.stderr.isatty():
+        return converge(scene, options, pool)
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    with Progress(TextColumn("converge"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("", total=None)
+
+        def progress(done, total):
+            bar.update(task, completed=done, total=total)
+        return converge(scene, replace(options, progress=progress), pool)
