@@ -1,5 +1,7 @@
-"""``sidprep converge SCENE.toml``: what accuracy costs on your own scene, and the cheapest setting
-that meets a tolerance (sidprep.solver.converge)."""
+"""``sidprep converge SCENE.toml | MESH | JOB.toml``: what accuracy costs on your own model, and the
+cheapest setting that meets a tolerance: a scene on a ladder of solver settings
+(sidprep.solver.converge), or a body reduced with a ladder of mode counts (sidprep.jobs.fe_ladder).
+One command for both sides: the input says which (a scene has bodies, a job file names its mesh)."""
 
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ def register(subparsers) -> None:
                     "order), and prints a table of method, step, rho_inf, effects, CPU-s and error per signal, the "
                     "cheapest setting whose estimated error meets --tol and the [solver] lines to paste. Exit 2 "
                     "when no setting meets it.")
-    p.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
+    p.add_argument("scene", metavar="SCENE|MESH|JOB", help="scene file (.toml), or a mesh or reduce job file (FE ladder)")
     p.add_argument("--signal", action="append", default=[], metavar="NAME",
                    help="a signal to converge (repeatable; default: the scene's [output] signals but energy.*)")
     p.add_argument("--tol", type=positive, default=None, metavar="REL",
@@ -38,6 +40,12 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", metavar="PLOT.png", help="write the Pareto plot (error against CPU-s)")
     p.add_argument("--json", action="store_true", help="print the study as one JSON object on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    fe = p.add_argument_group("FE ladder (MESH or job file: reduced with each mode count, with and without FRMs)")
+    fe.add_argument("--modes-ladder", type=int, nargs="+", metavar="N", help="eigenmode counts (default 2 4 6 8 12 16 24)")
+    fe.add_argument("--static-tol", type=positive, default=None, metavar="REL",
+                    help="static deflection error at the interfaces to meet (default 0.01, the FEMBS promise)")
+    fe.add_argument("--frequency-tol", type=positive, default=None, metavar="REL",
+                    help="frequency error of the kept eigenmodes to meet (default 0.01)")
     p.set_defaults(func=run, process_setup=process_setup)
 
 
@@ -81,18 +89,59 @@ def print_table(report) -> None:
           f"({report.warm_up_cpu_s:.2f} CPU-s, not counted in the runs)")
 
 
+def is_scene(path: str) -> bool:
+    """Whether ``path`` is a scene file (a .toml without the ``mesh`` or ``component`` of a job file)."""
+    from sidprep.tables import read_toml
+
+    if not path.lower().endswith(".toml"):
+        return False
+    root = read_toml(path, "scene or job file")
+    return not ("mesh" in root or "component" in root)
+
+
 def run(args) -> int:
+    from sidprep.jobs.executor import task_pool
+
+    pool = task_pool(args.scheduler, args.workers)
+    try:
+        return run_scene(args, pool) if is_scene(args.scene) else run_fe(args, pool)
+    finally:
+        pool.close()
+
+
+def run_fe(args, pool) -> int:
+    """The FE ladder of a mesh or job file: a table (or JSON) and the recommended reduction."""
+    from sidprep.solver.results import json_safe
+
+    from sidprep.jobs.fe_ladder import FREQUENCY_TOL, MODE_LADDER, fe_ladder
+    from sidprep.jobs.jobfile import Job, read_job
+    from sidprep.reduction.fe_checks import STATIC_CHECK_TOL
+
+    job = read_job(args.scene) if args.scene.lower().endswith(".toml") else Job(args.scene)
+    report = fe_ladder(job.mesh, job.options, modes=tuple(args.modes_ladder or MODE_LADDER),
+                       static_tol=args.static_tol or STATIC_CHECK_TOL,
+                       frequency_tol=args.frequency_tol or FREQUENCY_TOL, pool=pool)
+    if args.json:
+        print(json.dumps(json_safe(report.as_dict())))
+    else:
+        print("modes | FRMs | nq | CPU-s | static deflection error | frequency error")
+        for r in report.rungs:
+            print(f"{r.modes} | {'yes' if r.frm else 'no'} | " + (f"failed: {r.failed}" if r.failed else
+                  f"{r.nq} | {r.cpu_s:.3g} | {r.static_error:.2e} | {r.frequency_error:.2e}"))
+    rec = report.recommendation()
+    if not args.json:
+        print(f"smallest body meeting static {report.static_tol:g} and frequency {report.frequency_tol:g}: "
+              f"{rec.modes} modes{' + FRMs' if rec.frm else ', no FRMs'} (nq = {rec.nq}, {rec.cpu_s:.3g} CPU-s to "
+              f"reduce): sidprep reduce {args.scene} --modes {rec.modes}{'' if rec.frm else ' --no-frm'}")
+    return 0
+
+
+def run_scene(args, pool) -> int:
+    """The solver ladder of a scene: table (or JSON), plot, the recommended [solver] lines."""
     from sidprep.solver.converge import plot_pareto
     from sidprep.solver.results import json_safe
 
-    from sidprep.jobs.executor import task_pool
-
-    options = options_from_args(args)
-    pool = task_pool(args.scheduler, args.workers)
-    try:
-        report = with_progress(args.scene, options, pool, args.quiet)
-    finally:
-        pool.close()
+    report = with_progress(args.scene, options_from_args(args), pool, args.quiet)
     if args.output:
         plot_pareto(report, args.output)
     if args.json:

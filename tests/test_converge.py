@@ -152,3 +152,34 @@ def test_a_scene_that_fails_at_every_setting(tmp_path):
     with pytest.raises(InputError, match="tried 6 settings, 6 failed; e.g. genalpha"):
         converge(scene, ConvergeOptions(signals=("hinge.coordinate",), window=(0.0, 0.02), methods=("genalpha",),
                                         levels=3, effects=False))
+
+
+#: the FEMBS promise: static deflection at the interfaces within 1 % of the full FE model's
+STATIC_TOL = 0.01
+#: the ladder's cost column against a separate reduction, CPU time measured side by side
+COST_TOL = 0.3
+
+
+def test_fe_ladder_recommends_a_mode_count_meeting_the_static_tolerance_at_the_cost_of_a_reduce():
+    """Piston rod: the recommended rung, reduced again on its own, meets 1 % static deflection
+    against the full FE solve of the checks, and cost what the ladder's column says."""
+    import time
+
+    from sidprep.jobs.fe_ladder import fe_ladder
+    from sidprep.jobs.options import ReduceOptions
+    from sidprep.jobs.reduce import reduce
+
+    mesh = ROOT / "data/meshes/piston_rod.msh"
+    report = fe_ladder(mesh, modes=(4, 8), static_tol=STATIC_TOL)
+    rec = report.recommendation()
+    assert (rec.modes, rec.frm) == (8, True) and rec.nq == 20      # 4 + FRMs: 5.8 %; no FRMs: 100 %
+    cpu0 = time.process_time()
+    alone = reduce(mesh, ReduceOptions(modes=rec.modes, frm=rec.frm))
+    cpu = time.process_time() - cpu0
+    assert alone.checks["static_deflection_max_rel_error"] <= STATIC_TOL
+    assert abs(rec.cpu_s / cpu - 1) <= COST_TOL
+
+
+def test_fe_ladder_on_the_command_line_names_the_closest_when_none_meets(tmp_path):
+    r = bad([str(ROOT / "data/meshes/piston_rod.msh"), "--modes-ladder", "2", "--static-tol", "1e-4"])
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "closest: 2 modes + FRMs" in r.stderr
