@@ -64,7 +64,8 @@ def options_from_args(args):
 
 def print_table(report) -> None:
     """One row per run: method, step or rtol, rho_inf, effects, CPU-s, error per signal (absolute
-    and relative), the lowest observed order of its ladder, the energy balance error."""
+    and relative), the observed order of its ladder in the signal of the largest relative error,
+    the energy balance error."""
     print(f"{report.scene}: t = {report.window[0]:g}-{report.window[1]:g} s, reference: Richardson extrapolation of "
           f"{report.reference} (observed order "
           + ", ".join(f"{n} {p:.2f}" for n, p in report.orders.items() if math.isfinite(p)) + ")")
@@ -79,8 +80,8 @@ def print_table(report) -> None:
             print(" | ".join(cells + [f"failed: {r.failed}"]))
             continue
         cells += [f"{e.absolute:.2e} | {e.relative:.2e}" for e in r.errors]
-        orders = [e.order for e in r.errors if e.order is not None]
-        cells += [f"{min(orders):.2f}" if orders else "-",
+        order = r.limiting.order
+        cells += ["-" if order is None else f"{order:.2f}",
                   "-" if r.energy_balance_error is None else f"{r.energy_balance_error:.1e}"]
         print(" | ".join(cells))
     if report.effects_change is not None:

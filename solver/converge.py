@@ -113,6 +113,11 @@ class LadderRun:
     failed: str | None = None
 
     @property
+    def limiting(self) -> SignalError | None:
+        """The signal of the largest relative error (None for a failed run)."""
+        return max(self.errors, key=lambda e: e.relative, default=None)
+
+    @property
     def estimated_error(self) -> float:
         """The largest relative error over the signals (inf for a failed run)."""
         return max((e.relative for e in self.errors), default=math.inf) if self.failed is None else math.inf
@@ -168,8 +173,9 @@ class ConvergeReport:
             return self.recommended
         done = [r for r in self.runs if r.failed is None]
         best = min(done, key=lambda r: r.estimated_error)
+        missed = {e.name for e in best.errors if e.relative > self.tol}
         unresolved = [f"{name} (observed order {p:.2g})" for name, p in self.orders.items()
-                      if math.isfinite(p) and not P_MIN <= p <= P_MAX]
+                      if name in missed and not P_MIN <= p <= P_MAX]
         why = (f"; not converging over the ladder: {', '.join(unresolved)}: at the solver's noise floor or "
                "needing smaller steps, leave them out (--signal) or give a smaller --step" if unresolved else "")
         raise InputError(f"{self.scene}: no setting meets --tol {self.tol:g}: tried {len(self.runs)} settings "
