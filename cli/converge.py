@@ -86,8 +86,8 @@ def print_table(report) -> None:
         print(" | ".join(cells))
     if report.effects_change is not None:
         print(f"the other effects choice changes the signals by {report.effects_change:.2e} of their range")
-    print(f"{len(report.runs)} runs, {report.wall_s:.1f} s wall; kernels loaded once per process "
-          f"({report.warm_up_cpu_s:.2f} CPU-s, not counted in the runs)")
+    print(f"{len(report.runs)} runs, {report.wall_s:.1f} s wall, load average {report.load[0]:.1f}: the CPU-s are "
+          f"this machine's; kernels loaded once per process ({report.warm_up_cpu_s:.2f} CPU-s, not counted in the runs)")
 
 
 def is_scene(path: str) -> bool:
@@ -157,13 +157,18 @@ def run_scene(args, pool) -> int:
 
 
 def with_progress(scene, options, pool, quiet: bool):
-    """converge() with a rich progress bar of the runs on stderr (none when quiet)."""
+    """converge() with a rich progress bar of the runs on stderr (a terminal), else a line per run
+    (none when quiet)."""
     from dataclasses import replace
 
     from sidprep.solver.converge import converge
 
-    if quiet or not sys.stderr.isatty():
+    if quiet:
         return converge(scene, options, pool)
+    if not sys.stderr.isatty():
+        def line(done, total):
+            print(f"  converge: {done} / {total} runs", file=sys.stderr, flush=True)
+        return converge(scene, replace(options, progress=line), pool)
     from rich.console import Console
     from rich.progress import (
         BarColumn,

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -153,7 +154,8 @@ class ConvergeReport:
     """scene : file; signals; window (t0, t1) s; tol; reference : the ladder extrapolated;
     orders : {signal: observed order of the reference ladder}; runs; recommended (None: no run
     meets tol); effects_change : max relative change of the other effects choice (None: not run);
-    warm_up_cpu_s : CPU-s the processes spent loading kernels before their first run; wall_s."""
+    warm_up_cpu_s : CPU-s the processes spent loading kernels before their first run; wall_s;
+    load : the machine's load average (1, 5, 15 min) at the end: the CPU-s are this machine's."""
 
     scene: str
     signals: tuple[str, ...]
@@ -166,6 +168,7 @@ class ConvergeReport:
     effects_change: float | None
     warm_up_cpu_s: float
     wall_s: float
+    load: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def recommendation(self) -> LadderRun:
         """The recommended run; InputError naming what was tried and what came closest if none."""
@@ -188,6 +191,7 @@ class ConvergeReport:
         return {"scene": self.scene, "signals": list(self.signals), "window": list(self.window), "tol": self.tol,
                 "reference": self.reference, "observed_order": self.orders, "effects_change": self.effects_change,
                 "warm_up_cpu_s": self.warm_up_cpu_s, "wall_s": self.wall_s,
+                "load_average": list(self.load),
                 "runs": [r.as_dict() for r in self.runs],
                 "recommended": None if rec is None else {**rec.as_dict(), "toml": rec.setting.toml()}}
 
@@ -424,7 +428,7 @@ def converge(scene_path, options: ConvergeOptions = ConvergeOptions(), pool=None
     effects_change = effects_difference(settings, outcomes)
     return ConvergeReport(str(scene.path), signals, window, options.tol, reference[0], reference[3], runs,
                           recommended, effects_change, sum(o.warm_up_cpu_s for o in outcomes),
-                          time.perf_counter() - wall0)
+                          time.perf_counter() - wall0, os.getloadavg())
 
 
 def effects_difference(settings, outcomes) -> float | None:
