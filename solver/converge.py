@@ -11,7 +11,7 @@ Richardson extrapolation of the finest three runs of the most converged fixed-st
     x* = x_h/2 + (x_h/2 - x_h) / (2^p - 1)            extrapolated signal
 
 and every run's error is max |x - x*| over the window's output samples, relative to the range of
-x* there.  The runs execute on any executor with ``run(fn, *args) -> future`` and ``wait(futures)
+x* there.  The runs execute on any executor with ``submit(fn, *args) -> future`` and ``wait(futures)
 -> done`` (a local process pool or Dask: sidprep.jobs.executor), or one by one in this process.
 """
 
@@ -268,7 +268,7 @@ def run_setting(path: str, sha256: str, setting: Setting, t_end: float, output_d
 
 
 def execute(tasks: list[tuple], pool=None, progress=None) -> list[Outcome]:
-    """run_setting(*task) for every task, on ``pool`` (run / wait) or one by one here.  On a pool
+    """run_setting(*task) for every task, on ``pool`` (submit / wait) or one by one here.  On a pool
     the first task of each method and effects runs alone first: a kernel missing from numba's
     cache is then compiled by one process, and every other process reads it from the cache."""
     outcomes: list = [None] * len(tasks)
@@ -284,8 +284,8 @@ def execute(tasks: list[tuple], pool=None, progress=None) -> list[Outcome]:
         return outcomes
     firsts = list({(t[2].method, t[2].effects): k for k, t in reversed(list(enumerate(tasks)))}.values())
     for k in sorted(firsts):
-        finished(k, pool.run(run_setting, *tasks[k]).result())
-    futures = {pool.run(run_setting, *task): k for k, task in enumerate(tasks) if outcomes[k] is None}
+        finished(k, pool.submit(run_setting, *tasks[k]).result())
+    futures = {pool.submit(run_setting, *task): k for k, task in enumerate(tasks) if outcomes[k] is None}
     pending = set(futures)
     while pending:
         for f in pool.wait(pending):
@@ -397,7 +397,7 @@ def study_window(scene, window) -> tuple[float, float]:
 def converge(scene_path, options: ConvergeOptions = ConvergeOptions(), pool=None) -> ConvergeReport:
     """Run the scene file ``scene_path`` on the ladder of settings and estimate every run's error.
 
-    pool : an executor (``run``, ``wait``; sidprep.jobs.executor.task_pool) or None (this process).
+    pool : an executor (``submit``, ``wait``; sidprep.jobs.executor.task_pool) or None (this process).
     Returns the ConvergeReport; InputError for bad input and for a scene that fails at every rung.
     """
     if not options.tol > 0 or options.levels < 3:

@@ -5,7 +5,7 @@ Every rung is a complete ``reduce`` (mesh, assembly, Craig-Bampton, modal basis,
 its CPU-s is what ``sidprep reduce`` with that setting costs.  The errors are the ones the checks
 of every reduction make against the full FE model (sidprep.reduction.fe_checks): the static
 deflection at the interface masters under unit loads (the FEMBS 1 % promise) and the
-eigenfrequencies of the kept eigenmodes.  The rungs run on any executor with ``run(fn, *args) ->
+eigenfrequencies of the kept eigenmodes.  The rungs run on any executor with ``submit(fn, *args) ->
 future`` (sidprep.jobs.executor.task_pool) or one by one in this process.
 """
 
@@ -96,7 +96,7 @@ def fe_ladder(mesh, options: ReduceOptions = ReduceOptions(), *, modes=MODE_LADD
               frequency_tol=FREQUENCY_TOL, pool=None) -> FELadderReport:
     """Reduce ``mesh`` (a path) with ``options`` at every count of ``modes``, with and without FRMs.
 
-    pool : an executor (``run``) or None (this process).  Recommended: the rung meeting both
+    pool : an executor (``submit``) or None (this process).  Recommended: the rung meeting both
     tolerances with the smallest body (nq: what the solver carries), then the least CPU-s.
     """
     if not (static_tol > 0 and frequency_tol > 0) or not modes or min(modes) < 1:
@@ -106,7 +106,7 @@ def fe_ladder(mesh, options: ReduceOptions = ReduceOptions(), *, modes=MODE_LADD
     if pool is None:
         rungs = [reduce_rung(str(mesh), o) for o in settings]
     else:
-        futures = [pool.run(reduce_rung, str(mesh), o) for o in settings]
+        futures = [pool.submit(reduce_rung, str(mesh), o) for o in settings]
         rungs = [f.result() for f in futures]
     meeting = [r for r in rungs if r.meets(static_tol, frequency_tol)]
     recommended = min(meeting, key=lambda r: (r.nq, r.cpu_s)) if meeting else None
