@@ -5,7 +5,8 @@ parser it adds must set ``func=run`` with ``run(args) -> int``.  Modules import 
 dependencies inside ``run`` so that ``sidprep --help`` stays fast.
 Errors: ``InputError`` -> one line on stderr, exit 2; anything else -> one line naming the
 internal error, exit 3 (``--debug`` shows the traceback); SIGINT -> exit 130, SIGTERM -> exit 143,
-both after the temporary files are removed.
+both with one line after the temporary files are removed, at any moment of the process (while
+the parser is built, while the command runs, and while the process ends).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import importlib
 import math
 import os
 import pkgutil
+import signal
 import sys
 import threading
 import warnings
@@ -47,6 +49,18 @@ def one_line_warning(message, category, filename, lineno, file=None, line=None) 
     print(f"sidprep: warning: {printable(message)}", file=sys.stderr)
 
 
+#: how a library note that is a warning starts (e.g. sidprep.jobs.reduce's rotation check)
+WARNING_PREFIX = "WARNING: "
+
+
+def note_line(note: str) -> str:
+    """The line a command prints on stderr for a library note: ``note: ...``, or for a note that is a
+    warning the warning line of every command, ``sidprep: warning: ...``."""
+    if note.startswith(WARNING_PREFIX):
+        return f"sidprep: warning: {printable(note[len(WARNING_PREFIX):])}"
+    return f"note: {note}"
+
+
 def check_finite_options(args) -> None:
     """Every number option is finite: argparse's float() accepts "nan" and "inf"."""
     for key, value in vars(args).items():
@@ -54,17 +68,26 @@ def check_finite_options(args) -> None:
             raise InputError(f"--{key.replace('_', '-')} {value}: must be a finite number")
 
 
+#: the exit code and the one line of each signal that stops a command (128 + signal number; SIGINT 130)
+SIGNAL_EXITS = {signal.SIGINT: (130, "sidprep: interrupted"), signal.SIGTERM: (143, "sidprep: terminated")}
+
+
 def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
     """Run one sub-command; ``own_process``: the process is the command's own (``command``), so
     the sub-command's ``process_setup`` (if its parser sets one) runs first."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    terminate_on_sigterm()
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        return stopped_by(signal.SIGINT)
+    except Terminated:
+        return stopped_by(signal.SIGTERM)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     if own_process and getattr(args, "process_setup", None):
         args.process_setup()
-    terminate_on_sigterm()
     warnings.showwarning = one_line_warning
     try:
         check_finite_options(args)
@@ -76,11 +99,9 @@ def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except KeyboardInterrupt:
-        print("sidprep: interrupted", file=sys.stderr)
-        return 130
+        return stopped_by(signal.SIGINT)
     except Terminated:
-        print("sidprep: terminated", file=sys.stderr)
-        return Terminated.exit_code
+        return stopped_by(signal.SIGTERM)
     except Exception as exc:  # an internal error, not bad input
         if args.debug:
             raise
@@ -89,16 +110,46 @@ def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
         return 3
 
 
+def stopped_by(signum: int) -> int:
+    """Print the one line of a command stopped by ``signum``; its exit code (SIGNAL_EXITS)."""
+    code, line = SIGNAL_EXITS[signum]
+    print(line, file=sys.stderr)
+    return code
+
+
+class ShutdownSignals:
+    """SIGINT / SIGTERM after the command returned, while the process ends: the first is noted
+    (the exit handlers still remove temporary folders) and decides the exit code and its one
+    line (``exit_code``); a second one, or the first when ``at_once``, ends the process at once."""
+
+    def __init__(self, at_once: bool = False):
+        self.received: int | None = None
+        self.at_once = at_once
+        for signum in SIGNAL_EXITS:
+            signal.signal(signum, self.note)
+
+    def note(self, signum, frame) -> None:
+        if self.received is not None or self.at_once:
+            os._exit(stopped_by(signum))
+        self.received = signum
+
+    def exit_code(self, code: int) -> int:
+        return code if self.received is None else stopped_by(self.received)
+
+
 def command() -> None:
     """The ``sidprep`` command: ``main`` as a process of its own, ended without Python's teardown
     of its modules once the atexit handlers have run and stdout and stderr are flushed: that
     teardown (the cyclic garbage collector over numba's type registries, LLVM's modules freed one
     by one) cost 0.2-0.35 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
-    While another thread still runs (a pool, a Dask client), the process ends the ordinary way."""
+    While another thread still runs (a pool, a Dask client), the process ends the ordinary way.
+    A signal after the command returned ends the process with its own code (ShutdownSignals)."""
     code = main(own_process=True)
-    if threading.active_count() > 1:
+    shutdown = ShutdownSignals(at_once=threading.active_count() > 1)
+    if shutdown.at_once:
         sys.exit(code)
     atexit._run_exitfuncs()  # what the interpreter runs first at its exit (temporary folders, h5py, logging)
+    code = shutdown.exit_code(code)
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

@@ -42,6 +42,7 @@ def run(args) -> int:
     import json
 
     from sidprep.jobs.modal import modal_analysis
+    from sidprep.cli.main import note_line
     from sidprep.fe.linalg import fast_blas
     from sidprep.progress import Phases, peak_memory_mb
 
@@ -50,7 +51,7 @@ def run(args) -> int:
         res = modal_analysis(args.mesh, modal_options(args), phases=ph)
     f, nr, mesh = res.frequencies_hz, res.n_rigid, res.mesh
     for note in res.notes:
-        print(f"note: {note}", file=sys.stderr)
+        print(note_line(note), file=sys.stderr)
     summary = {
         "mesh": {"file": str(args.mesh), "sha256": mesh.sha256, "nodes": mesh.n_nodes,
                  "elements": int(mesh.cells.shape[0]), "element": "tet4" if mesh.order == 1 else "tet10"},

@@ -98,6 +98,7 @@ def run(args) -> int:
     import json
 
     from sidprep.cli.options import cli_flags, quiet_native_output
+    from sidprep.cli.main import note_line
     from sidprep.errors import InputError
     from sidprep.reduction.fe_checks import format_checks
     from sidprep.jobs.assembly import reduce_assembly
@@ -118,7 +119,7 @@ def run(args) -> int:
                 result = reduce(job.mesh, job.options, phases=ph, scheduler=args.scheduler, workers=args.workers)
     if not args.quiet:
         for note in result.notes:
-            print(f"note: {note}", file=sys.stderr)
+            print(note_line(note), file=sys.stderr)
     with ph("write", ", ".join(str(p) for p in paths.values())):
         files = write_reduction(result.sid, paths, source=job.mesh)
     if not args.quiet:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from sidprep.cli.options import process_setup
@@ -116,6 +117,7 @@ def not_a_scene_hint(path: str) -> str:
 
 
 def run(args) -> int:
+    from sidprep.cli.main import WARNING_PREFIX, note_line
     from sidprep.progress import Phases, SimulationProgress
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results
@@ -138,13 +140,14 @@ def run(args) -> int:
     def beside(suffix: str) -> Path:
         return out.with_name(base + suffix)
 
-    with phases("simulate", f"0 .. {scene.t_end:g} s, {scene.settings.method}, step {scene.settings.h:g} s"):
+    settings = replace(scene.settings, **solver_overrides(args))     # the run's: the command line's overrides
+    with phases("simulate", f"0 .. {scene.t_end:g} s, {settings.method}, step {settings.h:g} s"):
         try:
             with SimulationProgress(scene.t_end, enabled=not args.quiet) as progress:
-                result = simulate(scene, **solver_overrides(args), progress=progress)
-        except SimulationFailed as exc:  # keep what was computed: the motion up to the failure
-            kept = write_results(exc.result, out, scene=scene.provenance(), bodies=scene.sources)
-            raise InputError(f"{exc} in {kept}") from None
+                result = simulate(scene, replace(settings, progress=progress))
+        except SimulationFailed as exc:  # keep what was computed, under a name no one takes for the whole run
+            kept = write_results(exc.result, beside(".failed.h5"), scene=scene.provenance(), bodies=scene.sources)
+            raise InputError(f"{exc} in {kept} ({out} not written)") from None
     outputs = {}
     with phases("write", str(out)):
         outputs["results"] = str(write_results(result, out, scene=scene.provenance(), bodies=scene.sources))
@@ -164,7 +167,7 @@ def run(args) -> int:
         if not args.quiet:
             print(report, file=sys.stderr)
         if s["energy"].get("warning"):
-            print(f"WARNING: {s['energy']['warning']}", file=sys.stderr)
+            print(note_line(WARNING_PREFIX + s["energy"]["warning"]), file=sys.stderr)
         print(json.dumps(json_safe(s)))
     else:
         s = summary(scene, result, outputs)
@@ -174,7 +177,7 @@ def run(args) -> int:
               f"energy {e['initial']:.6g} -> {e['final']:.6g} J (balance error {e.get('balance_error', 0.0):.2e} "
               "of the energy exchanged)")
         if e.get("warning"):
-            print(f"WARNING: {e['warning']}")
+            print(note_line(WARNING_PREFIX + e["warning"]), file=sys.stderr)
         for kind, path in outputs.items():
             print(f"  {kind}: {path}")
     return 0

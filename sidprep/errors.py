@@ -19,6 +19,13 @@ def printable(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
 
 
+def ascii_line(text: str) -> str:
+    """``text`` as one line of ASCII for a comment in an ASCII file (OBJ, SID_FEM): whitespace runs
+    as one blank, other characters outside printable ASCII as Python escapes (``b\\xe4r.msh``)."""
+    flat = " ".join(str(text).split())
+    return flat.encode("ascii", "backslashreplace").decode("ascii")
+
+
 class SimulationFailed(InputError):
     """A simulation stopped before t_end (Newton failure, divergence, max_steps); ``result``
     holds everything computed up to the last accepted step (``result.stats["failed"]`` says

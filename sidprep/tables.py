@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 import sys
 import types
 import typing
@@ -37,6 +38,10 @@ def read_toml_text(path, what: str = "file") -> tuple[dict, str]:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: {what} not found; check the path")
+    size = path.stat().st_size
+    if size > MAX_TOML_BYTES:
+        raise InputError(f"{path}: {size / 2**20:.0f} MiB, more than the {MAX_TOML_BYTES >> 20} MiB of a {what}; "
+                         "check the path (sidprep reads TOML scene, job and study files of a few MiB)")
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
@@ -44,9 +49,41 @@ def read_toml_text(path, what: str = "file") -> tuple[dict, str]:
     return parse_toml(text, path), text
 
 
+#: deepest nesting of a TOML document (arrays, inline tables, dotted keys and table headers together);
+#: sidprep's files nest 3-4 levels, and the parser and the readers after it recurse once per level
+MAX_TOML_DEPTH = 64
+#: largest TOML file read, bytes (a scene with long tables is a few MB)
+MAX_TOML_BYTES = 64 << 20
+#: TOML strings and comments, whose brackets and dots do not nest anything
+_TOML_OPAQUE = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*')
+#: MAX_TOML_DEPTH dots in a row, with nothing between them that ends a key (a dotted key that deep)
+_DEEP_DOTTED_KEY = re.compile(r"(?:\.[^\n=\[\]{},.]*){%d}" % MAX_TOML_DEPTH)
+
+
+def toml_depth_problem(text: str) -> str | None:
+    """Why ``text`` nests deeper than MAX_TOML_DEPTH (bracket depth of arrays, inline tables and
+    table headers, or a dotted key with that many parts), or None; linear in the text, before the
+    parser sees it (the parser recurses per level, and 200k dotted parts take it minutes)."""
+    plain = _TOML_OPAQUE.sub('""', text)
+    codes = np.frombuffer(plain.encode("utf-8", "replace"), dtype=np.uint8)
+    step = np.zeros(len(codes), dtype=np.int64)
+    step[(codes == ord("[")) | (codes == ord("{"))] = 1
+    step[(codes == ord("]")) | (codes == ord("}"))] = -1
+    depth = int(np.cumsum(step).max(initial=0))
+    if depth > MAX_TOML_DEPTH:
+        return f"arrays or tables nested {depth} levels deep"
+    if _DEEP_DOTTED_KEY.search(plain):
+        return f"a dotted key of more than {MAX_TOML_DEPTH} parts"
+    return None
+
+
 def parse_toml(text: str, source) -> dict:
-    """The TOML document ``text`` (e.g. a scene kept in a results file); syntax errors as one-line
-    InputErrors naming ``source``."""
+    """The TOML document ``text`` (e.g. a scene kept in a results file); syntax errors and nesting
+    deeper than MAX_TOML_DEPTH as one-line InputErrors naming ``source``."""
+    deep = toml_depth_problem(text)
+    if deep:
+        raise InputError(f"{source}: {deep}, more than the {MAX_TOML_DEPTH} levels sidprep reads; a scene, job or "
+                         "study file nests a few levels: fix the file")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

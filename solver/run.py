@@ -94,6 +94,20 @@ def numerical_cause(balance: dict, settings) -> str:
             f"instability of the integration ({settings.method}, {step}), not the scene; fix: {numerical_fix(settings)}")
 
 
+def check_settings(settings, t_end: float) -> None:
+    """Refuse, before the work, settings that cannot mean what they say for a run to ``t_end`` (s):
+    t_end not finite and > 0, a step longer than the run, an rtol that the method does not use
+    (rk4 steps at the fixed h)."""
+    if not (t_end > 0 and math.isfinite(t_end)):
+        raise InputError(f"simulate: t_end = {t_end} s must be > 0 and finite; fix the [solver] value")
+    if not settings.h <= t_end:
+        raise InputError(f"step = {settings.h:g} s is longer than t_end = {t_end:g} s; give a step of the scene's "
+                         "time scale (e.g. 1e-3 s)")
+    if settings.rtol is not None and settings.method == "rk4":
+        raise InputError(f"rtol = {settings.rtol:g}: rk4 steps at the fixed step h and has no error control to use "
+                         "it; leave rtol out, or choose method = \"rk45\", \"dop853\" or \"genalpha\" (error control)")
+
+
 class CompileNotice:
     """Says on stderr, while numba compiles, which solver kernel it compiles and how many it has
     compiled (numba compiles a kernel on its first use after install, then reads it from the
@@ -129,8 +143,7 @@ class Run:
     """One simulation of ``system`` to ``t_end`` (s) with ``settings`` (SolverSettings)."""
 
     def __init__(self, system, t_end: float, settings):
-        if not (t_end > 0 and math.isfinite(t_end)):
-            raise InputError(f"simulate: t_end = {t_end} s must be > 0 and finite; fix the [solver] value")
+        check_settings(settings, t_end)
         check_run_size(t_end, settings.h, settings.output_dt, settings.tolerance is None)
         path_errors, path_notes = path_marker_problems(system, t_end)
         if path_errors:

@@ -39,7 +39,7 @@ from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, 
 from sidprep.solver.model.joints import ConstantSpeed, Driver, JOINT_TYPES, SmoothStart, TabulatedMotion
 from sidprep.solver.model.system import System
 from sidprep.solver.results import BodyHistory, JointHistory, Result, signal
-from sidprep.solver.run import simulate as simulate_system
+from sidprep.solver.run import check_settings, simulate as simulate_system
 from sidprep.solver.scene_tables import OutputSettings, read_output_settings, read_solver_settings
 from sidprep.tables import TomlTable, read_toml_text, subtables
 
@@ -110,8 +110,8 @@ def _flexible_body(name: str, t: TomlTable, pose: dict):
     t.string("make", None)
     try:
         sid = read_sid(path, physical="error")
-    except InputError as exc:
-        t.fail("sid", f"cannot read {path} ({exc})", "regenerate the SID file")
+    except InputError as exc:         # names the file, the problem and the fix already
+        raise InputError(f"{t.file}: [{t.where}] sid: {exc}") from None
     q0 = t.array("q0", None, shape=(sid.nq,))
     qd0 = t.array("qd0", None, shape=(sid.nq,))
     body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), source=str(path),
@@ -467,6 +467,7 @@ def simulate(scene: Scene, settings: SolverSettings | None = None, *, t_end: flo
     try:
         settings = replace(settings or scene.settings, **given)
         t_end = scene.t_end if t_end is None else t_end
+        check_settings(settings, t_end)
         if isinstance(scene.system, AbsoluteNodalModel):
             from sidprep.solver.absolute_nodal.run import simulate_absolute_nodal  # deferred: 28 CPU-ms, its kernels
             return simulate_absolute_nodal(scene.system, t_end, settings)

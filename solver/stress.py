@@ -140,7 +140,7 @@ def body_stress_modes(results_path: Path, rf, body: str | None) -> tuple[str, st
     if body in beams:
         return body, "analytical Beam of the scene", beam_stress_modes(rf.scene.get("text", ""), body, results_path)
     path = sid_path(bodies[body]["source"], results_path)
-    sid = read_sid(path)
+    sid = read_sid(path, physical="error")         # non-finite modal stresses included
     if sid.stress is None:
         raise InputError(f"{path}: the SID of body {body!r} has no modal stresses; reduce it again with "
                          "`sidprep reduce MESH --stress` and re-run the simulation")
@@ -229,8 +229,8 @@ def recover_stress(results, body: str | None = None, *, at=None, hot_spots: int 
     path = Path(results)
     rf = read_results(path)
     name, sid_file, stress = body_stress_modes(path, rf, body)
-    if at is not None and len(at) != 3:
-        raise InputError(f"--at {','.join(map(str, at))}: give three coordinates X,Y,Z (m, body frame)")
+    if at is not None and (len(at) != 3 or not np.all(np.isfinite(np.asarray(at, dtype=float)))):
+        raise InputError(f"--at {','.join(map(str, at))}: give three finite coordinates X,Y,Z (m, body frame)")
     history_at = None if at is None else nearest_node(stress, at, name)
     q = np.asarray(rf.result.bodies[name].q, dtype=float)
     if q.shape[1] != stress.modes.shape[2]:

@@ -1,6 +1,7 @@
 """Files of a reduction: where they go (``output_paths``) and writing them (``write_reduction``).
 
-Every file is written atomically (sidprep.sid.io.atomic): a killed run leaves no half-written output.
+Every file is written atomically, the files of one reduction as one set (sidprep.sid.io.atomic): a
+killed run leaves no half-written output and no set without its other files.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from pathlib import Path
 from sidprep.jobs.options import OutputOptions, check_output
 from sidprep.reduction.beam import BeamOptions, beam_sid
 from sidprep.sid.io import write_sid
+from sidprep.sid.io.atomic import output_set
 
 
 def output_paths(mesh, out: OutputOptions = OutputOptions()) -> dict[str, Path]:
@@ -29,8 +31,9 @@ def write_reduction(sid, paths: dict[str, Path], *, source: str = "", command: s
     """Write the files named by ``output_paths``; returns {kind: path string}. The SID_FEM and OBJ
     comment names the command and its input (``sidprep reduce bar.msh``)."""
     comment = f"sidprep {command} {Path(source).name}".strip() if source or command != "reduce" else ""
-    for path in paths.values():
-        write_sid(sid, path, comment=comment)
+    with output_set():                 # all files, or none (an error or a signal while writing)
+        for path in paths.values():
+            write_sid(sid, path, comment=comment)
     return {k: str(v) for k, v in paths.items()}
 
 

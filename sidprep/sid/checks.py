@@ -320,12 +320,37 @@ def structure_problem(sid: SID) -> str | None:
         a = np.asarray(value)
         if not np.issubdtype(a.dtype, np.number) or a.ndim != 3 or a.shape[1:] != (nq, nq):
             return f"stiffening part {key} is {a.shape} {a.dtype}, expected (k, {nq}, {nq}) numbers"
+    if sid.stress is not None:
+        problem = stress_problem(sid.stress, nq)
+        if problem:
+            return problem
     for name, p in sid.paths.items():
         arrays = [np.asarray(getattr(p, m)) for m in ("s", "points", "phi", "psi")]
         n = arrays[0].shape[0] if arrays[0].ndim == 1 else -1
         if n < 2 or any(not np.issubdtype(a.dtype, np.number) for a in arrays) or \
                 [a.shape for a in arrays[1:]] != [(n, 3), (n, 3, nq), (n, 3, nq)] or not np.all(np.diff(arrays[0]) > 0):
             return f"path {name} is not n >= 2 increasing arc lengths with (n, 3) points and (n, 3, {nq}) shapes"
+    return None
+
+
+#: scopes of the modal stresses (sidprep.sid.stress.StressModes.scope)
+STRESS_SCOPES = ("surface", "all")
+
+
+def stress_problem(stress, nq: int) -> str | None:
+    """What makes the modal stresses (the /stress group) not those of a SID with nq modal
+    coordinates: node_ids (ns,) distinct integers, points (ns, 3) and modes (ns, 6, nq) numbers,
+    ns >= 1, a known scope; or None."""
+    ids, points, modes = (np.asarray(a) for a in (stress.node_ids, stress.points, stress.modes))
+    ns = points.shape[0] if points.ndim == 2 else -1
+    if ns < 1 or points.shape != (ns, 3) or not np.issubdtype(points.dtype, np.number):
+        return f"stress points are {points.shape} {points.dtype}, expected (ns, 3) numbers with ns >= 1"
+    if ids.shape != (ns,) or not np.issubdtype(ids.dtype, np.integer) or len(np.unique(ids)) != ns:
+        return f"stress node_ids are {ids.shape} {ids.dtype}, expected {ns} distinct integers (one per stress point)"
+    if modes.shape != (ns, 6, nq) or not np.issubdtype(modes.dtype, np.number):
+        return f"stress modes are {modes.shape} {modes.dtype}, expected ({ns}, 6, {nq}) numbers"
+    if stress.scope not in STRESS_SCOPES:
+        return f"stress scope {stress.scope!r}, expected one of {', '.join(STRESS_SCOPES)}"
     return None
 
 
@@ -423,6 +448,9 @@ def non_finite_entries(sid: SID) -> list[str]:
             t = getattr(n, part)
             found += [_first_non_finite(f"node {n.node_id} {part}.M0", t.M0),
                       None if t.M1 is None else _first_non_finite(f"node {n.node_id} {part}.M1", t.M1)]
+    if sid.stress is not None:
+        found += [_first_non_finite("stress points", sid.stress.points),
+                  _first_non_finite("stress modes", sid.stress.modes)]
     return [f for f in found if f]
 
 

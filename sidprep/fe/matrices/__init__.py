@@ -46,7 +46,27 @@ def read_matrices(path) -> FEMatrices:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"matrices = {path}: file not found; check the path")
-    return reader_for(path)(path)
+    fe = reader_for(path)(path)
+    check_finite(fe, path)
+    return fe
+
+
+def check_finite(fe: FEMatrices, path) -> None:
+    """InputError naming the first NaN or infinite entry of K, M or the eigenvalues (a damaged or
+    overflowing file): no such number may reach the eigensolvers (LAPACK, ARPACK)."""
+    for what, A in (("stiffness matrix", fe.K), ("mass matrix", fe.M)):
+        if np.isfinite(A.data).all():            # CSR: the stored entries
+            continue
+        bad = np.flatnonzero(~np.isfinite(A.data))
+        k = bad[0]
+        (n1, d1), (n2, d2) = fe.dofs[np.searchsorted(A.indptr, k, side="right") - 1], fe.dofs[A.indices[k]]
+        raise InputError(f"{path}: the {what} holds {bad.size} non-finite entries (first: {A.data[k]} at node {n1} "
+                         f"DOF {d1}, node {n2} DOF {d2}); the file is damaged or its numbers overflow: write it "
+                         "again")
+    if fe.eigenvalues is not None and not np.all(np.isfinite(fe.eigenvalues)):
+        k = int(np.flatnonzero(~np.isfinite(fe.eigenvalues))[0])
+        raise InputError(f"{path}: eigenvalue {k + 1} is {fe.eigenvalues[k]}, not a finite number; the file is "
+                         "damaged: write it again")
 
 
 #: file ending -> (reader module, what writes it)

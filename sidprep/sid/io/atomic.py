@@ -4,19 +4,27 @@ Every output of sidprep goes through :func:`atomic_path` (text, OBJ, HTML, CSV) 
 :func:`atomic_hdf5` (.sid.h5, results .h5): a full disk or another I/O error becomes one
 InputError naming the file, the temporary file is removed on every exit path (exceptions,
 KeyboardInterrupt, and SIGTERM once ``sidprep.errors.terminate_on_sigterm`` is installed), and
-no final-named file is ever partial.
+no final-named file is ever partial.  The files written inside :func:`output_set` form one set
+(a reduction's .sid.h5, .SID_FEM and .obj): all appear, or none.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
+import signal
 import tempfile
 from pathlib import Path
 
 import h5py
 
 from sidprep.errors import InputError
+
+#: the open output set: (temporary, final) paths renamed together when the set completes
+_OPEN_SET: contextvars.ContextVar[list | None] = contextvars.ContextVar("sidprep_output_set", default=None)
+#: the signals held back while a set is renamed (their handlers run once it is complete)
+_HELD_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 
 @contextlib.contextmanager
@@ -37,7 +45,11 @@ def atomic_path(path: str | os.PathLike):
     try:
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
         yield Path(tmp)
-        os.replace(tmp, path)
+        pending = _OPEN_SET.get()
+        if pending is None:
+            os.replace(tmp, path)
+        else:
+            pending.append((tmp, path))
     except OSError as exc:
         _remove(tmp)
         raise InputError(f"{path}: could not be written ({exc.strerror or exc}); free disk space or "
@@ -45,6 +57,37 @@ def atomic_path(path: str | os.PathLike):
     except BaseException:
         _remove(tmp)
         raise
+
+
+@contextlib.contextmanager
+def output_set():
+    """The files that :func:`atomic_path` writes in the block form one set: each stays under its
+    temporary name until the block succeeds, then all are renamed with SIGINT and SIGTERM held
+    back (a signal takes effect after the last rename); any failure or signal before removes
+    every temporary file: the set of outputs is complete or absent."""
+    pending: list = []
+    token = _OPEN_SET.set(pending)
+    try:
+        yield
+        _OPEN_SET.reset(token)
+        token = None
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+        try:
+            while pending:
+                tmp, path = pending[0]
+                try:
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    raise InputError(f"{path}: could not be written ({exc.strerror or exc}); free disk space or "
+                                     "choose another folder") from None
+                pending.pop(0)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+    finally:
+        if token is not None:
+            _OPEN_SET.reset(token)
+        for tmp, _ in pending:
+            _remove(tmp)
 
 
 @contextlib.contextmanager

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.errors import InputError
+from sidprep.errors import InputError, ascii_line
 from sidprep.sid.io.atomic import atomic_path
 
 
@@ -33,7 +33,7 @@ def write_obj(path, points, triangles, *, length_unit: str = "m", comment: str =
     header = [f"# sidprep surface, body frame K, units: {length_unit}",
               f"# {len(points)} vertices, {len(triangles)} triangles"]
     if comment:
-        header.append(f"# {comment}")
+        header.append(f"# {ascii_line(comment)}")
     lines = header + [f"v {x:.12g} {y:.12g} {z:.12g}" for x, y, z in points]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
     with atomic_path(path) as tmp:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sidprep.errors import InputError
+from sidprep.errors import InputError, ascii_line
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.model import (DIAGONAL, GENERAL, IDENTITY, SID, SYMMETRIC, ZERO, SIDNode, Taylor,
                          frequencies_from_stiffness, inertia_matrix, j6, kind_of_label, skew)
@@ -132,7 +132,7 @@ def format_sid_fem(sid: SID, layout: str = "a-block", comment: str = "") -> str:
     nq = sid.nq
     geo = any(key.startswith("K0") for key in sid.stiffening)
     units = f"{sid.units} (kg, m, s, N, rad)" if sid.units == "SI" else sid.units
-    comment = " ".join(comment.split())                         # line 1 must stay one line
+    comment = ascii_line(comment)                               # line 1 must stay one line of ASCII
     text = (f"sidprep SID, units {units}, Gr/Ge {layout}, {ZEROS_WRITTEN_NOTE}"
             f"{'. ' + comment if comment else ''}{' Geo_Stiff= yes' if geo else ''}")
     lines = [f"{len(sid.nodes):5d}{nq:5d}    :No. nodes, No. modes:{text}", " part",
