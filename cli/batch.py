@@ -58,13 +58,19 @@ def run(args) -> int:
     import json
 
     from sidprep.cli.options import cli_flags
+    from dataclasses import replace
+
     from sidprep.jobs.batch import run_batch
+    from sidprep.jobs.scheduler_address import probe_scheduler
     from sidprep.jobs.options import check_reduce_options
 
     with cli_flags():
         jobs, opts = batch_from_args(args)
         for job in jobs:
             check_reduce_options(job.options)
+    if opts.scheduler:             # a Dask scheduler there, before distributed reads from it
+        opts = replace(opts, scheduler=probe_scheduler(opts.scheduler, "--scheduler" if args.scheduler else
+                                                       "scheduler ="))
     if args.quiet:
         report = run_batch(jobs, opts)
     else:

@@ -104,19 +104,23 @@ def run(args) -> int:
     from sidprep.jobs.assembly import reduce_assembly
     from sidprep.jobs.reduce import reduce
     from sidprep.jobs.output import output_paths, write_reduction
+    from sidprep.jobs.scheduler_address import probe_scheduler
     from sidprep.progress import Phases
 
     ph = Phases(verbose=not args.quiet)
     with cli_flags():
         job = job_from_args(args)
-        if (args.scheduler or args.workers) and not (job.options.parts or job.components):
+        if (args.scheduler is not None or args.workers is not None) and not (job.options.parts or job.components):
             raise InputError("--scheduler and --workers apply to a reduction in parts; add --parts N")
+        if args.workers is not None and args.workers < 1:
+            raise InputError(f"--workers {args.workers}: must be >= 1 (or left out: one per core)")
+        scheduler = probe_scheduler(args.scheduler) if args.scheduler is not None else None
         paths = output_paths(job.mesh, job.output)
         with quiet_native_output():
             if job.components:
-                result = reduce_assembly(job, phases=ph, scheduler=args.scheduler, workers=args.workers)
+                result = reduce_assembly(job, phases=ph, scheduler=scheduler, workers=args.workers)
             else:
-                result = reduce(job.mesh, job.options, phases=ph, scheduler=args.scheduler, workers=args.workers)
+                result = reduce(job.mesh, job.options, phases=ph, scheduler=scheduler, workers=args.workers)
     if not args.quiet:
         for note in result.notes:
             print(note_line(note), file=sys.stderr)

@@ -140,6 +140,8 @@ def run(args) -> int:
     def beside(suffix: str) -> Path:
         return out.with_name(base + suffix)
 
+    animate = args.animate or scene.output.animate
+    surfaces = animation_surfaces(scene) if animate else {}          # its OBJ files read before the run
     settings = replace(scene.settings, **solver_overrides(args))     # the run's: the command line's overrides
     with phases("simulate", f"0 .. {scene.t_end:g} s, {settings.method}, step {settings.h:g} s"):
         try:
@@ -156,11 +158,11 @@ def run(args) -> int:
             outputs["plot"] = str(plot_signals(result, signals, beside(".png"), title=scene.title))
         if args.csv or scene.output.csv:
             outputs["csv"] = str(write_csv(result, signals, beside(".csv")))
-    if args.animate or scene.output.animate:
+    if animate:
         from sidprep.solver.animation import write_animation
 
         with phases("animate", f"{len(result.t)} frames"):
-            outputs["animation"] = str(write_animation(result, animation_surfaces(scene), beside(".pvd")))
+            outputs["animation"] = str(write_animation(result, surfaces, beside(".pvd")))
     report = result.effects.text()
     if args.json:
         s = summary(scene, result, outputs)

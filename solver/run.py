@@ -20,7 +20,7 @@ import numpy as np
 
 from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.compile.layout import build_layout, constraint_count
-from sidprep.solver.compile.path_range import path_marker_problems
+from sidprep.solver.compile.path_range import left_path, path_marker_problems
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_warning, energy_balance
 from sidprep.solver.equations.aot import compile_events
@@ -330,6 +330,10 @@ class Run:
             message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}{numerical_cause(balance, st)}"
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
+        gone = left_path(self.system, result)
+        if gone:
+            result.stats["failed"] = gone
+            raise SimulationFailed(gone + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         return result
 
 

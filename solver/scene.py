@@ -408,13 +408,35 @@ def empty_result(system):
 
 
 def _check_signals(file: Path, scene_signals, system) -> None:
-    """Every requested signal must exist (checked on an empty Result of this system)."""
+    """Every requested signal must exist (checked on an empty Result of this system) and have values:
+    a joint's effort is reported by its driver only, its coordinate and rate only for a joint with a
+    coordinate (the results hold NaN for the others)."""
     empty = empty_result(system)
     for name in scene_signals:
         try:
             signal(empty, name)
         except InputError as exc:
             raise InputError(f"{file}: [output] signals: {exc}") from None
+        problem = _undefined_joint_signal(name, system)
+        if problem:
+            raise InputError(f"{file}: [output] signals: {name!r}: {problem}")
+
+
+def _undefined_joint_signal(name: str, system) -> str | None:
+    """Why the joint signal ``name`` has no values in any run of ``system`` (with the fix), or None."""
+    entity, _, qty = name.partition(".")
+    joint = next((j for j in system.joints if j.name == entity), None)
+    if joint is None:
+        return None
+    drivers = [d.name for d in system.drivers if d.joint is joint]
+    if qty == "effort":
+        fix = (f"use {' or '.join(n + '.effort' for n in drivers)} (its driver carries the load)" if drivers
+               else "the load a joint carries is <joint>.force_local.<x|y|z> and <joint>.torque_local.<x|y|z>")
+        return f"joint {entity!r} has no effort of its own, only a driver reports one; {fix}"
+    if qty in ("coordinate", "rate") and joint.coordinate_kind is None:
+        return (f"a {joint.kind} joint has no coordinate; use <joint>.force.<x|y|z> or the markers' positions, or a "
+                "revolute, cylindrical or prismatic joint")
+    return None
 
 
 def load_scene(path, *, t_end: float | None = None) -> Scene:

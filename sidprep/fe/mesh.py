@@ -12,6 +12,8 @@ DOFs are node-interleaved: DOF 3*i + c is component c (x, y, z) of node i.
 from __future__ import annotations
 
 import hashlib
+import os
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping
@@ -149,6 +151,7 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
         raise InputError(f"--order {order}: element order must be 1 (tet4) or 2 (tet10)")
     if size is not None and not (np.isfinite(size) and size > 0):
         raise InputError(f"--size {size}: the element size must be a positive length")
+    check_file_content(path)
     if suffix == ".msh" or suffix in GEOMETRY_SUFFIXES:
         raw = read_gmsh(path, size=size, order=order)
     else:
@@ -161,6 +164,57 @@ def read_mesh(path, *, size: float | None = None, order: int = 2) -> FEMesh:
         note = f"mesh has {n_parts} disconnected parts; each adds 6 rigid-body modes"
         mesh = replace(mesh, notes=mesh.notes + (note,))
     return mesh
+
+
+#: a file this large whose holes (never-written regions, read as zeros) cover more than HOLE_SHARE of it
+#: is not a mesh a mesher wrote: refused before a reader scans its zeros (minutes for 2 GB)
+HOLE_CHECK_BYTES = 1 << 20
+HOLE_SHARE = 0.5
+#: endings of text mesh formats (and ASCII .msh): a NUL byte in their first or last SCAN_BYTES is damage
+TEXT_SUFFIXES = (".inp", ".bdf", ".nas", ".dat", ".geo", ".mesh")
+SCAN_BYTES = 1 << 20
+
+
+def hole_bytes(path) -> int:
+    """Bytes of ``path`` in holes (sparse regions: SEEK_DATA / SEEK_HOLE; 0 where the file system
+    does not report them)."""
+    size = os.path.getsize(path)
+    holes, pos = 0, 0
+    with open(path, "rb") as f:
+        fd = f.fileno()
+        try:
+            while pos < size:
+                try:
+                    data = os.lseek(fd, pos, os.SEEK_DATA)
+                except OSError:                  # ENXIO: no data after pos
+                    return holes + size - pos
+                holes += data - pos
+                pos = os.lseek(fd, data, os.SEEK_HOLE)
+        except (OSError, AttributeError):        # SEEK_DATA unsupported: no holes known
+            return 0
+    return holes
+
+
+def check_file_content(path: Path) -> None:
+    """Refuse, before a reader scans it, a file that cannot be a mesh however long it is: one mostly
+    made of holes (a sparse file), or a text format (TEXT_SUFFIXES, ASCII .msh) with NUL bytes at its
+    start or end; the readers' work is then bounded by what the file holds."""
+    size = path.stat().st_size
+    if size >= HOLE_CHECK_BYTES:
+        holes = hole_bytes(path)
+        if holes > HOLE_SHARE * size:
+            raise InputError(f"{path}: {holes / 2**20:.0f} of its {size / 2**20:.0f} MiB were never written (a sparse "
+                             "file: they read as zeros); not a mesh: write the file again")
+    suffix = path.suffix.lower()
+    with open(path, "rb") as f:
+        head = f.read(SCAN_BYTES)
+        f.seek(max(size - SCAN_BYTES, len(head)))
+        tail = f.read(SCAN_BYTES)
+    text = suffix in TEXT_SUFFIXES or (suffix == ".msh" and re.match(rb"\$MeshFormat\s+\S+\s+0\s", head))
+    if text and (b"\0" in head or b"\0" in tail):
+        where = head.find(b"\0") if b"\0" in head else size - len(tail) + tail.find(b"\0")
+        raise InputError(f"{path}: a NUL byte at byte {where} of a text mesh format; the file is damaged or "
+                         "not what its ending says: write it again")
 
 
 def file_sha256(path) -> str:

@@ -34,6 +34,7 @@ from sidprep.jobs.jobfile import check_inside, job_from_table, split_job_table
 from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.jobs.output import output_paths, write_reduction
 from sidprep.jobs.reduce import reduce
+from sidprep.jobs.scheduler_address import scheduler_address
 from sidprep.progress import peak_memory_mb
 from sidprep.reduction.craig_bampton import reduction_peak_bytes
 from sidprep.sid.io.atomic import atomic_path
@@ -64,6 +65,8 @@ class BatchOptions:
     def __post_init__(self):
         if self.workers is not None and not self.workers >= 1:
             raise InputError(f"workers = {self.workers}: must be >= 1 (or left out: one per core)")
+        if self.scheduler is not None:
+            scheduler_address(self.scheduler, "scheduler =")
         if self.memory_limit_mb is not None and not (self.memory_limit_mb > 0 and math.isfinite(self.memory_limit_mb)):
             raise InputError(f"memory_limit_mb = {self.memory_limit_mb}: must be a positive number of MiB "
                              "(or left out: a share of the available memory)")

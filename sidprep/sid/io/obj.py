@@ -52,8 +52,13 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(f"{path}: no such OBJ file; check the path")
     try:
         mesh = trimesh.load(str(path), force="mesh", process=False)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the OBJ surface ({exc}); give a triangulated Wavefront OBJ file")
-    if not len(mesh.faces):
+    except (OSError, ValueError, IndexError, KeyError, TypeError) as exc:   # a face on a vertex the file lacks: IndexError
+        raise InputError(f"{path}: cannot read the OBJ surface ({type(exc).__name__}: {exc}); give a triangulated "
+                         "Wavefront OBJ file whose faces name its own vertices") from None
+    points, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    if not len(faces):
         raise InputError(f"{path}: the OBJ file has no faces; give a triangulated surface")
-    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    if faces.min() < 0 or faces.max() >= len(points) or not np.isfinite(points).all():
+        raise InputError(f"{path}: faces name vertices outside 1..{len(points)} or vertices are not finite; "
+                         "give a triangulated Wavefront OBJ file whose faces name its own vertices")
+    return points, faces
