@@ -226,11 +226,11 @@ def recover_stress(results, body: str | None = None, *, at=None, hot_spots: int 
     -------
     StressRecovery
     """
+    if at is not None and (len(at) != 3 or not np.all(np.isfinite(np.asarray(at, dtype=float)))):
+        raise InputError(f"--at {','.join(map(str, at))}: give three finite coordinates X,Y,Z (m, body frame)")
     path = Path(results)
     rf = read_results(path)
     name, sid_file, stress = body_stress_modes(path, rf, body)
-    if at is not None and (len(at) != 3 or not np.all(np.isfinite(np.asarray(at, dtype=float)))):
-        raise InputError(f"--at {','.join(map(str, at))}: give three finite coordinates X,Y,Z (m, body frame)")
     history_at = None if at is None else nearest_node(stress, at, name)
     q = np.asarray(rf.result.bodies[name].q, dtype=float)
     if q.shape[1] != stress.modes.shape[2]:

@@ -1,5 +1,5 @@
-"""Issue 14 items 4, 8, 9 (job file): options validated before the work, one-line errors, results on
-stdout and diagnostics on stderr, the shipped job file of the README tour."""
+"""Options validated before the work, one-line errors, results on stdout and diagnostics on stderr,
+the shipped job file of the README tour."""
 
 import json
 import time

@@ -1,4 +1,5 @@
-"""Messages that explain themselves (issue 27): hints that fit the input and the options given."""
+"""Messages that explain themselves: hints that fit the input and the options given, one fix per
+message, warnings in the one form of every command."""
 
 import subprocess
 import sys

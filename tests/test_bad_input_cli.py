@@ -1,5 +1,5 @@
-"""Issue 26: the round-3 corpus of bad inputs and faults, run as a user would (the ``sidprep``
-command in a subprocess: a native crash or hang must show as such, not kill the test run).
+"""Bad inputs and faults run as a user meets them: the ``sidprep`` command in a subprocess (a
+native crash or a hang must show as such, not kill the test run).
 
 Every case states its class (``CLASS``) and what must happen: exit 2 with one line
 ``sidprep: error: ...`` naming the problem (or the expected exit code and text); never a
@@ -31,7 +31,7 @@ TIMEOUT_S = 300
 FULL_DISK_BYTES = 200_000
 FREE_BYTES = 10_000
 
-#: the classes of issue 26 and their cases (filled by @case)
+#: the cases by name (filled by @case), each of a class (Case.kind)
 CASES: dict[str, "Case"] = {}
 
 
