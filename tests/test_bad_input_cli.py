@@ -452,6 +452,128 @@ def scene_make_text_with_control_characters(tmp):
     return ["simulate", scene, "-q", "-o", tmp / "r.h5"], 2, r"make it with `evil\\n\\x1b\[31m red"
 
 
+# ------------------------------------------------------------------------------------------------
+# 9. the newer features: nested TOML, modal stresses, parts and clusters, solver settings, meshes,
+#    OBJ surfaces, moving masses, signals
+# ------------------------------------------------------------------------------------------------
+
+NESTED_TOML = {"arrays": lambda n: "x = " + "[" * n + "]" * n + "\n",
+               "dotted_key": lambda n: ".".join(["a"] * n) + " = 1\n"}
+for _command, _kind in (("simulate", "arrays"), ("reduce", "dotted_key"), ("batch", "arrays")):
+    CASES[f"toml_200k_levels_{_command}"] = Case(f"toml_200k_levels_{_command}", "internal", lambda tmp, c=_command, k=_kind: (
+        [c, _written(tmp / "deep.toml", NESTED_TOML[k](200_000))], 2,
+        r"deep\.toml: (arrays or tables nested 200000 levels deep|a dotted key of more than 64 parts)"))
+
+
+def _written(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@case("internal")
+def stress_at_nan(tmp):
+    return ["stress", tmp / "r.h5", "--at", "nan,0,0"], 2, r"--at nan,0\.0,0\.0: give three finite coordinates"
+
+
+@case("internal")
+def parts_with_workers_minus_3(tmp):
+    return ["reduce", BAR, "--parts", 2, "--workers", -3, "-q", "-o", tmp / "b.sid.h5"], 2, r"--workers -3: must be >= 1"
+
+
+@case("silent")
+def parts_with_workers_0(tmp):
+    return ["reduce", BAR, "--parts", 2, "--workers", 0, "-q", "-o", tmp / "b.sid.h5"], 2, r"--workers 0: must be >= 1"
+
+
+@case("internal")
+def scheduler_address_malformed(tmp):
+    return (["reduce", BAR, "--parts", 2, "--scheduler", "tcp://host:99999", "-q", "-o", tmp / "b.sid.h5"], 2,
+            r"--scheduler tcp://host:99999: not a scheduler address; give .* tcp://HOST:PORT")
+
+
+@case("internal")
+def study_scheduler_of_another_scheme(tmp):
+    return ["batch", study(tmp, 'scheduler = "http://10.0.0.5:8786"'), "-q"], 2, r"unknown scheme 'http'"
+
+
+@case("internal")
+def simulate_step_1e300(tmp):
+    return (["simulate", pendulum(tmp), "--step", "1e300", "-q", "-o", tmp / "r.h5"], 2,
+            r"step = 1e\+300 s is longer than t_end = 1 s")
+
+
+@case("silent")
+def simulate_rtol_with_fixed_step_rk4(tmp):
+    return (["simulate", pendulum(tmp), "--method", "rk4", "--rtol", "1e-6", "-q", "-o", tmp / "r.h5"], 2,
+            r"rtol = 1e-06: rk4 steps at the fixed step h and has no error control")
+
+
+@case("hang")
+def sparse_2gb_mesh(tmp):
+    path = tmp / "sparse.msh"
+    with open(path, "wb") as f:
+        f.write((BAR.read_bytes())[:4000])
+        f.truncate(2 << 30)
+    return ["modes", path, "--count", 2, "-q"], 2, r"sparse\.msh: 20\d\d of its 2048 MiB were never written"
+
+
+@case("hang")
+def text_mesh_of_zeros(tmp):
+    path = tmp / "zeros.inp"
+    path.write_bytes(bytes(3 << 20))
+    return ["reduce", path, "-q", "-o", tmp / "z.sid.h5"], 2, r"zeros\.inp: a NUL byte at byte 0 of a text mesh format"
+
+
+@case("internal")
+def obj_face_index_3e9(tmp):
+    pendulum(tmp)
+    (tmp / "pendulum" / "box.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3000000000\n")
+    box = '\n[bodies.box]\ntype = "rigid"\nmass = 1.0\ninertia = [0.1, 0.1, 0.1]\nobj = "box.obj"\n'
+    return (["simulate", pendulum(tmp, append=box), "--animate", "-q", "--t-end", 0.01, "-o", tmp / "r.h5"], 2,
+            r"box\.obj: cannot read the OBJ surface \(IndexError")
+
+
+@case("silent")
+def moving_mass_slides_off_its_rail(tmp):
+    """100 kg released at s = 2 m with 10 m/s along the 15 m rail: off its end at ~1.3 s."""
+    text = (ROOT / "examples" / "moving_mass" / "scene.toml").read_text()
+    text = re.sub(r"(?m)^t_end\s*=.*$", "t_end = 2.0", text).replace(
+        "position = [2.0, 0.0, 0.0]", "position = [2.0, 0.0, 0.0]\nvelocity = [10.0, 0.0, 0.0]")
+    return (["simulate", _written(tmp / "scene.toml", text), "-q", "-o", tmp / "r.h5"], 2,
+            r"on_path joint slide: marker slider left the path of rail \(s = 0 \.\. 15 m\) at t = 1\.[23]\d* s")
+
+
+@case("silent")
+def effort_of_a_joint_without_driver(tmp):
+    scene = pendulum(tmp, {'signals = ["hinge.coordinate"': 'signals = ["hinge.effort", "hinge.coordinate"'})
+    return (["simulate", scene, "-q", "-o", tmp / "r.h5"], 2,
+            r"signals: 'hinge\.effort': joint 'hinge' has no effort of its own")
+
+
+def test_a_mesh_path_with_non_ascii_characters_gives_all_three_files(tmp_path):
+    mesh = tmp_path / "bär é.msh"
+    shutil.copy(BAR, mesh)
+    proc = sidprep("reduce", mesh, "--modes", 2, "-q", cwd=tmp_path)
+    check_outcome(proc, 0, "")
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["bär é.SID_FEM", "bär é.msh", "bär é.obj", "bär é.sid.h5"], names
+    assert "# sidprep reduce b\\xe4r \\xe9.msh" in (tmp_path / "bär é.obj").read_text(encoding="ascii")
+
+
+def test_a_failed_run_keeps_its_results_under_a_name_of_their_own(tmp_path):
+    """rk45 with rtol = 1 gives up at once; its results are r.failed.h5, r.h5 is not written."""
+    proc = sidprep("simulate", pendulum(tmp_path), "--method", "rk45", "--rtol", 1, "--t-end", 0.05, "-q", "-o",
+                   tmp_path / "r.h5")
+    check_outcome(proc, 2, r"the results up to t = .* s are kept in .*r\.failed\.h5 \(.*r\.h5 not written\)")
+    assert (tmp_path / "r.failed.h5").is_file() and not (tmp_path / "r.h5").exists()
+
+
+def test_the_progress_line_names_the_method_of_the_run(tmp_path):
+    proc = sidprep("simulate", pendulum(tmp_path), "--method", "rk4", "--step", "1e-4", "--t-end", 0.002, "-o",
+                   tmp_path / "r.h5")
+    check_outcome(proc, 0, r"simulate 0 \.\. 0\.002 s, rk4, step 0\.0001 s")
+
+
 # 6. interrupted work and shared folders (batch, simulate): the tests after the corpus run
 
 # ------------------------------------------------------------------------------------------------

@@ -1,13 +1,18 @@
 """Options validated before the work, one-line errors, results on stdout and diagnostics on stderr,
 the shipped job file of the README tour."""
 
+import contextlib
 import json
+import re
+import socket
+import threading
 import time
 from pathlib import Path
 
 import pytest
 
 from sidprep.cli.main import main
+from sidprep.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 BAR = ROOT / "data" / "meshes" / "bar.msh"
@@ -108,3 +113,141 @@ def test_a_mesh_given_as_a_scene_is_rejected_in_one_line():
 
     with pytest.raises(InputError, match=r"bar.msh: not a scene file \(a .toml file\); reduce the mesh first"):
         require_toml(BAR, "scene file", "reduce the mesh first: sidprep reduce " + str(BAR))
+
+
+# ------------------------------------------------------------------------------------------------
+# --scheduler: the address's form, and a Dask scheduler at it before distributed reads from it
+# ------------------------------------------------------------------------------------------------
+
+#: a silent peer is given up after this (the probe's own limit is PROBE_TIMEOUT_S)
+SILENT_PEER_TIMEOUT_S = 0.5
+
+
+@contextlib.contextmanager
+def peer(first_bytes: bytes | None):
+    """A TCP server on localhost that sends ``first_bytes`` to every connection (None: sends nothing)
+    and keeps it open; yields its address."""
+    server = socket.create_server(("127.0.0.1", 0))
+    stop = threading.Event()
+
+    def serve():
+        server.settimeout(0.1)
+        held = []
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            if first_bytes:
+                conn.sendall(first_bytes)
+            held.append(conn)
+        for conn in held:
+            conn.close()
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        stop.set()
+        thread.join()
+        server.close()
+
+
+@pytest.mark.parametrize("address", ["http://10.0.0.5:8786", "tcp://host", "tcp://host:0", "tcp://host:70000",
+                                     "tcp://:8786", "tcp://host:8786/path", "tcp://user@host:8786", "", "host:port"])
+def test_malformed_scheduler_addresses_are_refused_by_their_form(address):
+    from sidprep.jobs.scheduler_address import scheduler_address
+
+    with pytest.raises(InputError, match=r"^--scheduler .*: (not a scheduler address|unknown scheme).*tcp://HOST:PORT"):
+        scheduler_address(address)
+
+
+def test_a_scheduler_address_gives_host_and_port():
+    from sidprep.jobs.scheduler_address import scheduler_address
+
+    assert scheduler_address("tcp://10.0.0.5:8786") == ("10.0.0.5", 8786)
+    assert scheduler_address("node7:8786") == ("node7", 8786)
+    assert scheduler_address("tcp://[::1]:8786") == ("::1", 8786)
+
+
+@pytest.mark.parametrize("first_bytes", [
+    b"\xff" * 8,                                          # "allocate 1.8e19 bytes" to distributed's reader
+    b"SSH-2.0-OpenSSH_9.6\r\n",                           # another service that speaks first
+    (58).to_bytes(8, "little") + bytes(58),               # a plausible length, then no frames
+    b"\x10\x00\x00\x00\x00\x00\x00\x00" + b"HTTP/1.1",    # 16 bytes announced, 8 sent, then silence
+], ids=["huge_length", "ssh", "zeros", "short"])
+def test_a_peer_that_is_not_a_dask_scheduler_is_refused_in_bounded_time(first_bytes):
+    from sidprep.jobs.scheduler_address import probe_scheduler
+
+    with peer(first_bytes) as address:
+        t0 = time.perf_counter()
+        with pytest.raises(InputError, match=r"is not a Dask scheduler|cannot reach"):
+            probe_scheduler(address, timeout=SILENT_PEER_TIMEOUT_S)
+        assert time.perf_counter() - t0 < 5 * SILENT_PEER_TIMEOUT_S
+
+
+def test_a_silent_peer_and_a_closed_port_are_refused():
+    from sidprep.jobs.scheduler_address import probe_scheduler
+
+    with peer(None) as address:
+        with pytest.raises(InputError, match=r"is not a Dask scheduler|cannot reach the scheduler \(timed out\)"):
+            probe_scheduler(address, timeout=SILENT_PEER_TIMEOUT_S)
+    with pytest.raises(InputError, match=r"cannot reach the scheduler \(Connection refused\)"):
+        probe_scheduler(address, timeout=SILENT_PEER_TIMEOUT_S)
+
+
+def test_a_dask_scheduler_passes_the_probe():
+    """The handshake layout read by the probe is that of the installed distributed."""
+    from distributed import LocalCluster
+
+    from sidprep.jobs.scheduler_address import probe_scheduler
+
+    with LocalCluster(n_workers=0, processes=False, protocol="tcp", dashboard_address=None) as cluster:
+        assert probe_scheduler(cluster.scheduler_address) == cluster.scheduler_address
+
+
+# ------------------------------------------------------------------------------------------------
+# solver settings that cannot mean what they say, and signals without values
+# ------------------------------------------------------------------------------------------------
+
+PENDULUM = ROOT / "examples" / "flexible_pendulum" / "scene.toml"
+
+
+@pytest.mark.parametrize("overrides, needle", [
+    ({"h": 2.0}, "step = 2 s is longer than t_end = 1 s"),
+    ({"h": 1e300}, "step = 1e+300 s is longer than t_end = 1 s"),
+    ({"method": "rk4", "rtol": 1e-6}, "rtol = 1e-06: rk4 steps at the fixed step h"),
+])
+def test_settings_that_cannot_apply_are_refused_before_the_run(overrides, needle):
+    from sidprep.solver.scene import load_scene, simulate
+
+    with pytest.raises(InputError, match=re.escape(needle)):
+        simulate(load_scene(PENDULUM), **overrides)
+
+
+@pytest.mark.parametrize("signal_name, needle", [
+    ("hinge.effort", "joint 'hinge' has no effort of its own"),
+])
+def test_signals_that_would_be_all_nan_are_refused_at_scene_load(tmp_path, signal_name, needle):
+    from sidprep.solver.scene import load_scene
+
+    for f in PENDULUM.parent.iterdir():
+        (tmp_path / f.name).symlink_to(f)
+    scene = tmp_path / "s.toml"
+    scene.write_text(PENDULUM.read_text().replace('signals = ["', f'signals = ["{signal_name}", "'))
+    with pytest.raises(InputError, match=re.escape(needle)):
+        load_scene(scene)
+
+
+def test_a_joint_without_a_coordinate_has_no_coordinate_signal():
+    from sidprep.solver.model.system import System
+    from sidprep.solver.model.bodies import RigidBody
+    from sidprep.solver.model.joints import Spherical
+    from sidprep.solver.scene import _undefined_joint_signal
+
+    system = System()
+    body = system.add(RigidBody(1.0, [0, 0, 0], [1.0, 1.0, 1.0], name="ball")) or system.bodies[-1]
+    system.add(Spherical(system.ground.marker(name="o"), body.marker(name="c"), name="socket"))
+    assert "has no coordinate" in _undefined_joint_signal("socket.coordinate", system)
+    assert _undefined_joint_signal("socket.force_local", system) is None
