@@ -731,3 +731,63 @@ def _stderr_so_far(proc) -> bool:
     import select
 
     return bool(select.select([proc.stderr], [], [], 0)[0])
+
+
+# ------------------------------------------------------------------------------------------------
+# signals while the outputs are written and while the process ends
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)], ids=["sigterm", "sigint"])
+@pytest.mark.parametrize("when", ["sid_fem", "obj"])
+def test_a_signal_while_a_reduction_is_written_leaves_no_file(tmp_path, monkeypatch, capsys, sig, code, when):
+    """The signal arrives while the second or third file of the set is written (.SID_FEM, .obj):
+    none of the three appears, no temporary file is left, one line and the signal's exit code."""
+    import sidprep.sid.io as sid_io
+    from sidprep.cli.main import main
+
+    writer = {"sid_fem": "_write_sid_fem", "obj": "_write_surface"}[when]
+    original = getattr(sid_io, writer)
+    fmt = next(f for f in sid_io.FORMATS if f.write is original)
+
+    def interrupted(sid, path, comment):
+        os.kill(os.getpid(), sig)           # delivered at once: the handler raises in this thread
+        return original(sid, path, comment)
+
+    monkeypatch.setattr(sid_io, "FORMATS", tuple(f if f is not fmt else type(f)(f.name, f.suffixes, f.read, interrupted)
+                                                 for f in sid_io.FORMATS))
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        assert main(["reduce", str(BAR), "--modes", "2", "-q", "-o", str(tmp_path / "bar.sid.h5")]) == code
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert capsys.readouterr().err.strip().splitlines()[-1] in ("sidprep: terminated", "sidprep: interrupted")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_while_the_process_ends_gives_its_exit_code_and_one_line(capsys):
+    from sidprep.cli.main import ShutdownSignals
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        shutdown = ShutdownSignals()
+        assert shutdown.exit_code(0) == 0
+        os.kill(os.getpid(), signal.SIGTERM)    # noted, not raised: the exit handlers go on
+        assert shutdown.exit_code(0) == 143
+    finally:
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+    assert capsys.readouterr().err == "sidprep: terminated\n"
+
+
+def test_sigterm_during_a_process_end_is_not_a_traceback(tmp_path):
+    """A signal that lands in the exit handlers of a finished command (here an exit handler that
+    sends it): exit 143 and one line, no traceback, the command's output complete."""
+    script = ("import atexit, os, signal, sys\n"
+              "from sidprep.cli import main\n"
+              "atexit.register(lambda: os.kill(os.getpid(), signal.SIGTERM))\n"
+              f"sys.argv = ['sidprep', 'info', {str(PENDULUM / 'bar.sid.h5')!r}]\n"
+              "main.command()\n")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env(), timeout=TIMEOUT_S)
+    assert proc.returncode == 143, proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stderr.strip().splitlines()[-1] == "sidprep: terminated"
+    assert "mass" in proc.stdout

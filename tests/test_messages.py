@@ -35,3 +35,38 @@ def test_static_advice_fits_the_options():
 def test_a_results_file_passed_to_simulate_is_pointed_to_plot_and_animate():
     r = sidprep("simulate", "run.results.h5")
     assert r.returncode == 2 and "sidprep plot run.results.h5" in r.stderr and "sidprep animate" in r.stderr
+
+
+def test_a_damaged_sid_in_a_scene_is_named_with_one_fix(tmp_path):
+    """The SID reader's message (file, problem, fix) reaches the user once, with the scene's place."""
+    import shutil
+
+    import h5py
+    import numpy as np
+
+    for f in (ROOT / "examples" / "flexible_pendulum").iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    with h5py.File(tmp_path / "bar.sid.h5", "r+") as f:
+        f["refmod"].attrs["mass"] = np.nan
+    r = sidprep("simulate", "scene.toml", "-q", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.count("regenerate") == 1 and r.stderr.count("bar.sid.h5") == 2, r.stderr   # the file, and check's
+    assert "[bodies.bar] sid: bar.sid.h5: not a physically possible body: non-finite number mass" in r.stderr
+
+
+def test_library_warnings_print_as_warnings_not_notes():
+    from sidprep.cli.main import WARNING_PREFIX, note_line
+
+    assert note_line(WARNING_PREFIX + "rotation off by 2 %") == "sidprep: warning: rotation off by 2 %"
+    assert note_line("material: steel used") == "note: material: steel used"
+    assert note_line(WARNING_PREFIX + "a\nb") == "sidprep: warning: a\\nb"
+
+
+def test_no_command_prints_a_note_that_is_a_warning():
+    """Every place a command prints library notes goes through note_line (no "note: WARNING:")."""
+    import re
+
+    for path in (ROOT / "cli").glob("*.py"):
+        text = path.read_text()
+        assert not re.search(r'f"note: \{note\}"', text) or path.name == "main.py", path
+        assert 'print(f"WARNING' not in text, path

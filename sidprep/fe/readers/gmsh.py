@@ -205,7 +205,7 @@ def _gmsh_session(options: dict):
     own = not gmsh.isInitialized()
     if own:
         gmsh.initialize(readConfigFiles=False, interruptible=False)
-        _python_sigpipe()
+        _python_signals()
     options = {"General.Terminal": 0, "General.Verbosity": 0, **options}
     get = {str: gmsh.option.getString, float: gmsh.option.getNumber}
     put = {str: gmsh.option.setString, float: gmsh.option.setNumber}
@@ -229,13 +229,17 @@ def _gmsh_session(options: dict):
                 put[kinds[name]](name, value)
 
 
-def _python_sigpipe() -> None:
-    """Give SIGPIPE back the disposition Python gave it (ignored: writes to a closed pipe raise
-    BrokenPipeError): gmsh.initialize resets it to "terminate" in C, and a later write to a pipe whose
-    reader died (a killed pool worker, sidprep.jobs.parts) ended the process silently with exit 141."""
-    handler = signal.getsignal(signal.SIGPIPE)
-    with contextlib.suppress(ValueError, TypeError):      # not the main thread / a handler set in C
-        signal.signal(signal.SIGPIPE, handler)
+def _python_signals() -> None:
+    """Give SIGPIPE, SIGINT and SIGTERM back the dispositions Python gave them: gmsh.initialize
+    resets them in C.  SIGPIPE ignored (writes to a closed pipe raise BrokenPipeError): else a later
+    write to a pipe whose reader died (a killed pool worker, sidprep.jobs.parts) ended the process
+    silently with exit 141; SIGINT / SIGTERM to Python's handlers (KeyboardInterrupt,
+    sidprep.errors.Terminated): else a signal while the outputs were written killed the process
+    before it removed its temporary files."""
+    for signum in (signal.SIGPIPE, signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(signum)
+        with contextlib.suppress(ValueError, TypeError):      # not the main thread / a handler set in C
+            signal.signal(signum, handler)
 
 
 def _index_of(tags: np.ndarray, wanted: np.ndarray, path) -> np.ndarray:
