@@ -38,9 +38,7 @@ class SimulationFailed(InputError):
 
 class Terminated(BaseException):
     """SIGTERM received (``terminate_on_sigterm``): unwinds like KeyboardInterrupt, so that
-    temporary files are removed; the CLI exits 143 (128 + SIGTERM)."""
-
-    exit_code = 143
+    temporary files are removed; the CLI exits 143 (128 + SIGTERM, ``sidprep.cli.main.SIGNAL_EXITS``)."""
 
 
 def _raise_terminated(signum, frame):

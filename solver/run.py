@@ -327,7 +327,9 @@ class Run:
         balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance)
         result.stats["energy_balance"] = balance
         if stepper.status == "failed":
-            message = f"{stepper.name}: {self.failure_cause(stepper, problem.sizes)}{numerical_cause(balance, st)}"
+            cause = self.failure_cause(stepper, problem.sizes)
+            named = cause if cause.startswith(f"{stepper.name}: ") else f"{stepper.name}: {cause}"
+            message = named + numerical_cause(balance, st)
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         gone = left_path(self.system, result)

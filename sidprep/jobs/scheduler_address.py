@@ -38,7 +38,7 @@ def scheduler_address(text: str, where: str = "--scheduler") -> tuple[str, int]:
     """(host, port) of a scheduler address ``tcp://HOST:PORT`` (or ``HOST:PORT``); InputError starting
     with ``where`` (the option or the file's key) for any other form."""
     text = str(text).strip()
-    fix = f"give the scheduler's address as tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786)"
+    fix = "give the scheduler's address as tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786)"
     shown = printable(text)
     parts = urlsplit(text if "://" in text else f"tcp://{text}")
     if parts.scheme not in SCHEMES:
