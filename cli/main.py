@@ -49,18 +49,6 @@ def one_line_warning(message, category, filename, lineno, file=None, line=None) 
     print(f"sidprep: warning: {printable(message)}", file=sys.stderr)
 
 
-#: how a library note that is a warning starts (e.g. sidprep.jobs.reduce's rotation check)
-WARNING_PREFIX = "WARNING: "
-
-
-def note_line(note: str) -> str:
-    """The line a command prints on stderr for a library note: ``note: ...``, or for a note that is a
-    warning the warning line of every command, ``sidprep: warning: ...``."""
-    if note.startswith(WARNING_PREFIX):
-        return f"sidprep: warning: {printable(note[len(WARNING_PREFIX):])}"
-    return f"note: {note}"
-
-
 def check_finite_options(args) -> None:
     """Every number option is finite: argparse's float() accepts "nan" and "inf"."""
     for key, value in vars(args).items():

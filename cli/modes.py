@@ -42,7 +42,7 @@ def run(args) -> int:
     import json
 
     from sidprep.jobs.modal import modal_analysis
-    from sidprep.cli.main import note_line
+    from sidprep.errors import note_line
     from sidprep.fe.linalg import fast_blas
     from sidprep.progress import Phases, peak_memory_mb
 

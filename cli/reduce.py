@@ -98,8 +98,7 @@ def run(args) -> int:
     import json
 
     from sidprep.cli.options import cli_flags, quiet_native_output
-    from sidprep.cli.main import note_line
-    from sidprep.errors import InputError
+    from sidprep.errors import InputError, note_line
     from sidprep.reduction.fe_checks import format_checks
     from sidprep.jobs.assembly import reduce_assembly
     from sidprep.jobs.reduce import reduce

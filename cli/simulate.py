@@ -117,12 +117,11 @@ def not_a_scene_hint(path: str) -> str:
 
 
 def run(args) -> int:
-    from sidprep.cli.main import WARNING_PREFIX, note_line
     from sidprep.progress import Phases, SimulationProgress
     from sidprep.tables import require_toml
     from sidprep.solver.results import json_safe, plot_signals, write_csv, write_results
     from sidprep.solver.scene import load_scene, simulate
-    from sidprep.errors import InputError, SimulationFailed
+    from sidprep.errors import WARNING_PREFIX, InputError, SimulationFailed, note_line
 
     require_toml(args.scene, "scene file", not_a_scene_hint(args.scene))
     phases = Phases(verbose=not args.quiet)

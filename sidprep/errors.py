@@ -19,6 +19,18 @@ def printable(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
 
 
+#: how a library note that is a warning starts (e.g. sidprep.jobs.reduce's rotation check)
+WARNING_PREFIX = "WARNING: "
+
+
+def note_line(note: str) -> str:
+    """The line a command prints on stderr for a library note: ``note: ...``, or for a note that is a
+    warning the warning line of every command, ``sidprep: warning: ...``."""
+    if note.startswith(WARNING_PREFIX):
+        return f"sidprep: warning: {printable(note[len(WARNING_PREFIX):])}"
+    return f"note: {note}"
+
+
 def ascii_line(text: str) -> str:
     """``text`` as one line of ASCII for a comment in an ASCII file (OBJ, SID_FEM): whitespace runs
     as one blank, other characters outside printable ASCII as Python escapes (``b\\xe4r.msh``)."""
