@@ -24,6 +24,8 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
+import numpy as np
+
 from sidprep.errors import InputError
 from sidprep.fe.matrices.record import FEMatrices
 
