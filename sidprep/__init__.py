@@ -19,6 +19,7 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     run_batch(jobs, BatchOptions(...)) -> BatchReport
     beam(BeamOptions(...)) -> SID                           (analytical Euler-Bernoulli beam)
     load_scene(path) -> Scene;  simulate(scene) -> Result  (the solver: docs/scenes.md)
+    simulate_scene(path, output=None, plot=..., csv=...) -> SceneRun   (what ``sidprep simulate`` runs)
     recover_stress(results, body=None, at=None) -> StressRecovery (hot spots, envelope, histories, Pa)
 """
 
@@ -27,7 +28,7 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "reduce", "read_sid", "write_sid",
-           "sid_info", "run_batch", "beam", "load_scene", "simulate", "recover_stress",
+           "sid_info", "run_batch", "beam", "load_scene", "simulate", "simulate_scene", "recover_stress",
            "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "BeamOptions", "Job",
            "read_job", "reduce_assembly"]
 
@@ -45,16 +46,23 @@ _LAZY = {
     "beam": ("sidprep.reduction.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)
     "load_scene": ("sidprep.solver.scene", "load_scene"),   # scene TOML -> Scene (system, settings)
     "simulate": ("sidprep.solver.scene", "simulate"),       # Scene -> solver Result
+    "simulate_scene": ("sidprep.solver.simulate_scene", "simulate_scene"),   # scene file -> SceneRun + files
     "recover_stress": ("sidprep.solver.stress", "recover_stress"),  # results file -> StressRecovery
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        import importlib
+#: the subpackages, imported on first use: ``import sidprep`` then ``sidprep.jobs.batch.read_study``
+SUBPACKAGES = ("fe", "reduction", "sid", "jobs", "view", "solver", "cli", "errors", "progress", "tables")
 
+
+def __getattr__(name):
+    import importlib
+
+    if name in _LAZY:
         module, attr = _LAZY[name]
         return getattr(importlib.import_module(module), attr)
+    if name in SUBPACKAGES:
+        return importlib.import_module(f"sidprep.{name}")
     raise AttributeError(f"module 'sidprep' has no attribute {name!r}")
 
 

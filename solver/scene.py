@@ -2,7 +2,7 @@
 
 The format is documented with a complete example in ``docs/scenes.md``.  Tables::
 
-    [scene]            title, gravity (m/s^2), effects ("auto" | "all" | [names]), planar
+    [scene]            name, title, gravity (m/s^2), effects ("auto" | "all" | [names]), planar
     [solver]           t_end, method, step, rho_inf, rtol, atol, static_start, newton_tol, deformation_limit,
                        energy_tol
     [output]           rate (samples/s), signals, plot, csv, animate
@@ -54,7 +54,8 @@ ROTATION_TOL = 1e-6
 class Scene:
     """A parsed scene.
 
-    path : the scene file; text, sha256 : its content (provenance); title : [scene] title;
+    path : the scene file; text, sha256 : its content (provenance); name : what its outputs are
+    called ([scene] name, else the folder of a ``scene.toml``, else the file's stem); title : [scene] title;
     system : the built System (an AbsoluteNodalModel for a scene of absolute-nodal beams);
     t_end : s; settings : the SolverSettings of [solver] and [output] rate (the solver's own
     defaults for every key not given); output : OutputSettings; sources : {body name: {"kind",
@@ -70,6 +71,7 @@ class Scene:
     settings: SolverSettings
     output: OutputSettings
     sources: dict = field(default_factory=dict)
+    name: str = ""
 
     def provenance(self) -> dict:
         return {"path": str(self.path), "sha256": self.sha256, "text": self.text}
@@ -439,6 +441,16 @@ def _undefined_joint_signal(name: str, system) -> str | None:
     return None
 
 
+def scene_name(path: Path, head: TomlTable) -> str:
+    """[scene] name, else the folder's name of a file called ``scene.toml``, else the file's stem:
+    what the scene's outputs are called (``<name>.results.h5``)."""
+    default = path.resolve().parent.name if path.stem == "scene" else path.stem
+    name = head.string("name", default or path.stem)
+    if not name or name != Path(name).name or name.startswith("."):
+        head.fail("name", f"{name!r} is not a file name", 'write e.g. name = "pendulum" (no folders)')
+    return name
+
+
 def load_scene(path, *, t_end: float | None = None) -> Scene:
     """Parse the scene file ``path`` and build its System; ``t_end`` overrides [solver] t_end."""
     path = Path(path)
@@ -448,7 +460,8 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
         an = load_absolute_nodal_scene(root, path, t_end=t_end)
         return Scene(path=path, text=text, sha256=sha256, title=an.model.title, system=an.model, t_end=an.t_end,
                      settings=an.settings, output=an.output,
-                     sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams})
+                     sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams},
+                     name=scene_name(path, TomlTable(path, "scene", root.get("scene", {}))))
     known = ("scene", "solver", "output", "bodies", "markers", "joints", "drivers", "forces")
     for key in root:
         if key not in known:
@@ -464,6 +477,7 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
     system = System(gravity=head.vector("gravity", [0.0, 0.0, -9.81]), effects=_effects(head, "effects", "auto"),
                     planar=None if planar == "auto" else planar)
     title = head.string("title", path.stem)
+    name = scene_name(path, head)
     head.finish()
     output = read_output_settings(path, root)
     t_end, settings = read_solver_settings(TomlTable(path, "solver", root.get("solver", {})), output, t_end)
@@ -474,7 +488,7 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
     _forces(path, root, system, markers, joints)
     _check_signals(path, output.signals, system)
     return Scene(path=path, text=text, sha256=sha256, title=title, system=system, t_end=t_end, settings=settings,
-                 output=output, sources=sources)
+                 output=output, sources=sources, name=name)
 
 
 def simulate(scene: Scene, settings: SolverSettings | None = None, *, t_end: float | None = None, **overrides):

@@ -71,11 +71,12 @@ def test_plot_csv_animation_and_report(scene, tmp_path, capsys, monkeypatch):
     captured = capsys.readouterr()
     assert "body 'bar':" in captured.out and "included" in captured.out and "left out" in captured.out
     assert "simulate" in captured.err                      # progress lines go to stderr
-    for name in ("scene.results.h5", "scene.png", "scene.csv", "scene.pvd"):
-        assert (tmp_path / name).is_file(), name
-    header = (tmp_path / "scene.csv").read_text().splitlines()[0]
+    stem = tmp_path.name                                   # a scene.toml is named after its folder
+    for suffix in (".results.h5", ".png", ".csv", ".pvd"):
+        assert (tmp_path / (stem + suffix)).is_file(), suffix
+    header = (tmp_path / (stem + ".csv")).read_text().splitlines()[0]
     assert header == "time [s],tip.position.z [m],hinge.coordinate [rad],energy.total [J],bar.q.2 [1]"
-    frames = [d.get("file") for d in ET.parse(tmp_path / "scene.pvd").getroot().iter("DataSet")]
+    frames = [d.get("file") for d in ET.parse(tmp_path / (stem + ".pvd")).getroot().iter("DataSet")]
     assert len(frames) == 3 and all((tmp_path / f).is_file() for f in frames)     # 100 samples/s, 0..0.02 s
     last = meshio.read(tmp_path / frames[-1])
     box = np.concatenate(last.cell_data["body"]) == 1                             # bodies in scene order
@@ -176,3 +177,29 @@ def test_main_called_from_python_leaves_the_process_alone(scene, tmp_path, monke
     assert main(["simulate", str(scene), "-o", str(tmp_path / "r.h5"), "--t-end", "0.01", "-q"]) == 0
     assert "OPENBLAS_NUM_THREADS" not in os.environ
     assert gc.isenabled()
+
+
+def test_results_are_named_after_the_scene_and_a_replaced_file_of_another_scene_is_a_note(scene, tmp_path, capsys,
+                                                                                          monkeypatch):
+    """[scene] name names the outputs; a results file another scene wrote is replaced with a note."""
+    monkeypatch.chdir(tmp_path)
+    other = tmp_path / "other.toml"
+    other.write_text(TINY_SCENE.replace("[scene]", '[scene]\nname = "tiny"', 1) if "[scene]" in TINY_SCENE
+                     else '[scene]\nname = "tiny"\n' + TINY_SCENE)
+    named = tmp_path / "named.toml"
+    named.write_text(other.read_text())
+    assert main(["simulate", str(other), "--t-end", "0.01", "-q"]) == 0
+    assert capsys.readouterr().out.split() == ["tiny.results.h5"]      # -q: only the files written
+    assert main(["simulate", str(other), "--t-end", "0.01"]) == 0      # the same scene again: no note
+    assert "note:" not in capsys.readouterr().err
+    assert main(["simulate", str(named), "--t-end", "0.01"]) == 0
+    err = capsys.readouterr().err
+    assert [line for line in err.splitlines() if line.startswith("note:")] == [
+        f"note: tiny.results.h5: replaced the results of {other} (another scene; name the output with -o)"]
+
+
+def test_quiet_prints_no_report(scene, tmp_path, capsys):
+    out = tmp_path / "q.results.h5"
+    assert main(["simulate", str(scene), "--t-end", "0.01", "-q", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert captured.out.split() == [str(out)] and captured.err == ""

@@ -418,7 +418,7 @@ def test_left_out_terms_reproduce_the_body_equations():
 
 def test_json_summary_keeps_the_estimates():
     """`sidprep simulate --json`: effects.estimates[body][effect] with the measure beside it."""
-    from sidprep.cli.simulate import effects_summary
+    from sidprep.solver.simulate_scene import effects_summary
 
     r = simulate(spinning_scene(bar_sid(freqs=FREQS), "auto"), 0.2, h=2e-3)
     est = effects_summary(r.effects)["estimates"]["rotor"]
@@ -456,7 +456,7 @@ def test_frequency_shifts_against_the_exact_eigenvalues():
 def test_an_effect_that_would_deform_an_undeformed_body_warns():
     """Gravity left out of a clamped bar at rest: the run leaves q = 0, gravity would bend it
     (an infinite relative change): the report says so and the JSON value is null."""
-    from sidprep.cli.simulate import effects_summary
+    from sidprep.solver.simulate_scene import effects_summary
     from sidprep.solver.model.joints import Fixed
 
     s = System(gravity=(0.0, 0.0, -9.81), effects=["coupling"])

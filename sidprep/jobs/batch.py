@@ -29,7 +29,7 @@ from sidprep.errors import InputError
 from sidprep.fe.mesh import read_mesh
 from sidprep.fe.readers.gmsh import GEOMETRY_SUFFIXES
 from sidprep.jobs.executor import task_pool
-from sidprep.jobs.guard import folder_lock
+from sidprep.jobs.guard import folder_lock, require_main_guard
 from sidprep.jobs.jobfile import check_inside, job_from_table, split_job_table
 from sidprep.jobs.options import OutputOptions, ReduceOptions
 from sidprep.jobs.output import output_paths, write_reduction
@@ -349,6 +349,8 @@ def run_batch(jobs: list[BatchJob], options: BatchOptions = BatchOptions(), *, p
     Jobs start only while the sum of their estimated peak memory (estimate_job_memory_mb) fits the
     budget; at least one always runs.
     """
+    if client is None and not options.scheduler:
+        require_main_guard("run_batch")
     t0 = time.perf_counter()
     outdir = Path(options.outdir)
     cache = outdir / CACHE_DIR

@@ -11,13 +11,18 @@
   (SIGKILL of the parent leaves no worker running): PR_SET_PDEATHSIG on Linux, and a watchdog
   thread polling the parent elsewhere and as a second guard.
 * ``stop_workers(processes)``: SIGTERM to each, then SIGKILL after STOP_GRACE_S.
+* ``require_main_guard(call)``: the local workers are spawned, and a spawned worker first imports
+  the user's script: a script that calls ``run_batch`` at its top level gets a one-line error
+  saying to put the call under ``if __name__ == "__main__":``, not a lost worker.
 """
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import ctypes
 import json
+import multiprocessing
 import os
 import signal
 import socket
@@ -92,6 +97,40 @@ def folder_lock(outdir: Path):
                 part.unlink()
         with contextlib.suppress(OSError):
             lock.unlink()
+
+
+def _top_level_calls(tree: ast.Module, call: str):
+    """Line numbers of the calls of ``call`` (name or attribute) that run when the module is
+    imported: outside functions, classes and ``if __name__ ...`` blocks."""
+    for stmt in tree.body:
+        if isinstance(stmt, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            continue
+        if isinstance(stmt, ast.If) and any(isinstance(n, ast.Name) and n.id == "__name__"
+                                            for n in ast.walk(stmt.test)):
+            continue
+        for node in ast.walk(stmt):
+            if isinstance(node, ast.Call) and call in (getattr(node.func, "id", None), getattr(node.func, "attr", None)):
+                yield node.lineno
+
+
+def require_main_guard(call: str) -> None:
+    """InputError when ``call`` runs at the top level of the user's script (module doc): in the
+    script's own process, found in its source; in a spawned worker importing the script, found by
+    being there."""
+    main = sys.modules.get("__main__")
+    fix = f'put the {call}(...) call under `if __name__ == "__main__":` (its worker processes import the script)'
+    if multiprocessing.parent_process() is not None and getattr(main, "__name__", "") == "__mp_main__":
+        raise InputError(f"{getattr(main, '__file__', 'the script')}: {call} started while a worker imported the "
+                         f"script; {fix}")
+    script = getattr(main, "__file__", None)
+    if not script or getattr(main, "__spec__", None) is not None:   # interactive, -c, or python -m (a module)
+        return
+    try:
+        tree = ast.parse(Path(script).read_bytes())
+    except (OSError, SyntaxError, ValueError):
+        return
+    for line in _top_level_calls(tree, call):
+        raise InputError(f"{script}:{line}: {call} runs at the top level of the script; {fix}")
 
 
 #: a worker runs a job (``guarded``): SIGTERM unwinds it; an idle worker just ends
