@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from sidprep.cli.options import add_output, add_quiet
+
 MOVIE_SUFFIXES = (".html", ".mp4", ".gif")
 
 
@@ -11,11 +13,12 @@ def register(subparsers) -> None:
                                           "deformed surfaces coloured by displacement, rigid bodies from "
                                           "their OBJ, a time slider, real or exaggerated deformation, colour by displacement or von Mises stress.")
     p.add_argument("results", metavar="RESULTS.h5", help="results file of sidprep simulate")
-    p.add_argument("-o", "--output", metavar="OUT", help="movie.html (default ./<RESULTS stem>.html), .mp4 or .gif")
+    add_output(p, "OUT.html|.mp4|.gif", "./<RESULTS stem>.html")
     p.add_argument("--real", action="store_true", help="movies: true deformation (default exaggerated)")
     p.add_argument("--colour", choices=("displacement", "stress"), default="displacement",
                    help="colour the surfaces by |u| (m) or by the von Mises stress (MPa; the SID needs modal "
                         "stresses, `sidprep reduce --stress`); the page has a switch, this is its start")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -32,5 +35,5 @@ def run(args) -> int:
         path = write_mechanism_page(args.results, out, colour=args.colour)
     else:
         path = write_mechanism_movie(args.results, out, exaggerated=not args.real, colour=args.colour)
-    print(f"wrote {path}")
+    print(path if args.quiet else f"wrote {path}")
     return 0

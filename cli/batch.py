@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 
+from sidprep.cli.options import add_json, add_output, add_quiet, add_sid_files
 from sidprep.cli.reduce import add_reduce_arguments
 
 
@@ -18,15 +18,14 @@ def register(subparsers) -> None:
                     "skips them. Exit 0 when every job succeeded, 1 when some failed.")
     p.add_argument("inputs", nargs="+", metavar="MESH|STUDY.toml", help="mesh files / globs, or one study.toml")
     add_reduce_arguments(p)
-    p.add_argument("-o", "--outdir", metavar="OUTDIR", help="output folder (default ./batch, or the study's)")
+    add_output(p, "OUTDIR", "the folder ./batch, or the study's [batch] outdir")
     p.add_argument("--workers", type=int, help="parallel jobs (default: cores, or the cluster's threads)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://10.0.0.5:8786")
     p.add_argument("--memory-limit", dest="memory_limit_mb", type=float, metavar="MIB",
                    help="memory the batch may plan for (default 80 %% of the available memory)")
-    p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None, help="also write .SID_FEM")
-    p.add_argument("--obj", action=argparse.BooleanOptionalAction, default=None, help="also write .obj")
-    p.add_argument("--json", action="store_true", help="print the batch report as JSON on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_sid_files(p)
+    add_json(p)
+    add_quiet(p)
     p.add_argument("--safe", action="store_true",
                    help="refuse a study whose outdir or output leaves the study file's folder (a study from someone else)")
     p.set_defaults(func=run)
@@ -42,8 +41,8 @@ def batch_from_args(args):
     from sidprep.jobs.options import ReduceOptions
 
     given = options_given(args, BatchOptions)
-    if args.outdir:
-        given["outdir"] = args.outdir
+    if args.output:
+        given["outdir"] = args.output
     if len(args.inputs) == 1 and args.inputs[0].lower().endswith(".toml"):
         jobs, settings = read_study(args.inputs[0], safe=args.safe)
         overrides = options_given(args, ReduceOptions)
@@ -76,7 +75,7 @@ def run(args) -> int:
     else:
         report = _with_progress(jobs, opts)
     cached = sum(r["status"] == "cached" for r in report.records)
-    if cached:
+    if cached and not args.quiet:
         print(f"sidprep batch: {cached} of {len(report.records)} job(s) served from the cache "
               f"({opts.outdir}/.cache)", file=sys.stderr)
     for r in report.failed:
@@ -84,6 +83,8 @@ def run(args) -> int:
     if args.json:
         print(json.dumps({"outdir": report.outdir, "wall_s": report.wall_s, "files": report.files,
                           "jobs": report.records}, default=float))
+    elif args.quiet:
+        print(report.outdir)
     else:
         print_summary(report)
     return report.exit_code

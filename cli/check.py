@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from sidprep.cli.options import add_quiet
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -13,6 +15,7 @@ def register(subparsers) -> None:
                     "all checks of severity 'error' pass; 1: one fails; 2: the file cannot be read "
                     "(or is damaged: a SID_FEM file that writes its zeros lacks an entry).")
     p.add_argument("file", metavar="FILE", help=".sid.h5 or .SID_FEM file")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -21,6 +24,7 @@ def run(args) -> int:
     from sidprep.sid.io import read_sid
 
     checks = sid_checks(read_sid(args.file, physical="off"))
-    print(format_checks(checks))
+    if not args.quiet:
+        print(format_checks(checks))
     print(f"{args.file}: {checks_summary(checks)}")
     return 1 if failed_checks(checks) else 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from sidprep.cli.options import add_json, add_quiet
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -9,7 +11,8 @@ def register(subparsers) -> None:
         description="Print the rigid-body data, the modal coordinates, the nodes and the model checks of a "
                     "SID file; --json gives the same as one JSON object.")
     p.add_argument("file", metavar="FILE", help=".sid.h5 or .SID_FEM file")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    add_json(p)
+    add_quiet(p)                      # the summary is the requested output: printed with -q too
     p.set_defaults(func=run)
 
 

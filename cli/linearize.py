@@ -3,7 +3,7 @@ start (sidprep.solver.linear.mechanism_modes), as a table or JSON."""
 
 from __future__ import annotations
 
-from sidprep.cli.options import process_setup
+from sidprep.cli.options import add_count, add_json, add_quiet, process_setup
 
 #: entries of a mode shape printed in the table (the largest, by magnitude)
 SHAPE_ENTRIES = 3
@@ -16,11 +16,11 @@ def register(subparsers) -> None:
                     "constrained equations there: M and the tangent stiffness K (elastic, joint springs, "
                     "gravity and the other effects the scene includes) on the joints' null space. Prints the "
                     "eigenfrequencies (0 Hz: rigid-body motions and unstable directions) and the largest "
-                    "entries of each mode shape (body, coordinate).")
+                    "entries of each mode shape (body, coordinate). --json: frequencies_hz, n_rigid, coordinates, shapes (columns).")
     p.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
-    p.add_argument("--count", type=int, metavar="N", help="print the first N modes (default all)")
-    p.add_argument("--json", action="store_true",
-                   help="one JSON object: frequencies_hz, n_rigid, coordinates, shapes (columns)")
+    add_count(p)
+    add_json(p)
+    add_quiet(p)
     p.set_defaults(func=run, process_setup=process_setup)
 
 
@@ -41,27 +41,28 @@ def run(args) -> int:
     from sidprep.tables import require_toml
 
     require_toml(args.scene, "scene file", "linearize takes a scene (docs/scenes.md)")
-    if args.count is not None and args.count < 1:
+    if args.count < 1:
         raise InputError(f"--count {args.count}: must be >= 1")
     scene = load_scene(args.scene)
     if not hasattr(scene.system, "bodies") or not hasattr(scene.system, "joints"):
         raise InputError(f"{args.scene}: linearize needs a floating-frame scene (bodies and joints), "
                          "not an absolute-nodal one")
     modes = mechanism_modes(scene.system)
-    n = len(modes.frequencies_hz) if args.count is None else min(args.count, len(modes.frequencies_hz))
+    n = min(modes.n_rigid + args.count, len(modes.frequencies_hz))
     if args.json:
         print(json.dumps({"scene": str(args.scene), "n_rigid": modes.n_rigid,
                           "frequencies_hz": modes.frequencies_hz[:n].tolist(),
                           "coordinates": [list(c) for c in modes.coordinates],
                           "shapes": modes.shapes[:, :n].T.tolist()}))
         return 0
-    print(f"{scene.title}: {len(modes.frequencies_hz)} modes at the assembled start, {modes.n_rigid} rigid-body "
-          "(0 Hz)")
+    if not args.quiet:
+        print(f"{scene.title}: {len(modes.frequencies_hz)} modes at the assembled start, {modes.n_rigid} rigid-body "
+              f"(0 Hz); the rigid-body modes and the first {n - modes.n_rigid} others")
     print(f"  {'mode':>4s}  {'f [Hz]':>12s}  largest entries of the shape (body coordinate value)")
     for k in range(n):
         print(f"  {k + 1:4d}  {modes.frequencies_hz[k]:12.4f}  {shape_summary(modes.shapes[:, k], modes.coordinates)}")
     unbalanced = int((modes.frequencies_hz == 0).sum()) - modes.n_rigid
-    if unbalanced > 0:
+    if unbalanced > 0 and not args.quiet:
         print(f"  note: {unbalanced} mode(s) at 0 Hz are not rigid-body motions: negative stiffness there (the start "
               "is not an equilibrium, e.g. a pendulum released sideways under gravity, or it is unstable)")
     return 0

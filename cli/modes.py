@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from sidprep.cli.options import add_model_arguments, cli_flags, quiet_native_output
+from sidprep.cli.options import add_count, add_json, add_model_arguments, add_quiet, cli_flags, quiet_native_output
 
 
 def register(subparsers) -> None:
@@ -18,14 +18,14 @@ def register(subparsers) -> None:
     p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...) or geometry (.geo .step .brep)")
     add_model_arguments(p, units_default="si")
     n = p.add_mutually_exclusive_group()
-    n.add_argument("--count", type=int, help="number of elastic modes (default 10)")
+    add_count(n)
     n.add_argument("--fmax", type=float, metavar="HZ", help="all modes up to this frequency")
     p.add_argument("--clamp", action="append", default=[], metavar="GROUP",
                    help="fix all DOFs of the nodes of this node set (repeat for several)")
     p.add_argument("--backend", default="auto", choices=("auto", "cholmod", "superlu", "lobpcg", "dense"),
                    help="eigen solver: shift-invert Lanczos with CHOLMOD / SuperLU, or AMG-LOBPCG (large models)")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of the table")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+    add_json(p)
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -34,7 +34,8 @@ def modal_options(args):
     from sidprep.jobs.options import ModalOptions
 
     return ModalOptions(size=args.size, order=args.order or 2, E=args.E, nu=args.nu, rho=args.rho,
-                        material=args.material, units=args.units, count=args.count, fmax=args.fmax,
+                        material=args.material, units=args.units,
+                        count=None if args.fmax is not None else args.count, fmax=args.fmax,
                         clamp=tuple(args.clamp), backend=args.backend)
 
 
@@ -42,7 +43,7 @@ def run(args) -> int:
     import json
 
     from sidprep.jobs.modal import modal_analysis
-    from sidprep.errors import note_line
+    from sidprep.errors import WARNING_PREFIX, note_line
     from sidprep.fe.linalg import fast_blas
     from sidprep.progress import Phases, peak_memory_mb
 
@@ -51,7 +52,8 @@ def run(args) -> int:
         res = modal_analysis(args.mesh, modal_options(args), phases=ph)
     f, nr, mesh = res.frequencies_hz, res.n_rigid, res.mesh
     for note in res.notes:
-        print(note_line(note), file=sys.stderr)
+        if not args.quiet or note.startswith(WARNING_PREFIX):     # -q: the warnings only
+            print(note_line(note), file=sys.stderr)
     summary = {
         "mesh": {"file": str(args.mesh), "sha256": mesh.sha256, "nodes": mesh.n_nodes,
                  "elements": int(mesh.cells.shape[0]), "element": "tet4" if mesh.order == 1 else "tet10"},

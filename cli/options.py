@@ -54,6 +54,45 @@ def default_output(input_path, suffix: str, given=None) -> Path:
     return Path(given) if given else Path(output_stem(input_path) + suffix)
 
 
+#: the shared options' help texts: one meaning in every command (docs/cli.md; tests/test_cli_grammar.py)
+QUIET_HELP = "print only errors, warnings and the requested output (the files written, or the --json object)"
+JSON_HELP = "print one JSON object on stdout instead of the text (reports and progress go to stderr)"
+CSV_HELP = "also write the tables as CSV beside the output (its stem, .csv)"
+COUNT_HELP = "number of elastic modes (default 10; rigid-body modes are listed besides)"
+#: the --count default of every command that lists modes
+DEFAULT_COUNT = 10
+
+
+def add_output(parser, metavar: str, default: str) -> None:
+    """``-o/--output``: the command's main output (a file, or batch's folder); companions share its stem."""
+    parser.add_argument("-o", "--output", metavar=metavar, help=f"output (default {default}); companion files go "
+                                                                "beside it with its stem")
+
+
+def add_quiet(parser) -> None:
+    parser.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
+
+
+def add_json(parser) -> None:
+    parser.add_argument("--json", action="store_true", help=JSON_HELP)
+
+
+def add_csv(parser) -> None:
+    parser.add_argument("--csv", action="store_true", help=CSV_HELP)
+
+
+def add_count(parser) -> None:
+    parser.add_argument("--count", type=int, metavar="N", default=DEFAULT_COUNT, help=COUNT_HELP)
+
+
+def add_sid_files(parser) -> None:
+    """``--sid-fem/--no-sid-fem`` and ``--obj/--no-obj``: the companion files of a SID (default on)."""
+    parser.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None,
+                        help="also write <output stem>.SID_FEM (default on)")
+    parser.add_argument("--obj", action=argparse.BooleanOptionalAction, default=None,
+                        help="also write the surface <output stem>.obj (default on)")
+
+
 class MaterialList(argparse.Action):
     """``--material NAME``; ``--material list`` prints the built-in materials and exits."""
 
@@ -69,18 +108,23 @@ class MaterialList(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
-def add_model_arguments(parser, *, units_default: str | None) -> None:
-    """Material (--E --nu --rho | --material), --units, and --size/--order for geometry files.
-
-    ``units_default`` None lets a job file supply the unit system (``sidprep reduce job.toml``).
-    """
+def add_material(parser) -> None:
+    """--material NAME | list, or --E --nu --rho (in the --units of the command; SI when it has none)."""
     mat = parser.add_argument_group("material (default steel, E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3)")
     mat.add_argument("--E", type=float, help="Young's modulus (Pa, or MPa with --units mm-t-s)")
     mat.add_argument("--nu", type=float, help="Poisson's ratio")
     mat.add_argument("--rho", type=float, help="density (kg/m^3, or t/mm^3 with --units mm-t-s)")
     mat.add_argument("--material", action=MaterialList,
                      help="built-in material: steel, aluminium, titanium, cast_iron, ductile_iron "
-                          "('--material list' prints their E, nu, rho)")
+                          "('--material list' prints their E, nu, rho); the label of --E --nu --rho")
+
+
+def add_model_arguments(parser, *, units_default: str | None) -> None:
+    """Material (--E --nu --rho | --material), --units, and --size/--order for geometry files.
+
+    ``units_default`` None lets a job file supply the unit system (``sidprep reduce job.toml``).
+    """
+    add_material(parser)
     parser.add_argument("--units", default=units_default, choices=("si", "mm-t-s"),
                         help="unit system of mesh coordinates and material values (default si); results are SI")
     geo = parser.add_argument_group("geometry files (.geo .step .brep): meshed with gmsh")

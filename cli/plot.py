@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+from sidprep.cli.options import add_output, add_quiet
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "plot", help="plot signals of a results file of sidprep simulate (PNG); no signal: list them",
+        "plot", help="plot signals of a results file of sidprep simulate (PNG); no signal: a default figure",
         description="Plot the named signals of a results file (one panel per unit, against time) into a PNG, "
-                    "without re-running the simulation. Without signals, list the file's signal names.")
+                    "without re-running the simulation. Without signals: the energy and each body's main "
+                    "coordinates (its position component that moves most, its largest modal coordinate) and "
+                    "each joint's coordinate, and the list of the file's signal names on stderr.")
     p.add_argument("results", metavar="RESULTS.h5", help="results file of sidprep simulate")
     p.add_argument("signals", nargs="*", metavar="SIGNAL",
-                   help="e.g. hinge.coordinate bar.q.1 energy.total (none: list the names)")
-    p.add_argument("-o", "--output", metavar="OUT.png", help="image to write (default ./<RESULTS stem>.png)")
+                   help="e.g. hinge.coordinate bar.q.1 energy.total (none: the default figure)")
+    add_output(p, "OUT.png", "./<RESULTS stem>.png")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -21,18 +26,18 @@ def run(args) -> int:
 
     from sidprep.cli.options import default_output
     from sidprep.errors import InputError
-    from sidprep.solver.results import plot_signals, read_results, signal_names
+    from sidprep.solver.results import default_signals, plot_signals, read_results, signal_names
 
     out = default_output(args.results, ".png", args.output)
-    if args.signals and out.suffix.lower() != ".png":
+    if out.suffix.lower() != ".png":
         raise InputError(f"{out}: plot writes PNG images; name the output OUT.png")
     results = read_results(args.results)
-    if not args.signals:
-        print("\n".join(signal_names(results.result)))
-        print(f"{args.results}: give one or more of these signals to plot them: "
-              f"sidprep plot {args.results} SIGNAL...", file=sys.stderr)
-        return 0
+    signals = list(args.signals) or default_signals(results.result)
+    if not args.signals and not args.quiet:
+        print(f"{args.results}: signals (plot any of them: sidprep plot {args.results} SIGNAL...):\n  "
+              + "\n  ".join(signal_names(results.result)), file=sys.stderr)
     scene = results.scene.get("path")
     title = Path(args.results).name + (f" ({scene})" if scene else "")
-    print(f"wrote {plot_signals(results.result, list(args.signals), out, title=title)}")
+    path = plot_signals(results.result, signals, out, title=title)
+    print(path if args.quiet else f"wrote {path}")
     return 0

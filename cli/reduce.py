@@ -6,7 +6,7 @@ import argparse
 import sys
 from dataclasses import fields, replace
 
-from sidprep.cli.options import add_model_arguments
+from sidprep.cli.options import add_json, add_model_arguments, add_output, add_quiet, add_sid_files
 
 
 def add_reduce_arguments(p) -> None:
@@ -59,11 +59,8 @@ def register(subparsers) -> None:
                     "node set that can carry 6 DOF as an RBE2 interface, free frame, 8 eigenmodes + FRMs.")
     p.add_argument("mesh", metavar="MESH", help="mesh (.msh .inp .bdf .vtu ...), geometry (.geo .step) or job (.toml)")
     add_reduce_arguments(p)
-    p.add_argument("-o", "--output", metavar="OUT.sid.h5", help="output HDF5 file (default ./<mesh>.sid.h5)")
-    p.add_argument("--sid-fem", action=argparse.BooleanOptionalAction, default=None,
-                   help="also write <out>.SID_FEM (default on)")
-    p.add_argument("--obj", action=argparse.BooleanOptionalAction, default=None,
-                   help="also write the surface <out>.obj (default on)")
+    add_output(p, "OUT.sid.h5", "./<MESH stem>.sid.h5")
+    add_sid_files(p)
     p.add_argument("--parts", type=int, metavar="N",
                    help="reduce the model in N parts (component mode synthesis: each part a task, docs/scale.md)")
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -71,8 +68,8 @@ def register(subparsers) -> None:
                         "default a local pool")
     p.add_argument("--workers", type=int, metavar="N",
                    help="with --parts or an assembly: local worker processes (default: cores)")
-    p.add_argument("--json", action="store_true", default=None, help="print a JSON summary on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    add_json(p)
+    add_quiet(p)
     p.set_defaults(func=run)
 
 

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from sidprep.cli.options import process_setup
+from sidprep.cli.options import add_csv, add_json, add_output, add_quiet, process_setup
 from sidprep.solver.integrators.settings import METHODS
 
 def positive(text: str) -> float:
@@ -34,9 +34,8 @@ def register(subparsers) -> None:
                     "the scene's [output] signals and a ParaView animation (.pvd + .vtu). Prints the effects "
                     "report: which FFR terms were included, which were left out and how large they were.")
     p.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
-    p.add_argument("-o", "--output", metavar="RESULTS.h5",
-                   help="results file (default ./<scene name>.results.h5: [scene] name, else the folder of a "
-                        "scene.toml, else the file's stem); plot, CSV and animation go beside it")
+    add_output(p, "RESULTS.h5", "./<scene name>.results.h5: [scene] name, else the folder of a scene.toml, else "
+                                "the file's stem")
     p.add_argument("--t-end", type=float, metavar="T", help="end time in s (overrides [solver] t_end)")
     solver = p.add_argument_group("solver settings (override the scene's [solver] and [output] rate)")
     solver.add_argument("--step", type=positive, metavar="H", help="step size in s ([solver] step)")
@@ -45,13 +44,12 @@ def register(subparsers) -> None:
                         help="relative tolerance of the step-size control ([solver] rtol)")
     solver.add_argument("--rate", type=positive, metavar="HZ", help="output samples per second ([output] rate)")
     p.add_argument("--plot", action="store_true", help="write <results>.png of the [output] signals")
-    p.add_argument("--csv", action="store_true", help="write <results>.csv of the [output] signals")
+    add_csv(p)
     p.add_argument("--animate", action="store_true", help="write <results>.pvd + <results>_vtu/ for ParaView")
-    p.add_argument("--json", action="store_true", help="print one JSON summary object on stdout")
+    add_json(p)
     p.add_argument("--list-signals", action="store_true",
                    help="print the signal names of the scene (for [output] signals) and exit without simulating")
-    p.add_argument("-q", "--quiet", action="store_true",
-                   help="print only errors, warnings and the files written (or the --json object)")
+    add_quiet(p)
     p.set_defaults(func=run, process_setup=process_setup)
 
 

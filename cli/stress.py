@@ -3,6 +3,8 @@ a point, CSV and fatigue hand-off)."""
 
 from __future__ import annotations
 
+from sidprep.cli.options import add_csv, add_json, add_output, add_quiet
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -10,16 +12,19 @@ def register(subparsers) -> None:
         description="sigma(t) = sum_k sigma_k q_k(t) from the modal coordinates of a results file and the modal "
                     "stresses of the body's SID (`sidprep reduce --stress`). Prints the hot spots (largest von "
                     "Mises stress over the run: node, position in the body frame, time, value) and, with --at, "
-                    "the history at the surface node nearest to a point.")
+                    "the history at the surface node nearest to a point. --json: node, position, time, von_mises "
+                    "and sigma_xx ... sigma_zx per sample (Pa).")
     p.add_argument("results", metavar="RESULTS.h5", help="results file of sidprep simulate")
     p.add_argument("--body", metavar="NAME", help="flexible body (default: the only one)")
     p.add_argument("--at", metavar="X,Y,Z", help="point in the body's SID frame (m): history at the nearest node")
     p.add_argument("--hot-spots", type=int, default=None, metavar="N", help="number of hot spots (default 5)")
     p.add_argument("--principal", action="store_true", help="also the principal stresses of the histories")
-    p.add_argument("--json", action="store_true", help="print one JSON object (with --at: node, position, time, "
-                                                       "von_mises and sigma_xx ... sigma_zx per sample, Pa)")
-    p.add_argument("--csv", metavar="FILE.csv", help="write the histories at the hot spots (and --at) as CSV")
-    p.add_argument("--envelope", metavar="FILE.csv", help="write the largest von Mises stress of every node (CSV)")
+    add_json(p)
+    add_csv(p)
+    p.add_argument("--envelope", action="store_true",
+                   help="also write the largest von Mises stress of every node as CSV (<output stem>.envelope.csv)")
+    add_output(p, "OUT.csv", "./<RESULTS stem>.stress.csv: the histories at the hot spots and --at, with --csv")
+    add_quiet(p)
     p.add_argument("--sn", metavar="C=VALUE,m=VALUE",
                    help="Basquin S-N curve N = C dsigma^-m (stress range in Pa): rainflow count (ASTM E1049) of the "
                         "signed abs-max principal stress and Palmgren-Miner damage at each hot spot")
@@ -39,6 +44,24 @@ def parse_point(text: str):
     return values
 
 
+def csv_outputs(args) -> dict:
+    """{"csv": histories, "envelope": envelope} paths asked for: -o or ./<results stem>.stress.csv, and
+    <that stem>.envelope.csv; InputError for an -o that is not a .csv file."""
+    from pathlib import Path
+
+    from sidprep.cli.options import default_output
+    from sidprep.errors import InputError
+
+    out = default_output(args.results, ".stress.csv", args.output)
+    if out.suffix.lower() != ".csv":
+        raise InputError(f"-o {out}: stress writes CSV tables; name the output OUT.csv")
+    if args.output and not (args.csv or args.envelope):
+        raise InputError(f"-o {out}: add --csv (the histories) or --envelope (every node's largest stress)")
+    stem = out.name[:-len(".stress.csv")] if out.name.endswith(".stress.csv") else Path(out.name).stem
+    wanted = {"csv": out, "envelope": out.with_name(stem + ".envelope.csv")}
+    return {k: v for k, v in wanted.items() if getattr(args, k)}
+
+
 def run(args) -> int:
     import json
 
@@ -48,6 +71,7 @@ def run(args) -> int:
                                        write_histories_csv)
 
     at = parse_point(args.at) if args.at else None
+    wanted = csv_outputs(args)
     curve = parse_basquin(args.sn) if args.sn else None
     count = DEFAULT_HOT_SPOTS if args.hot_spots is None else args.hot_spots
     if count < 1:
@@ -58,10 +82,10 @@ def run(args) -> int:
         for h in rec.hot_spot_histories + ((rec.history,) if rec.history else ()):
             fatigue[h.node] = miner_damage(signed_abs_max_principal(h.principal), curve)
     files = {}
-    if args.csv:
-        files["csv"] = str(write_histories_csv(rec, args.csv))
-    if args.envelope:
-        files["envelope"] = str(write_envelope_csv(rec, args.envelope))
+    if "csv" in wanted:
+        files["csv"] = str(write_histories_csv(rec, wanted["csv"]))
+    if "envelope" in wanted:
+        files["envelope"] = str(write_envelope_csv(rec, wanted["envelope"]))
     if args.json:
         out = {"body": rec.body, "sid": rec.sid, "samples": int(len(rec.time)),
                "hot_spots": [s.as_dict() for s in rec.hot_spots], "files": files, "unit": "Pa",
@@ -69,6 +93,9 @@ def run(args) -> int:
         if rec.history is not None:
             out.update(rec.history.as_dict(rec.time))
         print(json.dumps(out, allow_nan=False))
+        return 0
+    if args.quiet:
+        print("\n".join(files.values()))
         return 0
     print(f"body {rec.body} ({rec.sid}): {len(rec.node_ids)} stress nodes, {len(rec.time)} samples, "
           f"t = {rec.time[0]:g} .. {rec.time[-1]:g} s")

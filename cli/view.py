@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from sidprep.cli.options import add_output, add_quiet
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("view", help="HTML page of a SID body: surface, nodes, frame, animated modes",
@@ -9,9 +11,10 @@ def register(subparsers) -> None:
                                           "body's surface, interface nodes and frame, each mode animated on "
                                           "demand, and its mass, CM, inertia and checks.")
     p.add_argument("sid", metavar="BODY", help="SID file (.sid.h5 or .SID_FEM)")
-    p.add_argument("--obj", metavar="SURFACE.obj", help="surface to animate (body frame, SID units); "
+    p.add_argument("--surface", metavar="SURFACE.obj", help="surface to animate (body frame, SID units); "
                    "default: the SID's surface modes, else the convex hull of its nodes")
-    p.add_argument("-o", "--output", metavar="PAGE.html", help="page to write (default ./<BODY stem>.html)")
+    add_output(p, "PAGE.html", "./<BODY stem>.html")
+    add_quiet(p)
     p.set_defaults(func=run)
 
 
@@ -19,6 +22,6 @@ def run(args) -> int:
     from sidprep.cli.options import default_output
     from sidprep.view.modes import write_mode_page
 
-    path = write_mode_page(args.sid, default_output(args.sid, ".html", args.output), args.obj)
-    print(f"wrote {path}")
+    path = write_mode_page(args.sid, default_output(args.sid, ".html", args.output), args.surface)
+    print(path if args.quiet else f"wrote {path}")
     return 0

@@ -179,6 +179,22 @@ def signal_names(result: Result) -> list[str]:
     return names
 
 
+def default_signals(result: Result) -> list[str]:
+    """What ``sidprep plot FILE`` draws when no signal is named: the kinetic and total energy, each
+    body's position component that moves most and its largest modal coordinate, and each joint's
+    coordinate that moves."""
+    names = ["energy.kinetic", "energy.total"]
+    for name, b in result.bodies.items():
+        if len(b.position):
+            names.append(f"{name}.position.{XYZ[int(np.ptp(b.position, axis=0).argmax())]}")
+        if b.q.size:
+            names.append(f"{name}.q.{int(np.abs(b.q).max(axis=0).argmax()) + 1}")
+    for name, j in result.joints.items():
+        if len(j.coordinate) and np.ptp(j.coordinate) > 0:          # NaN: a joint without a coordinate
+            names.append(f"{name}.coordinate")
+    return names
+
+
 def _lookup(result: Result, parts: list[str]) -> tuple[np.ndarray, str]:
     """Signal values and unit from the split name; KeyError / ValueError / IndexError if unknown."""
     if parts[0] == "energy" and len(parts) == 2:

@@ -439,7 +439,7 @@ def mass_released_beyond_the_rail(tmp):
 
 def test_moving_force_driven_past_the_path_end_gets_a_note(tmp_path):
     """10 m/s from s = 0 on the 15 m axis leaves it at t = 1.5 s (the sampled time within 1 ms)."""
-    proc = sidprep("simulate", moving_force(tmp_path, "t_end = 2.0", "t_end = 1.6"), "-q", "-o", tmp_path / "r.h5")
+    proc = sidprep("simulate", moving_force(tmp_path, "t_end = 2.0", "t_end = 1.6"), "-o", tmp_path / "r.h5")
     check_outcome(proc, 0, "")
     assert re.search(r"note: path marker load leaves its path \(s = 0 \.\. 15 m\) at t = 1\.50\d* s", proc.stdout), \
         proc.stdout

@@ -57,7 +57,7 @@ def test_beam_buckling(tmp_path):
     centres = np.arange(1.5, 8.51, 1.0)
     ratio = an.F_END * centres / an.T_END / an.F_CR
     ref = an.A0 / (1 - ratio)
-    amp = an.amplitudes(an.read(tmp_path / "scene.csv"), centres)
+    amp = an.amplitudes(an.read(tmp_path / "beam_buckling.csv"), centres)
     flat = an.amplitudes(an.read(tmp_path / "scene_no_stiffening.csv"), centres)
     np.testing.assert_allclose(amp[:2], ref[:2], rtol=BUCKLING_AMPLITUDE_RTOL)
     np.testing.assert_allclose(flat, an.A0, rtol=BUCKLING_AMPLITUDE_RTOL)     # no amplification
@@ -95,7 +95,7 @@ def test_helicopter_rotor(tmp_path):
         reports[scene] = json.loads(r.stdout)
     an = load(tmp_path / "analyse.py")
     centres = [0.5, 2.0, 3.0, 5.0, 9.75]
-    m = an.window_means(an.read(tmp_path / "scene.csv"), centres)
+    m = an.window_means(an.read(tmp_path / "helicopter_rotor.csv"), centres)
     ns = an.window_means(an.read(tmp_path / "scene_no_stiffening.csv"), centres)
     table = [x for k, c in enumerate(centres) for x in (c, m["rotor.rate"][k], m["flap.coordinate"][k],
              m["blade.q.1"][k], m["blade.q.2"][k], m["blade.q.8"][k], ns["blade.q.1"][k])]
@@ -121,7 +121,7 @@ def test_beam_slider_crank(tmp_path):
     assert r.returncode == 0, r.stderr
     assert not json.loads(r.stdout)["effects"]["warnings"]
     an = load(tmp_path / "analyse.py")
-    s = an.read(tmp_path / "scene.csv")
+    s = an.read(tmp_path / "beam_slider_crank.csv")
     t, x = s["time"], s["slider_joint.coordinate"]
     dev = np.abs(x - an.rigid_slider(t))
     assert dev[t <= 2.0].max() < SLIDER_RIGID_DEVIATION_M

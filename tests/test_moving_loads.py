@@ -117,14 +117,14 @@ def test_moving_force_example(tmp_path):
     sys.path.insert(0, str(tmp_path))
     try:
         import analyse
-        out = analyse.main(str(tmp_path / "scene.csv"), plot=False)
+        out = analyse.main(str(tmp_path / "moving_force.csv"), plot=False)
     finally:
         sys.path.remove(str(tmp_path))
         sys.modules.pop("analyse", None)
     assert out["error_on_beam"] < FRYBA_RTOL and out["error_after_exit"] < FRYBA_RTOL
     from sidprep.solver.results import read_results
 
-    result = read_results(tmp_path / "scene.results.h5").result
+    result = read_results(tmp_path / "moving_force.results.h5").result
     e = result.energy
     balance = e["external"] - e["kinetic"] - e["strain"]
     check_numbers(src / "README.md", "results", [

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sidprep.cli.main import main
-from sidprep.solver.results import read_results
+from sidprep.solver.results import default_signals, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -29,11 +29,18 @@ def run(capsys, *argv):
     return code, out, err
 
 
-def test_without_signals_it_lists_them(results, capsys):
+def test_without_signals_it_draws_the_default_figure_and_lists_them(results, capsys, tmp_path, monkeypatch):
+    """The energy, the bar's main position component and modal coordinate, the hinge angle."""
+    monkeypatch.chdir(tmp_path)
     code, out, err = run(capsys, "plot", results)
-    names = out.split()
-    assert code == 0 and {"hinge.coordinate", "bar.q.1", "energy.total", "root.position.z"} <= set(names)
-    assert "give one or more" in err
+    assert code == 0 and out.strip() == "wrote pendulum.png"
+    assert {"hinge.coordinate", "bar.q.1", "energy.total", "root.position.z"} <= set(err.split())
+    signals = default_signals(read_results(results).result)
+    assert signals[:2] == ["energy.kinetic", "energy.total"] and "hinge.coordinate" in signals
+    assert "bar.position.x" in signals or "bar.position.z" in signals      # the bar swings in x-z
+    assert any(s.startswith("bar.q.") for s in signals)
+    image = matplotlib.image.imread(tmp_path / "pendulum.png")
+    assert image.shape[0] > 600 and np.std(image) > 0.01                  # four panels (J, m, 1, rad)
 
 
 def test_it_writes_the_png_into_the_working_folder_by_the_results_stem(results, capsys, tmp_path, monkeypatch):

@@ -50,3 +50,19 @@ def test_update_rewrites_in_the_printed_format(readme, monkeypatch):
     check_numbers(readme, "r", [7.9, 0.5, 0.0299, 0.00987651, 770.04, -3.3e-5])
     assert "| 0.5 | +0.0299 | 9.877e-3 |" in readme.read_text() and "= 770.0 N, q3 -3.3e-5." in readme.read_text()
     assert formatted_like(-0.0, "-0.0000") == "-0.0000" and formatted_like(2.04e-10, "1e-14") == "2e-10"
+
+
+def test_the_examples_index_quotes_what_each_example_readme_says():
+    """Every number of the index's "reference" column (examples/README.md) is one its example's
+    README states (the README's numbers are the ones its test computes)."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    rows = re.findall(r"^\| `([a-z_]+)/` \|.*\| ([^|]*) \|$", (root / "README.md").read_text(), re.M)
+    assert len(rows) >= 10
+    for name, reference in rows:
+        stated = {float(m.group()) for m in printed_numbers((root / name / "README.md").read_text())}
+        quoted = [m.group() for m in printed_numbers(reference)]
+        missing = [q for q in quoted if float(q) not in stated]
+        assert not missing, f"examples/README.md quotes {missing} for {name}/, which its README does not state"

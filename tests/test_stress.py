@@ -329,7 +329,7 @@ def test_stress_cli_hot_spots_json_and_csv(harmonic_run):
     import json
 
     folder, _ = harmonic_run
-    r = cli("stress", "results.h5", "--at", ",".join(map(str, MID_SPAN_TOP)), "--json", "--csv", "h.csv",
+    r = cli("stress", "results.h5", "--at", ",".join(map(str, MID_SPAN_TOP)), "--json", "--csv", "-o", "h.csv",
             "--principal", cwd=folder)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)

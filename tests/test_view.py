@@ -73,7 +73,7 @@ def test_view_rod_page_is_self_contained(rod_sid, tmp_path, capsys):
 
 
 def test_view_bad_obj_is_one_line_error(rod_sid, tmp_path, capsys):
-    assert main(["view", str(rod_sid), "--obj", str(tmp_path / "missing.obj")]) == 2
+    assert main(["view", str(rod_sid), "--surface", str(tmp_path / "missing.obj")]) == 2
     assert "no such OBJ file" in capsys.readouterr().err
 
 

@@ -32,7 +32,7 @@ def amplitudes(sig, centres):
     return np.array([0.5 * np.ptp(z[(t >= c - 0.5) & (t < c + 0.5)]) for c in centres])
 
 
-def main(files=("scene.csv", "scene_no_stiffening.csv")):
+def main(files=("beam_buckling.csv", "scene_no_stiffening.csv")):
     centres = np.arange(1.5, 9.01, 1.0)
     ratio = F_END * centres / T_END / F_CR
     ref = A0 / (1 - ratio)

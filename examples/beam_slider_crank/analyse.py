@@ -26,7 +26,7 @@ def rigid_slider(t):
     return R * np.cos(th) + np.sqrt(L ** 2 - (R * np.sin(th)) ** 2) - X0
 
 
-def main(path="scene.csv"):
+def main(path="beam_slider_crank.csv"):
     s = read(path)
     t, x = s["time"], s["slider_joint.coordinate"]
     dev = x - rigid_slider(t)

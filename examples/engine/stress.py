@@ -2,10 +2,10 @@
 """The piston rod's stress in the engine (README.md, "Stress"): hot spot, the axial stress in the
 shank at the firing peak against F / A, the in-plane bending there, and stress.png.
 
-Reads the results of `sidprep simulate scene.toml` (scene.results.h5) and the rod's SID, which
+Reads the results of `sidprep simulate scene.toml` (engine.results.h5) and the rod's SID, which
 must carry modal stresses (the scene's make line reduces with --stress).
 
-    sidprep simulate scene.toml          # scene.results.h5
+    sidprep simulate scene.toml          # engine.results.h5
     python stress.py                     # the numbers below + stress.png
 """
 
@@ -46,9 +46,9 @@ def flange_faces(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def main(folder=HERE, plot=True) -> dict:
-    """The README's numbers (a dict) from folder/scene.results.h5 and folder/piston_rod.sid.h5."""
+    """The README's numbers (a dict) from folder/engine.results.h5 and folder/piston_rod.sid.h5."""
     folder = Path(folder)
-    results = folder / "scene.results.h5"
+    results = folder / "engine.results.h5"
     rec = sidprep.recover_stress(results, "rod", hot_spots=3)
     run = sidprep.solver.results.read_results(results).result
     stress = sidprep.read_sid(folder / "piston_rod.sid.h5").stress

@@ -22,7 +22,7 @@ def window_means(sig, centres, half=0.25):
     return {k: np.array([v[(t >= c - half) & (t <= c + half)].mean() for c in centres]) for k, v in sig.items()}
 
 
-def main(files=("scene.csv", "scene_no_stiffening.csv")):
+def main(files=("helicopter_rotor.csv", "scene_no_stiffening.csv")):
     centres = np.array([0.5, 2.0, 3.0, 4.0, 5.0, 7.5, 9.75])
     for path in files:
         try:

@@ -3,7 +3,7 @@
 (Fryba, "Vibration of solids and structures under moving loads", 1972, ch. 1: the undamped
 simply supported Euler-Bernoulli beam); writes moving_force.png.
 
-    sidprep simulate scene.toml --csv     # scene.csv
+    sidprep simulate scene.toml --csv     # moving_force.csv
     python analyse.py                     # the README's numbers
 
 The series: mode j, phi_j = sqrt(2 / (mu L)) sin(j pi x / L), omega_j = (j pi / L)^2 sqrt(EI / mu);
@@ -53,7 +53,7 @@ def read(path):
     return {h: data[:, i] for i, h in enumerate(head)}
 
 
-def main(path="scene.csv", plot=True) -> dict:
+def main(path="moving_force.csv", plot=True) -> dict:
     s = read(path)
     t, z = s["time"], s["midspan.position.z"]
     ref = midspan_series(t)

@@ -37,10 +37,11 @@ def write_reduction(sid, paths: dict[str, Path], *, source: str = "", command: s
     return {k: str(v) for k, v in paths.items()}
 
 
-def write_beam_files(options: BeamOptions, output, sid_fem: bool = False) -> dict:
+def write_beam_files(options: BeamOptions, output, sid_fem: bool = True, obj: bool = True) -> dict:
     """Build the analytical beam's SID and write ``output`` (.sid.h5, checked before the work) and
-    optionally <stem>.SID_FEM; returns a summary dict (files, mass kg, nq, labels, frequencies Hz)."""
-    paths = output_paths(output, OutputOptions(output=str(output), sid_fem=sid_fem, obj=False))
+    its companions <stem>.SID_FEM and <stem>.obj, as ``sidprep reduce`` does; returns a summary dict
+    (files, mass kg, nq, labels, frequencies Hz)."""
+    paths = output_paths(output, OutputOptions(output=str(output), sid_fem=sid_fem, obj=obj))
     sid = beam_sid(options)
     files = write_reduction(sid, paths, command="beam")
     return {"files": files, "mass_kg": sid.mass, "nq": sid.nq, "labels": list(sid.labels),
