@@ -96,12 +96,10 @@ def run(args) -> int:
 
     from sidprep.cli.options import cli_flags, quiet_native_output
     from sidprep.errors import InputError, note_line
-    from sidprep.reduction.fe_checks import format_checks
-    from sidprep.jobs.assembly import reduce_assembly
-    from sidprep.jobs.reduce import reduce
-    from sidprep.jobs.output import output_paths, write_reduction
+    from sidprep.jobs.output import run_job
     from sidprep.jobs.scheduler_address import probe_scheduler
     from sidprep.progress import Phases
+    from sidprep.reduction.fe_checks import format_checks
 
     ph = Phases(verbose=not args.quiet)
     with cli_flags():
@@ -111,18 +109,12 @@ def run(args) -> int:
         if args.workers is not None and args.workers < 1:
             raise InputError(f"--workers {args.workers}: must be >= 1 (or left out: one per core)")
         scheduler = probe_scheduler(args.scheduler) if args.scheduler is not None else None
-        paths = output_paths(job.mesh, job.output)
         with quiet_native_output():
-            if job.components:
-                result = reduce_assembly(job, phases=ph, scheduler=scheduler, workers=args.workers)
-            else:
-                result = reduce(job.mesh, job.options, phases=ph, scheduler=scheduler, workers=args.workers)
+            run = run_job(job, phases=ph, scheduler=scheduler, workers=args.workers)
+    result, files = run.result, run.files
     if not args.quiet:
         for note in result.notes:
             print(note_line(note), file=sys.stderr)
-    with ph("write", ", ".join(str(p) for p in paths.values())):
-        files = write_reduction(result.sid, paths, source=job.mesh)
-    if not args.quiet:
         print(format_checks(result.checks), file=sys.stderr)
     if args.json:
         summary = {"files": files, "dof": result.n_dof, "nq": result.sid.nq, "labels": list(result.sid.labels),

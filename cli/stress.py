@@ -66,9 +66,8 @@ def run(args) -> int:
     import json
 
     from sidprep.errors import InputError
-    from sidprep.solver.fatigue import miner_damage, parse_basquin, signed_abs_max_principal
-    from sidprep.solver.stress import (DEFAULT_HOT_SPOTS, recover_stress, write_envelope_csv,
-                                       write_histories_csv)
+    from sidprep.solver.fatigue import parse_basquin
+    from sidprep.solver.stress import DEFAULT_HOT_SPOTS, stress_report
 
     at = parse_point(args.at) if args.at else None
     wanted = csv_outputs(args)
@@ -76,16 +75,10 @@ def run(args) -> int:
     count = DEFAULT_HOT_SPOTS if args.hot_spots is None else args.hot_spots
     if count < 1:
         raise InputError(f"--hot-spots {count}: must be >= 1")
-    rec = recover_stress(args.results, args.body, at=at, hot_spots=count, principal=args.principal or bool(curve))
-    fatigue = {}
-    if curve:
-        for h in rec.hot_spot_histories + ((rec.history,) if rec.history else ()):
-            fatigue[h.node] = miner_damage(signed_abs_max_principal(h.principal), curve)
-    files = {}
-    if "csv" in wanted:
-        files["csv"] = str(write_histories_csv(rec, wanted["csv"]))
-    if "envelope" in wanted:
-        files["envelope"] = str(write_envelope_csv(rec, wanted["envelope"]))
+    report = stress_report(args.results, args.body, at=at, hot_spots=count, principal=args.principal, curve=curve,
+                           histories_csv=wanted.get("csv"), envelope_csv=wanted.get("envelope"))
+    rec, fatigue = report.recovery, report.fatigue
+    files = {kind: str(path) for kind, path in report.files.items()}
     if args.json:
         out = {"body": rec.body, "sid": rec.sid, "samples": int(len(rec.time)),
                "hot_spots": [s.as_dict() for s in rec.hot_spots], "files": files, "unit": "Pa",

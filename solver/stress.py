@@ -282,3 +282,36 @@ def write_envelope_csv(recovery: StressRecovery, path) -> Path:
         for node, p, v, t in zip(recovery.node_ids, recovery.points, recovery.envelope, recovery.envelope_time):
             w.writerow([int(node), *map(float, p), float(v), float(t)])
     return path
+
+
+@dataclass(frozen=True)
+class StressReport:
+    """``sidprep stress`` in one call: the StressRecovery, the Palmgren-Miner damage per node of
+    the histories ({node id: sidprep.solver.fatigue.FatigueDamage}, with an S-N curve) and the CSV
+    files written ({"csv", "envelope"}: Path)."""
+
+    recovery: StressRecovery
+    fatigue: dict
+    files: dict
+    curve: object = None
+
+
+def stress_report(results, body: str | None = None, *, at=None, hot_spots: int = DEFAULT_HOT_SPOTS,
+                  principal: bool = False, curve=None, histories_csv=None, envelope_csv=None) -> StressReport:
+    """``recover_stress`` plus the fatigue hand-off and the files: with ``curve`` (a Basquin S-N
+    curve, sidprep.solver.fatigue) the rainflow count (ASTM E1049-85) of each history's signed
+    abs-max principal stress and its Palmgren-Miner damage; ``histories_csv`` / ``envelope_csv``:
+    paths of the CSV tables to write (write_histories_csv, write_envelope_csv)."""
+    from sidprep.solver.fatigue import miner_damage, signed_abs_max_principal
+
+    rec = recover_stress(results, body, at=at, hot_spots=hot_spots, principal=principal or curve is not None)
+    fatigue = {}
+    if curve is not None:
+        for h in rec.hot_spot_histories + ((rec.history,) if rec.history else ()):
+            fatigue[h.node] = miner_damage(signed_abs_max_principal(h.principal), curve)
+    files = {}
+    if histories_csv:
+        files["csv"] = write_histories_csv(rec, histories_csv)
+    if envelope_csv:
+        files["envelope"] = write_envelope_csv(rec, envelope_csv)
+    return StressReport(rec, fatigue, files, curve)

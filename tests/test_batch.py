@@ -241,3 +241,22 @@ def test_a_worker_killed_under_a_job_fails_that_job_alone_and_the_batch_goes_on(
     assert status.pop(killed[0]) == "failed" and set(status.values()) == {"ok"}
     failed = next(r for r in report.records if r["name"] == killed[0])
     assert failed["error"].startswith("worker lost: BrokenProcessPool") and report.exit_code == 1
+
+
+UNGUARDED = """import sidprep
+jobs = sidprep.jobs.batch.jobs_from_meshes([{bar!r}], sidprep.ReduceOptions(modes=2))
+report = sidprep.run_batch(jobs, sidprep.BatchOptions(outdir="out", workers=1))
+"""
+
+
+def test_run_batch_at_a_script_top_level_is_one_line_naming_the_main_guard(tmp_path):
+    """Spawned workers import the script again: an unguarded call is refused before any worker
+    starts (no lost workers, no lock message), with the fix in the one line."""
+    script = tmp_path / "study.py"
+    script.write_text(UNGUARDED.format(bar=str(BAR)))
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert r.returncode != 0
+    last = r.stderr.strip().splitlines()[-1]
+    assert f"{script}:3: run_batch runs at the top level of the script" in last
+    assert 'if __name__ == "__main__":' in last and "BrokenProcessPool" not in r.stderr
+    assert not (tmp_path / "out").exists()

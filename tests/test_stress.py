@@ -497,7 +497,7 @@ def engine_run(tmp_path_factory):
     r = cli("reduce", ROOT / "data/meshes/piston_rod.msh", "-o", "piston_rod.sid.h5", "-q", "--no-sid-fem",
             "--no-obj", "--stress", cwd=folder)
     assert r.returncode == 0, r.stderr
-    r = cli("simulate", "scene.toml", "--t-end", "0.1", "-q", "-o", "scene.results.h5", cwd=folder)
+    r = cli("simulate", "scene.toml", "--t-end", "0.1", "-q", "-o", "engine.results.h5", cwd=folder)
     assert r.returncode == 0, r.stderr
     return folder
 

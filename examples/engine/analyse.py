@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The engine's numbers (README.md): energy balance, flexible against rigid rod, axial shortening
 against the static value F/k of the SID, modal amplitudes and the frequencies they oscillate at
-against the mechanism's linearised eigenfrequencies, CPU time; writes engine.png.
+against the mechanism's linearised eigenfrequencies, CPU time; writes analysis.png.
 
     python analyse.py              # runs scene.toml and scene_rigid.toml (about 10 s)
     python analyse.py --t-end 0.2  # a shorter run
@@ -151,7 +151,7 @@ def write_plot(flexible, rigid, q, largest, shortening, static):
     ax[3].set_xlabel("time [s]")
     ax[3].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(HERE / "engine.png", dpi=100)
+    fig.savefig(HERE / "analysis.png", dpi=100)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Midspan deflection of the beam under the moving force against the closed-form modal series
 (Fryba, "Vibration of solids and structures under moving loads", 1972, ch. 1: the undamped
-simply supported Euler-Bernoulli beam); writes moving_force.png.
+simply supported Euler-Bernoulli beam); writes analysis.png.
 
     sidprep simulate scene.toml --csv     # moving_force.csv
     python analyse.py                     # the README's numbers
@@ -76,7 +76,7 @@ def main(path="moving_force.csv", plot=True) -> dict:
         ax.set_ylabel("midspan deflection [mm]")
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig("moving_force.png", dpi=100)
+        fig.savefig("analysis.png", dpi=100)
     return out
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The sliding mass of seed 003 section 2.3: its x and z accelerations (the seed: peaks near
 20 m/s^2, a periodic x acceleration as it slides to and fro in the sag), the period of the
-sliding, the energy balance; writes moving_mass.png.
+sliding, the energy balance; writes analysis.png.
 
     python analyse.py              # runs scene.toml (60 s, ~2 s CPU)
 """
@@ -50,7 +50,7 @@ def main(t_end=None, plot=True, folder=HERE) -> dict:
         ax[2].set_ylabel("mass x [m]")
         ax[2].set_xlabel("time [s]")
         fig.tight_layout()
-        fig.savefig(HERE / "moving_mass.png", dpi=100)
+        fig.savefig(HERE / "analysis.png", dpi=100)
     return out
 
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The flexible slider crank's energy bookkeeping and kinematics (README.md); writes
-slider_crank.png.
+analysis.png.
 
     python analyse.py              # runs scene.toml (10 s, ~3 s CPU)
     python analyse.py --t-end 2
@@ -96,7 +96,7 @@ def write_plot(r, deviation):
     ax[2].set_xlabel("time [s]")
     ax[2].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(HERE / "slider_crank.png", dpi=100)
+    fig.savefig(HERE / "analysis.png", dpi=100)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Files of a reduction: where they go (``output_paths``) and writing them (``write_reduction``).
+"""Files of a reduction: where they go (``output_paths``), writing them (``write_reduction``), and a
+job reduced and written in one call (``run_job``: what ``sidprep reduce`` runs).
 
 Every file is written atomically, the files of one reduction as one set (sidprep.sid.io.atomic): a
 killed run leaves no half-written output and no set without its other files.
@@ -6,6 +7,7 @@ killed run leaves no half-written output and no set without its other files.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from sidprep.jobs.options import OutputOptions, check_output
@@ -46,3 +48,31 @@ def write_beam_files(options: BeamOptions, output, sid_fem: bool = True, obj: bo
     files = write_reduction(sid, paths, command="beam")
     return {"files": files, "mass_kg": sid.mass, "nq": sid.nq, "labels": list(sid.labels),
             "frequencies_hz": sid.frequencies_hz.tolist()}
+
+
+@dataclass(frozen=True)
+class JobRun:
+    """A reduction job done: the ReductionResult (SID, checks, notes, timings) and the files
+    written ({"hdf5", "sid_fem", "obj"}: path strings)."""
+
+    result: object
+    files: dict
+
+
+def run_job(job, *, phases=None, scheduler=None, workers=None) -> JobRun:
+    """Reduce ``job`` (sidprep.jobs.jobfile.Job: one mesh, or an assembly of components) and write
+    its files (``job.output``; the paths are checked before the work).  ``scheduler``/``workers``:
+    the executor of a reduction in parts or of an assembly's components."""
+    from sidprep.jobs.assembly import reduce_assembly
+    from sidprep.jobs.reduce import reduce
+    from sidprep.progress import Phases
+
+    phases = phases or Phases(verbose=False)
+    paths = output_paths(job.mesh, job.output)
+    if job.components:
+        result = reduce_assembly(job, phases=phases, scheduler=scheduler, workers=workers)
+    else:
+        result = reduce(job.mesh, job.options, phases=phases, scheduler=scheduler, workers=workers)
+    with phases("write", ", ".join(str(p) for p in paths.values())):
+        files = write_reduction(result.sid, paths, source=job.mesh)
+    return JobRun(result, files)
