@@ -15,7 +15,7 @@ from pathlib import Path
 #: the BLAS thread pools of a solver command's process, set before numpy loads (a limit set later does not
 #: stop the pools from starting): numpy's and scipy's OpenBLAS each start a pool whose idle threads
 #: spin after the start and after every call, while the solver's matrices are small (tens to a few
-#: hundred rows).  Measured 2026-11-26 (docs/performance.md, "Fixed cost per process"): 0.16-0.22
+#: hundred rows).  Measured (docs/performance.md, "Fixed cost per process"): 0.16-0.22
 #: CPU-s of imports, 0.04 s of the engine's post-processing, the integration unchanged.  A value the
 #: user sets wins.
 SOLVER_THREADS = {"OPENBLAS_NUM_THREADS": "1"}

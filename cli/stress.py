@@ -88,7 +88,8 @@ def run(args) -> int:
         print(json.dumps(out, allow_nan=False))
         return 0
     if args.quiet:
-        print("\n".join(files.values()))
+        for path in files.values():
+            print(path)
         return 0
     print(f"body {rec.body} ({rec.sid}): {len(rec.node_ids)} stress nodes, {len(rec.time)} samples, "
           f"t = {rec.time[0]:g} .. {rec.time[-1]:g} s")

@@ -16,9 +16,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import h5py
+
 from sidprep.errors import InputError, SimulationFailed
-from sidprep.solver.results import Result, energy_summary
-from sidprep.solver.scene import Scene, load_scene, simulate
+from sidprep.progress import Phases, SimulationProgress
+from sidprep.solver.results import (Result, energy_summary, plot_signals, signal_names, write_csv,
+                                    write_results)
+from sidprep.solver.scene import Scene, empty_result, load_scene, simulate
 
 #: signals plotted / exported when the scene's [output] names none
 DEFAULT_SIGNALS = ("energy.kinetic", "energy.total")
@@ -85,8 +89,6 @@ def replaced_note(results: Path, scene: Scene) -> str | None:
     """A note when ``results`` exists and was written from another scene file (or is no results file)."""
     if not results.exists():
         return None
-    import h5py
-
     try:
         with h5py.File(results, "r") as f:
             source = f["scene"].attrs.get("path") if "scene" in f else None
@@ -101,8 +103,8 @@ def replaced_note(results: Path, scene: Scene) -> str | None:
 
 def animation_surfaces(scene: Scene) -> dict:
     """{body name: Surface} of every body that has a shape (flexible: SID surface; rigid: OBJ)."""
-    from sidprep.sid.io.obj import read_obj
-    from sidprep.sid.surface import rigid_surface, sid_surface
+    from sidprep.sid.io.obj import read_obj  # deferred: only an animation needs the surfaces
+    from sidprep.sid.surface import rigid_surface, sid_surface  # deferred: as above
 
     surfaces = {}
     for b in getattr(scene.system, "bodies", ()):          # absolute-nodal beams carry no surface
@@ -116,9 +118,6 @@ def animation_surfaces(scene: Scene) -> dict:
 
 def scene_signals(path) -> list[str]:
     """The signal names of a scene (for its [output] signals and ``sidprep plot``), without simulating."""
-    from sidprep.solver.results import signal_names
-    from sidprep.solver.scene import empty_result
-
     return signal_names(empty_result(load_scene(path).system))
 
 
@@ -143,9 +142,6 @@ def simulate_scene(path, output=None, *, t_end: float | None = None, plot: bool 
         On a failed simulation the motion up to the failure is written to ``<stem>.failed.h5`` and
         an InputError names it (the results file is not written).
     """
-    from sidprep.progress import Phases, SimulationProgress
-    from sidprep.solver.results import plot_signals, write_csv, write_results
-
     phases = Phases(verbose=verbose)
     with phases("scene", str(path)):
         scene = load_scene(path, t_end=t_end)

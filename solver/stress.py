@@ -25,6 +25,7 @@ from sidprep.reduction.beam import BEAM_TABLE_KEYS, beam_options_from_table, bea
 from sidprep.sid.io import read_sid
 from sidprep.sid.io.atomic import atomic_path
 from sidprep.sid.stress import DEVIATOR_ROWS, STRESS_ORDER, StressModes, principal_stresses, von_mises
+from sidprep.solver.fatigue import miner_damage, signed_abs_max_principal
 from sidprep.solver.results import read_results
 from sidprep.tables import parse_toml
 
@@ -302,8 +303,6 @@ def stress_report(results, body: str | None = None, *, at=None, hot_spots: int =
     curve, sidprep.solver.fatigue) the rainflow count (ASTM E1049-85) of each history's signed
     abs-max principal stress and its Palmgren-Miner damage; ``histories_csv`` / ``envelope_csv``:
     paths of the CSV tables to write (write_histories_csv, write_envelope_csv)."""
-    from sidprep.solver.fatigue import miner_damage, signed_abs_max_principal
-
     rec = recover_stress(results, body, at=at, hot_spots=hot_spots, principal=principal or curve is not None)
     fatigue = {}
     if curve is not None:

@@ -1,4 +1,4 @@
-"""The numbers an example README states, checked against what the example computes (issue 27).
+"""The numbers an example README states, checked against what the example computes.
 
 A README marks the text whose numbers are results with
 

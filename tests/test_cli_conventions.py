@@ -1,4 +1,4 @@
-"""The command line's conventions (issue 27): outputs in the current folder named by the input's
+"""The command line's conventions: outputs in the current folder named by the input's
 stem unless -o is given (README, "Where outputs go"); materials listed by --material list."""
 
 import subprocess

@@ -1,12 +1,15 @@
 """Every ```bash / ```sh / ```python block of README.md, docs/*.md and examples/*/README.md runs
-as written (issue 14 item 9).
+as written.
 
 The blocks of one file run in order in one temporary copy of the repository (so a later block
-reuses what an earlier one wrote), ``sidprep`` being this checkout's CLI. A block that cannot run
+reuses what an earlier one wrote), ``sidprep`` being this checkout's CLI. They write into scratch
+folders, never over a file the repository tracks: every tracked file of the copy is the same
+after the blocks ran. A block that cannot run
 in CI is opted out by the line ``<!-- docs-test: skip REASON -->`` right above its fence; the
 reason is printed with the skip.
 """
 
+import hashlib
 import os
 import re
 import shutil
@@ -51,6 +54,13 @@ def checkout(tmp: Path) -> Path:
     return tmp
 
 
+def tracked_digests(copy: Path) -> dict[str, str]:
+    """{path: sha256} of the files of ``copy`` that the repository tracks."""
+    listed = subprocess.run(["git", "ls-files", *COPIED], cwd=ROOT, capture_output=True, text=True).stdout.split()
+    return {name: hashlib.sha256((copy / name).read_bytes()).hexdigest() for name in listed
+            if (copy / name).is_file()}
+
+
 def run_block(lang: str, code: str, cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PATH": f"{cwd / '.bin'}{os.pathsep}{os.environ['PATH']}",
            "MPLBACKEND": "Agg"}
@@ -61,6 +71,7 @@ def run_block(lang: str, code: str, cwd: Path) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize("doc", [d for d in DOCS if blocks(d)], ids=lambda d: str(d.relative_to(ROOT)))
 def test_doc_blocks_run_as_written(doc, tmp_path):
     cwd = checkout(tmp_path)
+    before = tracked_digests(cwd)
     failures, skipped = [], []
     for k, (lang, code, why) in enumerate(blocks(doc), 1):
         if why is not None:
@@ -72,3 +83,6 @@ def test_doc_blocks_run_as_written(doc, tmp_path):
     for s in skipped:
         print(f"{doc.name} opt-out {s}")
     assert not failures, "\n\n".join(failures)
+    after = tracked_digests(cwd)
+    replaced = sorted(name for name, digest in before.items() if after.get(name) != digest)
+    assert not replaced, f"the blocks wrote over tracked files (write into a scratch folder): {replaced}"

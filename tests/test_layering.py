@@ -79,7 +79,7 @@ SOLVER_LAYERS = (
     Layer("results", ("solver/effects.py", "solver/energy.py", "solver/results.py")),
     Layer("run", ("solver/run.py", "solver/postprocess.py", "solver/linear.py", "solver/stiffening_work.py")),
     Layer("scenes", ("solver/scene_tables.py", "solver/scene.py", "solver/absolute_nodal/", "solver/animation.py",
-                     "solver/stress.py", "solver/fatigue.py", "solver/prebuild.py")),
+                     "solver/stress.py", "solver/fatigue.py", "solver/prebuild.py", "solver/simulate_scene.py")),
     Layer("studies", ("solver/converge.py",)),
     Layer("solver api", ("solver/__init__.py",)),
 )

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sidprep.jobs.options import OutputOptions, check_output
+from sidprep.progress import Phases
 from sidprep.reduction.beam import BeamOptions, beam_sid
 from sidprep.sid.io import write_sid
 from sidprep.sid.io.atomic import output_set
@@ -63,9 +64,8 @@ def run_job(job, *, phases=None, scheduler=None, workers=None) -> JobRun:
     """Reduce ``job`` (sidprep.jobs.jobfile.Job: one mesh, or an assembly of components) and write
     its files (``job.output``; the paths are checked before the work).  ``scheduler``/``workers``:
     the executor of a reduction in parts or of an assembly's components."""
-    from sidprep.jobs.assembly import reduce_assembly
-    from sidprep.jobs.reduce import reduce
-    from sidprep.progress import Phases
+    from sidprep.jobs.assembly import reduce_assembly  # deferred: the FE side, which `sidprep beam` never needs
+    from sidprep.jobs.reduce import reduce  # deferred: as above
 
     phases = phases or Phases(verbose=False)
     paths = output_paths(job.mesh, job.output)
