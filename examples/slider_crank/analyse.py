@@ -2,7 +2,7 @@
 """The flexible slider crank's energy bookkeeping and kinematics (README.md); writes
 analysis.png.
 
-    python analyse.py              # runs scene.toml (10 s, ~3 s CPU)
+    python analyse.py              # runs scene.toml (10 s simulated, ~2.5 CPU-s of integration)
     python analyse.py --t-end 2
 """
 
