@@ -51,19 +51,15 @@ _LAZY = {
 }
 
 
-#: the subpackages, imported on first use: ``import sidprep`` then ``sidprep.jobs.batch.read_study``
-SUBPACKAGES = ("fe", "reduction", "sid", "jobs", "view", "solver", "cli", "errors", "progress", "tables")
-
-
 def __getattr__(name):
     import importlib
+
+    from sidprep.lazy import submodule
 
     if name in _LAZY:
         module, attr = _LAZY[name]
         return getattr(importlib.import_module(module), attr)
-    if name in SUBPACKAGES:
-        return importlib.import_module(f"sidprep.{name}")
-    raise AttributeError(f"module 'sidprep' has no attribute {name!r}")
+    return submodule("sidprep", name)      # the subpackages on first use: ``sidprep.jobs.batch.read_study``
 
 
 def read_mesh(path, *, size: float | None = None, order: int = 2, units: str = "si"):

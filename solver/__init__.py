@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import importlib
 
+from sidprep.lazy import submodule
+
 _PUBLIC = {
     "sidprep.solver.model.system": ("System",),
     "sidprep.solver.model.bodies": ("Ground", "RigidBody", "FlexibleBody", "Marker", "PathMarker"),
@@ -38,4 +40,4 @@ __all__ = sorted(_WHERE)
 def __getattr__(name: str):
     if name in _WHERE:
         return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'sidprep.solver' has no attribute {name!r}")
+    return submodule(__name__, name)                  # the solver's modules on first use (sidprep.lazy)

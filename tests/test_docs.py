@@ -86,3 +86,23 @@ def test_doc_blocks_run_as_written(doc, tmp_path):
     after = tracked_digests(cwd)
     replaced = sorted(name for name, digest in before.items() if after.get(name) != digest)
     assert not replaced, f"the blocks wrote over tracked files (write into a scratch folder): {replaced}"
+
+
+#: a dotted name of the package in the docs: ``sidprep.jobs.batch.read_study``
+DOTTED = re.compile(r"\bsidprep(?:\.[a-z_][a-z0-9_]*)+")
+#: reached by attribute access after a plain ``import sidprep`` in a fresh interpreter
+REACH = """
+import sys, sidprep
+for name in sys.argv[1:]:
+    obj = sidprep
+    for part in name.split(".")[1:]:
+        obj = getattr(obj, part)
+"""
+
+
+def test_every_name_the_docs_use_is_reachable_after_import_sidprep():
+    names = sorted({m.group() for doc in DOCS for m in DOTTED.finditer(doc.read_text())})
+    assert len(names) > 40
+    run = subprocess.run([sys.executable, "-c", REACH, *names], capture_output=True, text=True, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert run.returncode == 0, run.stderr[-2000:]

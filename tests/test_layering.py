@@ -56,7 +56,8 @@ class Layer:
 
 #: the layers, lowest first (docs/architecture.md, the same rows)
 LAYERS = (
-    Layer("base", ("sidprep/errors.py", "sidprep/progress.py", "sidprep/tables.py", "sidprep/interpolation.py")),
+    Layer("base", ("sidprep/errors.py", "sidprep/progress.py", "sidprep/tables.py", "sidprep/interpolation.py",
+                   "sidprep/lazy.py")),
     Layer("sid", ("sidprep/sid/",), ("base",)),
     Layer("fe", ("sidprep/fe/",), ("base",)),
     Layer("reduction", ("sidprep/reduction/",), ("base", "sid", "fe")),
@@ -89,6 +90,7 @@ PACKAGE_METADATA = {"__version__"}
 #: modules that import by a name known only at run time, each with its reason
 RUNTIME_IMPORTS = {
     "sidprep.solver.equations.aot": "unpickles a compiled kernel by the module name stored with it",
+    "sidprep.lazy": "a package's module on first use, by the attribute name asked for (PEP 562 __getattr__)",
 }
 #: at most this many parameters (``self`` counts): a function that needs more takes a named structure
 #: (a frozen dataclass of options, a model, a layout)

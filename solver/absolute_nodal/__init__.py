@@ -25,3 +25,10 @@ scene reads the scene tables.  Import the names from those modules: the package 
 so that a scene of floating-frame bodies does not load this solver (28 CPU-ms of imports,
 docs/performance.md "Fixed cost per process").
 """
+
+from sidprep.lazy import submodule
+
+
+def __getattr__(name: str):
+    """The package's modules on first use (sidprep.lazy)."""
+    return submodule(__name__, name)

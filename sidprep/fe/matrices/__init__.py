@@ -28,6 +28,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices.record import FEMatrices
+from sidprep.lazy import submodule
 
 
 def reader_for(path):
@@ -81,3 +82,8 @@ READERS = {
     ".pch": ("nastran", "Nastran DMIG punch, PARAM,EXTOUT,DMIGPCH"),
     ".full": ("ansys", "Ansys .full, through ansys-mapdl-reader"),
 }
+
+
+def __getattr__(name: str):
+    """The package's modules on first use (sidprep.lazy)."""
+    return submodule(__name__, name)

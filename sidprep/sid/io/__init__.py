@@ -11,6 +11,7 @@ from typing import Callable
 import numpy as np
 
 from sidprep.errors import InputError
+from sidprep.lazy import submodule
 from sidprep.sid.checks import physical_problems, structure_problem
 from sidprep.sid.io.obj import write_obj
 from sidprep.sid.io.sid_hdf5 import read_sid_hdf5, write_sid_hdf5
@@ -113,3 +114,8 @@ def write_sid(sid, path, *, comment: str = "") -> Path:
     if fmt is None:
         raise InputError(f"{path}: unknown SID file type; use .sid.h5, .SID_FEM or .obj")
     return fmt.write(sid, path, comment)
+
+
+def __getattr__(name: str):
+    """The package's modules on first use (sidprep.lazy)."""
+    return submodule(__name__, name)
