@@ -75,7 +75,7 @@ def run(args) -> int:
     else:
         report = _with_progress(jobs, opts)
     cached = sum(r["status"] == "cached" for r in report.records)
-    if cached and not args.quiet:
+    if cached:                      # with -q too: the outputs were not recomputed
         print(f"sidprep batch: {cached} of {len(report.records)} job(s) served from the cache "
               f"({opts.outdir}/.cache)", file=sys.stderr)
     for r in report.failed:
