@@ -89,7 +89,7 @@ def test_doc_blocks_run_as_written(doc, tmp_path):
 
 
 #: a dotted name of the package in the docs: ``sidprep.jobs.batch.read_study``
-DOTTED = re.compile(r"\bsidprep(?:\.[a-z_][a-z0-9_]*)+")
+DOTTED = re.compile(r"\bsidprep(?:\.[a-z][a-z0-9_]*)+")         # public names (no leading _)
 #: reached by attribute access after a plain ``import sidprep`` in a fresh interpreter
 REACH = """
 import sys, sidprep
