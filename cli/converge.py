@@ -9,7 +9,7 @@ import json
 import math
 import sys
 
-from sidprep.cli.options import process_setup
+from sidprep.cli.options import add_json, add_output, add_quiet, process_setup
 from sidprep.cli.simulate import positive
 from sidprep.solver.integrators.settings import METHODS
 
@@ -37,9 +37,9 @@ def register(subparsers) -> None:
     p.add_argument("--no-effects", action="store_true", help="do not run the other effects choice")
     p.add_argument("--workers", type=int, help="parallel runs (default: cores, or the cluster's threads)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    p.add_argument("-o", "--output", metavar="PLOT.png", help="write the Pareto plot (error against CPU-s)")
-    p.add_argument("--json", action="store_true", help="print the study as one JSON object on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_output(p, "PLOT.png", "none: the Pareto plot, error against CPU-s, is written when named")
+    add_json(p)
+    add_quiet(p)
     fe = p.add_argument_group("FE ladder (MESH or job file: reduced with each mode count, with and without FRMs)")
     fe.add_argument("--modes-ladder", type=int, nargs="+", metavar="N", help="eigenmode counts (default 2 4 6 8 12 16 24)")
     fe.add_argument("--static-tol", type=positive, default=None, metavar="REL",

@@ -11,10 +11,10 @@ from sidprep.cli.main import build_parser, main
 from sidprep.cli.options import COUNT_HELP, CSV_HELP, DEFAULT_COUNT, JSON_HELP, QUIET_HELP, MaterialList
 
 #: every sub-command (a new one is added here and to docs/cli.md's table)
-COMMANDS = ("animate", "batch", "beam", "check", "info", "linearize", "modes", "plot", "reduce", "simulate",
-            "stress", "view")
+COMMANDS = ("animate", "batch", "beam", "check", "converge", "info", "linearize", "modes", "plot", "reduce",
+            "simulate", "stress", "view")
 #: the commands that write files: each has -o/--output
-WRITERS = ("animate", "batch", "beam", "plot", "reduce", "simulate", "stress", "view")
+WRITERS = ("animate", "batch", "beam", "converge", "plot", "reduce", "simulate", "stress", "view")
 #: the commands that print mode tables: each has --count N, default DEFAULT_COUNT
 COUNTERS = ("linearize", "modes")
 #: the commands that write SIDs: --sid-fem/--no-sid-fem and --obj/--no-obj, default on
