@@ -76,6 +76,9 @@ BALANCE_BEFORE_FAILURE = 0.1
 
 def numerical_fix(settings) -> str:
     """The fix of an inaccurate or unstable integration with ``settings``."""
+    if settings.method == "genalpha" and settings.rho_inf == 1.0:  # nothing damps the index-3 velocity error
+        return ("halve h or lower rho_inf to 0.9 (at rho_inf = 1 nothing damps the constraints' velocity-level "
+                "error: a closed loop may need rho_inf <= 0.95 whatever h)")
     if settings.method == "genalpha":
         return "halve h" + (" or lower rho_inf to 0.9" if settings.rho_inf > 0.9 else "")
     if settings.tolerance:
@@ -329,9 +332,12 @@ class Run:
         balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops)
         result.stats["energy_balance"] = balance
         if stepper.status == "failed":
-            cause = self.failure_cause(stepper, problem.sizes)
-            named = cause if cause.startswith(f"{stepper.name}: ") else f"{stepper.name}: {cause}"
-            message = named + numerical_cause(balance, st)
+            cause = numerical_cause(balance, st)
+            failure = self.failure_cause(stepper, problem.sizes)
+            if cause:  # the integration, not the scene: the stepper's advice to check the scene does not apply
+                failure = failure.split("; check the scene")[0]
+            named = failure if failure.startswith(f"{stepper.name}: ") else f"{stepper.name}: {failure}"
+            message = named + cause
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         gone = left_path(self.system, result)
