@@ -14,7 +14,13 @@ work is not booked).  The balance error is
 W is the energy exchanged between the terms (a hinged body swinging under gravity: the swing's
 kinetic energy), or the energy the motion carries when nothing is exchanged (a body spinning
 freely).  Above ``energy_tol`` (SolverSettings, default ENERGY_TOL) the run carries one warning
-naming the likely cause and the fix.
+naming the likely cause and the fix, unless the change itself is below the floor
+
+    max(ENERGY_FLOOR_J, ROUND_OFF_RTOL * largest |booked term|)
+
+at which the books cannot tell integration error from the Newton tolerance and round-off (a run
+that exchanges almost nothing, e.g. a static start: a relative error of a few 1e-11 J means
+nothing).
 """
 
 from __future__ import annotations
@@ -24,47 +30,85 @@ import numpy as np
 from sidprep.solver.integrators.settings import ENERGY_TOL
 #: booked energy terms (postprocess.ENERGY_KINDS without the total)
 BOOKED = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
+#: a change of the booked total below this, J, is no evidence of an integration error
+ENERGY_FLOOR_J = 1e-12
+#: ... nor one below this fraction of the largest booked energy (the Newton tolerance's and the
+#: round-off's share of the terms that are summed)
+ROUND_OFF_RTOL = 1e-9
+
+
+def work_integral(t: np.ndarray, power: np.ndarray) -> np.ndarray:
+    """W(t_k) = int_0^t_k P dt (nt,) J of the power P (nt,) W sampled at the times t (nt,) s:
+    composite Simpson (piecewise quadratic through neighbouring samples, scipy's
+    cumulative_simpson; the trapezoidal rule for two samples).  Its error falls as dt^3 against
+    the trapezoid's dt^2: a power sampled at 100 Hz that swings at 4 Hz left 1.1e-3 of the energy
+    exchanged with the trapezoid (examples/beam_buckling), 2e-5 with Simpson."""
+    from scipy.integrate import cumulative_simpson  # deferred: scipy.integrate costs 0.3 CPU-s of import
+
+    if t.size < 2:
+        return np.zeros(t.size)
+    return cumulative_simpson(power, x=t, initial=0.0)
 
 
 def energy_balance(energy: dict, tolerance: float = ENERGY_TOL) -> dict:
-    """{"balance_error", "exchanged" (J), "change" (J, E(end) - E(0)), "tolerance"} of the energy
-    histories ``energy`` ({kind: (nt,) J} with "total"); balance_error is NaN for a run that
-    exchanged no energy."""
+    """{"balance_error", "exchanged" (J), "change" (J, E(end) - E(0)), "excursion" (J, the
+    largest change E - E(0) with its sign), "worst" (J, its size), "floor" (J, module doc),
+    "tolerance"} of the energy histories ``energy``
+    ({kind: (nt,) J} with "total"); balance_error is NaN for a run that exchanged no energy."""
     total = np.asarray(energy["total"], float)
     if total.size == 0:
-        return {"balance_error": 0.0, "exchanged": 0.0, "change": 0.0, "tolerance": tolerance}
+        return {"balance_error": 0.0, "exchanged": 0.0, "change": 0.0, "excursion": 0.0, "worst": 0.0,
+                "floor": ENERGY_FLOOR_J, "tolerance": tolerance}
     if not np.all(np.isfinite(total)):  # the run blew up (an explicit method beyond its stability limit)
         return {"balance_error": float("inf"), "exchanged": float("nan"), "change": float("inf"),
-                "tolerance": tolerance}
+                "excursion": float("inf"), "worst": float("inf"), "floor": ENERGY_FLOOR_J, "tolerance": tolerance}
     terms = [np.asarray(energy[k], float) for k in BOOKED if k in energy]
     exchanged = max([float(np.ptp(e)) for e in terms] + [float(np.max(np.abs(energy["kinetic"])))])
-    worst = float(np.max(np.abs(total - total[0])))
+    worst_at = int(np.argmax(np.abs(total - total[0])))
+    worst = abs(float(total[worst_at] - total[0]))
     error = worst / exchanged if exchanged > 0 else (0.0 if worst == 0 else float("nan"))
+    floor = max(ENERGY_FLOOR_J, ROUND_OFF_RTOL * max(float(np.max(np.abs(e))) for e in terms))
     return {"balance_error": error, "exchanged": exchanged, "change": float(total[-1] - total[0]),
-            "tolerance": tolerance}
+            "excursion": float(total[worst_at] - total[0]), "worst": worst, "floor": floor, "tolerance": tolerance}
 
 
-def balance_warning(balance: dict, method: str, h: float, rho_inf: float | None, rtol: float | None) -> str | None:
+def balance_beyond(balance: dict, level: float) -> bool:
+    """Whether the balance error passes ``level`` (relative to the energy exchanged) by a change
+    above the floor of what the books resolve (module doc)."""
+    return balance["balance_error"] > level and not balance.get("worst", np.inf) <= balance.get("floor", 0.0)
+
+
+def balance_warning(balance: dict, method: str, h: float, rho_inf: float | None, rtol: float | None,
+                    stops: tuple = ()) -> str | None:
     """One line naming the likely cause and the fix when the balance error passes its tolerance
-    (None otherwise)."""
+    by more than the floor (None otherwise); ``stops``: the names of the force elements with a
+    bump stop (an unresolved impact is then the first suspect)."""
     error, tol = balance["balance_error"], balance["tolerance"]
-    if not error > tol:
+    if not balance_beyond(balance, tol):
         return None
-    grew = balance["change"] > 0
+    change = balance["excursion"]  # the largest change, not the end's: an impact may gain what the end lost
+    grew = change > 0
     head = (f"energy balance error {error:.2g} of the energy exchanged ({balance['exchanged']:.4g} J) passes "
             f"energy_tol = {tol:g}: the integration is not accurate" if np.isfinite(error) else
             "the energy became infinite or NaN: the integration blew up")
-    if method == "genalpha":
+    if stops and np.isfinite(error):
+        how = "grew" if grew else "fell"
+        cause = (f"energy {how} by {abs(change):.3g} J: an impact on the bump stop of "
+                 f"{', '.join(repr(n) for n in stops)} not resolved by the steps ({method}, "
+                 + (f"h = {h:g} s" if method in ("genalpha", "rk4") and not rtol else f"rtol = {rtol:g}") + ")")
+        fix = ("halve h" if method in ("genalpha", "rk4") and not rtol else "tighten rtol") + \
+            ", or soften the stop (a lower stiffness or exponent) if its contact is shorter than the motion needs"
+    elif method == "genalpha":
         if grew:
-            cause = (f"energy grew by {balance['change']:.3g} J: the step h = {h:g} s is too large for the fastest "
+            cause = (f"energy grew by {change:.3g} J: the step h = {h:g} s is too large for the fastest "
                      "motion (the error falls as h^2)")
             fix = "halve h, or check the run against method = \"dop853\""
         elif rho_inf < 1.0:
-            cause = (f"energy fell by {-balance['change']:.3g} J: numerical damping of rho_inf = {rho_inf:g} at "
+            cause = (f"energy fell by {-change:.3g} J: numerical damping of rho_inf = {rho_inf:g} at "
                      f"h = {h:g} s")
             fix = "halve h or raise rho_inf towards 0.95"
         else:  # rho_inf = 1 damps nothing: the step does not resolve the motion
-            cause = (f"energy fell by {-balance['change']:.3g} J: the step h = {h:g} s is too large for the fastest "
+            cause = (f"energy fell by {-change:.3g} J: the step h = {h:g} s is too large for the fastest "
                      "motion (rho_inf = 1 has no numerical damping)")
             fix = "halve h, or lower rho_inf to 0.9 to damp the unresolved modes"
     else:

@@ -18,6 +18,7 @@ from sidprep.solver.equations.assemble import every_marker
 from sidprep.solver.integrators.base import SampleBuffers
 from sidprep.solver.integrators.outputs import PostConstants, PostSetup, sample_outputs
 from sidprep.solver.results import BodyHistory, JointHistory, Result
+from sidprep.solver.energy import work_integral
 from sidprep.solver.stiffening_work import base_layout
 
 ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
@@ -84,8 +85,7 @@ def postprocess(run, s, setup, out=None) -> Result:
     energy = {kind: out.energy[:, i].copy() for i, kind in enumerate(ENERGY_KINDS[:4])}
     energy["dissipated"] = s.work[:, 1].copy()
     energy["external"] = s.work[:, 0] + s.work[:, 2]
-    energy["stiffening"] = np.zeros(s.t.size)
-    energy["stiffening"][1:] = -np.cumsum(0.5 * np.diff(s.t) * (out.power[1:] + out.power[:-1]))
+    energy["stiffening"] = -work_integral(s.t, out.power)
     energy["total"] = (energy["kinetic"] + energy["strain"] + energy["gravity"] + energy["spring"]
                        + energy["dissipated"] - energy["external"] + energy["stiffening"])
     node_loads = {k: (m, out.node_force[:, k].copy(), out.node_torque[:, k].copy())

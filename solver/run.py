@@ -22,11 +22,12 @@ from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import left_path, path_marker_problems
 from sidprep.solver.effects import choose_effects
-from sidprep.solver.energy import balance_warning, energy_balance
+from sidprep.solver.energy import balance_beyond, balance_warning, energy_balance
 from sidprep.solver.equations.aot import compile_events
 from sidprep.solver.equations.forces import FE_SPRING
 from sidprep.solver.integrators.base import Problem, Samples, State, evaluate, marker_kinematics
-from sidprep.solver.integrators.explicit import RungeKutta4, ScipyRungeKutta
+from sidprep.solver.integrators.adaptive import ScipyRungeKutta
+from sidprep.solver.integrators.explicit import RungeKutta4
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
     independent_rows, length_weights, project_velocities, quasi_static_elastic)
@@ -75,6 +76,9 @@ BALANCE_BEFORE_FAILURE = 0.1
 
 def numerical_fix(settings) -> str:
     """The fix of an inaccurate or unstable integration with ``settings``."""
+    if settings.method == "genalpha" and settings.rho_inf == 1.0:  # nothing damps the index-3 velocity error
+        return ("halve h or lower rho_inf to 0.9 (at rho_inf = 1 nothing damps the constraints' velocity-level "
+                "error: a closed loop may need rho_inf <= 0.95 whatever h)")
     if settings.method == "genalpha":
         return "halve h" + (" or lower rho_inf to 0.9" if settings.rho_inf > 0.9 else "")
     if settings.tolerance:
@@ -85,7 +89,7 @@ def numerical_fix(settings) -> str:
 def numerical_cause(balance: dict, settings) -> str:
     """'; before it ...' naming the integration as the cause of a failure when the energy
     balance was off by more than BALANCE_BEFORE_FAILURE of the energy exchanged (else '')."""
-    if not balance["balance_error"] > BALANCE_BEFORE_FAILURE:
+    if not balance_beyond(balance, BALANCE_BEFORE_FAILURE):
         return ""
     how = "grew" if balance["change"] > 0 else "fell"
     step = f"h = {settings.h:g} s" + (f", rho_inf = {settings.rho_inf:g}" if settings.method == "genalpha" else "")
@@ -324,12 +328,16 @@ class Run:
                             n_constraints=int(self.kept.size))
         st = self.settings
         balance = energy_balance(result.energy, st.energy_tol)
-        balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance)
+        stops = tuple(f.name for f in self.system.forces if getattr(f, "law", None) is not None)
+        balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops)
         result.stats["energy_balance"] = balance
         if stepper.status == "failed":
-            cause = self.failure_cause(stepper, problem.sizes)
-            named = cause if cause.startswith(f"{stepper.name}: ") else f"{stepper.name}: {cause}"
-            message = named + numerical_cause(balance, st)
+            cause = numerical_cause(balance, st)
+            failure = self.failure_cause(stepper, problem.sizes)
+            if cause:  # the integration, not the scene: the stepper's advice to check the scene does not apply
+                failure = failure.split("; check the scene")[0]
+            named = failure if failure.startswith(f"{stepper.name}: ") else f"{stepper.name}: {failure}"
+            message = named + cause
             result.stats["failed"] = message
             raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
         gone = left_path(self.system, result)

@@ -55,6 +55,13 @@ def add_joint_load(loads, mk, crow, value):  # pragma: no cover - compiled
 
 
 @jit
+def stop_penetration(par, x):  # pragma: no cover - compiled
+    """Penetration of a spring-damper's bump stop, m: -(x + clearance) for the deflection x (m);
+    the stop pushes while it is > 0 (par: spring_tension's)."""
+    return -(x + par[4])
+
+
+@jit
 def spring_tension(par, x, rate):  # pragma: no cover - compiled
     """(tension, its dissipative part, its conservative linear part) of a spring-damper with
     deflection x (m) and rate (m/s); par = [k, c, length, has_stop, clearance, k_stop,
@@ -62,7 +69,7 @@ def spring_tension(par, x, rate):  # pragma: no cover - compiled
     damp = par[1] * rate
     t = par[0] * x + damp
     if par[3] > 0.0:
-        pen = -(x + par[4])
+        pen = stop_penetration(par, x)
         if pen > 0.0:
             stop_damp = par[7] * rate
             t += -par[5] * pen ** par[6] + stop_damp
@@ -75,8 +82,34 @@ def bump_potential(par, x):  # pragma: no cover - compiled
     """Elastic energy of an engaged bump stop, J: k_stop pen^(e+1) / (e+1)."""
     if par[3] <= 0.0:
         return 0.0
-    pen = -(x + par[4])
+    pen = stop_penetration(par, x)
     return par[5] * pen ** (par[6] + 1.0) / (par[6] + 1.0) if pen > 0.0 else 0.0
+
+
+@jit
+def has_stops(L):  # pragma: no cover - compiled
+    """Whether a force element has a bump stop (a kink the integrators locate)."""
+    for i in range(L.fe_int.shape[0]):
+        if L.fe_int[i, 0] == FE_SPRING and L.fe_par[i, 3] > 0.0:
+            return True
+    return False
+
+
+@jit
+def stop_states(L, kin, pen, rate):  # pragma: no cover - compiled
+    """Every force element's bump-stop penetration pen (nfe,; m, > 0 engaged, -inf for elements
+    without a stop) and its rate (nfe,; m/s), written in place, from the markers' kinematics kin
+    (assemble.MarkerKinematics).  The stops are the force laws with a kink at pen = 0 that the
+    integrators locate (docs/solver.md, "Contacts")."""
+    for i in range(L.fe_int.shape[0]):
+        row, par = L.fe_int[i], L.fe_par[i]
+        pen[i], rate[i] = -np.inf, 0.0
+        if row[0] == FE_SPRING and par[3] > 0.0:
+            d = kin.P[row[2]] - kin.P[row[1]]
+            length = np.sqrt(dot(d, d))
+            e = d / length if length > 0.0 else np.zeros(3)
+            pen[i] = stop_penetration(par, length - par[2])
+            rate[i] = -dot(e, kin.VEL[row[2]] + kin.VC[row[2]] - kin.VEL[row[1]] - kin.VC[row[1]])
 
 
 @jit

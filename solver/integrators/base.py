@@ -35,6 +35,10 @@ MULTIPLIER_RTOL = 1e-10
 #: (base.index1_accelerations stops once the multipliers settle to MULTIPLIER_RTOL)
 MULTIPLIER_ITERATIONS = 30
 
+#: contacts: a step from an open bump stop that is closing reaches at most this multiple of the
+#: time to close its gap (genalpha.py, explicit.py; the kink itself is then located)
+APPROACH_REACH = 2.0
+
 #: the output samples of one call of a compiled loop: t (k,), R (k, nb, 3), A (k, nb, 3, 3),
 #: Q (k, nq), u, ud (k, n), lam (k, m), refs (k, nj), work (k, 3); ``sample_buffers`` makes them
 SampleBuffers = namedtuple("SampleBuffers", ["t", "R", "A", "Q", "u", "ud", "lam", "refs", "work"])

@@ -6,8 +6,8 @@ with the state y = [per body r_O (3), quaternion (4), q (nq); u (n); work (3)] (
 applied loads, the dissipated energy and the work of drivers are integrated with the motion,
 to the method's order).  ``rk4``: classic RK4 at the fixed step h (integrators/runge_kutta.py,
 the project's one RK4), compiled loop.  ``rk45`` / ``dop853``: scipy's error-controlled
-RK45 / DOP853 driven step by step (the right-hand side is compiled).  For non-stiff scenes:
-the step must resolve the highest kept frequency.
+RK45 / DOP853 driven step by step with the compiled right-hand side (integrators/adaptive.py).
+For non-stiff scenes: the step must resolve the highest kept frequency.
 """
 
 from __future__ import annotations
@@ -158,7 +158,7 @@ def non_finite_message(t: float, h: float) -> str:
             "method = \"genalpha\" or a smaller step")
 
 
-class _Explicit(Stepper):
+class ExplicitStepper(Stepper):
     """Shared set-up of the explicit steppers: the state vector and the rhs parameters."""
 
     def __init__(self, problem, state, settings):
@@ -175,7 +175,7 @@ class _Explicit(Stepper):
         self.state = type(self.state)(t, R, A, Q, u, ud, lam)
 
 
-class RungeKutta4(_Explicit):
+class RungeKutta4(ExplicitStepper):
     """Classic RK4 at the fixed step h (compiled loop)."""
 
     name = "rk4"
@@ -214,77 +214,3 @@ class RungeKutta4(_Explicit):
         elif steps[0] >= st.max_steps:
             self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {t:.6g} s"
         return Samples(*arrays)
-
-
-class ScipyRungeKutta(_Explicit):
-    """scipy's RK45 / DOP853 (error control), one step at a time, with a compiled rhs."""
-
-    def __init__(self, problem, state, settings):
-        super().__init__(problem, state, settings)
-        from scipy.integrate import DOP853, RK45  # deferred: 0.42 CPU-s of import
-
-        cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
-        self.name = settings.method
-        params = self.params
-
-        def fun(t, y):
-            self.stats["rhs_evaluations"] += 1
-            return index1_rhs(t, y, params)
-
-        self.solver = cls(fun, state.t, self.y, problem.t_end, rtol=settings.tolerance,
-                          atol=settings.atol, first_step=min(settings.h, problem.t_end))
-
-    def advance(self, t_stop: float) -> Samples:
-        st, solver = self.settings, self.solver
-        rows = []
-        dt = st.output_dt
-        while solver.status == "running" and solver.t < t_stop and len(rows) < CHUNK:
-            if self.stats["steps"] >= st.max_steps:
-                self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {solver.t:.6g} s"
-                break
-            t_old = solver.t
-            message = solver.step()
-            if not np.all(np.isfinite(solver.y)):
-                self.status, self.message = "failed", non_finite_message(t_old, solver.t - t_old)
-                break
-            if solver.status == "failed":
-                self.status, self.message = "failed", f"{self.name}: {message}; use method = 'genalpha' for stiff scenes"
-                break
-            self.stats["steps"] += 1
-            h = solver.t - t_old
-            self.stats["h_min"] = min(self.stats["h_min"], h)
-            self.stats["h_max"] = max(self.stats["h_max"], h)
-            times = [solver.t] if dt is None else []
-            if dt is not None:
-                while self.next_out <= solver.t + 1e-12 * max(1.0, solver.t):
-                    if self.next_out > t_old:
-                        times.append(self.next_out)
-                    self.next_out += dt
-                if solver.status == "finished" and (not times or times[-1] < solver.t - 1e-9 * max(1.0, solver.t)):
-                    times.append(solver.t)
-            dense = solver.dense_output() if any(tk != solver.t for tk in times) else None
-            for tk in times:
-                y = solver.y if tk == solver.t else dense(tk)
-                rows.append((tk, sample(self.problem.L, tk, y, self.params, self.problem.refs),
-                             self.problem.refs.copy()))
-            if not times:  # keep the angle references current between samples
-                sample(self.problem.L, solver.t, solver.y, self.params, self.problem.refs)
-        if rows:
-            self._set_state(rows[-1][0], rows[-1][1])
-        self.state.t = solver.t
-        if solver.status == "finished":
-            self.status = "finished"
-        if not rows:
-            return empty_samples(self.problem, self.state)
-        stack = [np.array([r[1][k] for r in rows]) for k in range(7)]
-        refs = np.array([r[2] for r in rows])
-        return Samples(np.array([r[0] for r in rows]), stack[0], stack[1], stack[2], stack[3], stack[4], stack[5],
-                       refs, stack[6])
-
-
-def empty_samples(problem, state) -> Samples:
-    """Samples with no rows."""
-    z = np.zeros
-    return Samples(z(0), z((0,) + state.R.shape), z((0,) + state.A.shape), z((0, state.Q.size)),
-                   z((0, state.u.size)), z((0, state.u.size)), z((0, state.lam.size)), z((0, problem.refs.size)),
-                   z((0, 3)))

@@ -18,6 +18,14 @@ below newton_tol L (the correction shrinks it further); the state is then not ev
 more: the power flows and joint angles of the step come from the last evaluation, within the
 Newton tolerance.  Constraints hold at position level to the Newton tolerance (no drift).
 
+Contacts (bump stops, forces.stop_states; docs/solver.md "Contacts"): a step whose end engages or
+releases a stop that its start did not is repeated, shortened by the secant of the penetration,
+until the kink lies in its last CROSSING_TAIL: the step goes to the contact, not across it; a
+step from an open stop is bounded by APPROACH_REACH times the time to close the gap at the
+current rate; while a stop is engaged, the normal rate may change by at most 2 V / CONTACT_STEPS
+per step (V the largest normal speed of the contact, at least CONTACT_REST_SPEED L / h), so that
+the impact takes at least CONTACT_STEPS steps whatever the nominal step.
+
 Output (output_dt given): every sample sits at exactly k output_dt, interpolated inside the step
 that contains it (``dense_state``): the pose is x_n (+) delta(theta) with the cubic Hermite
 increment delta(0) = 0, delta'(0) = h u_n, delta(1) = h dx, delta'(1) = h u_{n+1} (exact for q;
@@ -45,10 +53,12 @@ import numpy as np
 
 from sidprep.solver.equations.assemble import (constraint_power, evaluate_into, evaluation_arrays, has_moving_masses,
                                                markers_into, moving_masses)
+from sidprep.solver.equations.forces import has_stops, stop_states
 from sidprep.solver.equations.rotations import jit, put
-from sidprep.solver.integrators.base import (CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED, RUNNING,
-                                             Samples, Stepper, advance_pose, constraint_rows, expand, first_samples,
-                                             lu_factor, lu_solve, new_status, sample_buffers, store_sample)
+from sidprep.solver.integrators.base import (APPROACH_REACH, CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS,
+                                             NEWTON_FAILED, RUNNING, Samples, Stepper, advance_pose, constraint_rows,
+                                             expand, first_samples, lu_factor, lu_solve, new_status, sample_buffers,
+                                             store_sample)
 from sidprep.solver.integrators.outputs import sample_outputs
 from sidprep.solver.integrators.runge_kutta import hermite
 from sidprep.solver.integrators.se3 import (body_accelerations, body_frame_free, body_increment, body_velocities,
@@ -62,6 +72,13 @@ SLOW_CONTRACTION = 0.3
 RECOVER_STEPS = 4
 #: step-size factor limits and safety factor of the error control
 H_GROW, H_SHRINK, SAFETY = 2.0, 0.2, 0.9
+#: contacts (module doc): fewest steps over an impact (the normal rate reverses by 2 V over it;
+#: tests/test_impacts.py: the Hertz rebound of a ball at h = 1 ms, rho_inf = 0.9)
+CONTACT_STEPS = 100
+#: a step engaging or releasing a stop is accepted when the kink lies in this last fraction of it
+CROSSING_TAIL = 0.05
+#: floor of the contact's speed scale, in system lengths per nominal step (a resting contact)
+CONTACT_REST_SPEED = 1e-6
 
 #: the state of the method: positions R, A, Q, velocities u, accelerations ud, the alpha-lagged
 #: accelerations a and the kept multipliers lam
@@ -78,15 +95,21 @@ GaConstants = namedtuple("GaConstants", ["prm", "free", "kept", "w", "length", "
 #: (free + kept, free + kept), and the run's work integrals
 #: work (3,) = [applied loads, dissipated, drivers] (J) and power flows at its current state
 #: flows (4,) (W; NaN before the first step), carried from one call of ga_loop to the next
-GaWorkspace = namedtuple("GaWorkspace", ["e", "e_col", "lam_all", "r", "r_col", "jac", "work", "flows"])
+#: and the force elements' bump-stop penetrations pen and their rates rate (nfe,; m, m/s) at the
+#: current state, those at the end of the step on trial, pen_new and rate_new, and the largest
+#: normal speed of each stop's current contact, speed (nfe,; m/s; forces.stop_states)
+GaWorkspace = namedtuple("GaWorkspace", ["e", "e_col", "lam_all", "r", "r_col", "jac", "work", "flows", "pen",
+                                         "rate", "pen_new", "rate_new", "speed"])
 
 
 def ga_workspace(L, constants) -> GaWorkspace:
     """The GaWorkspace of a run with layout L and GaConstants ``constants``."""
     m_all = constraint_rows(L)
     size = constants.free.size + constants.kept.size
+    nfe = L.fe_int.shape[0]
     return GaWorkspace(evaluation_arrays(L), evaluation_arrays(L), np.zeros(m_all), np.zeros(size), np.zeros(size),
-                       np.zeros((size, size)), np.zeros(3), np.full(4, np.nan))
+                       np.zeros((size, size)), np.zeros(3), np.full(4, np.nan), np.full(nfe, -np.inf), np.zeros(nfe),
+                       np.full(nfe, -np.inf), np.zeros(nfe), np.zeros(nfe))
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -197,6 +220,61 @@ def local_error(udn, an, x, h, c):  # pragma: no cover - compiled
 
 
 @jit
+def approach_bound(ws, h):  # pragma: no cover - compiled
+    """The step h (s) bounded so that no open stop closing at its current rate is reached
+    beyond APPROACH_REACH times its gap (module doc, Contacts)."""
+    for i in range(ws.pen.shape[0]):
+        if -np.inf < ws.pen[i] <= 0.0 and ws.rate[i] > 0.0:
+            h = min(h, max(APPROACH_REACH * -ws.pen[i] / ws.rate[i], 1e-3 * h))
+    return h
+
+
+@jit
+def contact_factor(ws, speed_floor):  # pragma: no cover - compiled
+    """(accept, factor) of a converged step from the stop states ws.pen, ws.rate to
+    ws.pen_new, ws.rate_new (module doc, Contacts): a step that engages or releases a stop
+    with the kink before its last CROSSING_TAIL, or changes an engaged stop's normal rate by
+    more than 2 V / CONTACT_STEPS, is rejected and factor (< 1) shortens it; an accepted step's
+    factor (>= 1 or inf) bounds the growth of the next.  speed_floor: the least V, m/s."""
+    accept, factor = True, np.inf
+    for i in range(ws.pen.shape[0]):
+        p0, p1 = ws.pen[i], ws.pen_new[i]
+        if p0 == -np.inf:
+            continue
+        if (p0 <= 0.0) != (p1 <= 0.0):  # a kink inside the step: at theta of it (secant)
+            theta = p0 / (p0 - p1)
+            if theta < 1.0 - CROSSING_TAIL:
+                accept, factor = False, min(factor, max(theta, 1e-6) / (1.0 - 0.5 * CROSSING_TAIL))
+                continue
+        if p0 > 0.0 or p1 > 0.0:
+            v = max(ws.speed[i], abs(ws.rate[i]), abs(ws.rate_new[i]), speed_floor)
+            change = abs(ws.rate_new[i] - ws.rate[i])
+            bound = 2.0 * v / CONTACT_STEPS
+            if change > bound:
+                accept = False
+                factor = min(factor, max(H_SHRINK, SAFETY * bound / change))
+            elif accept and change > 0.0:
+                factor = min(factor, SAFETY * bound / change)
+    return accept, factor
+
+
+@jit
+def contact_accepted(ws):  # pragma: no cover - compiled
+    """Take the trial stop states as the current ones; the speed scale of each engaged stop's
+    contact grows to its largest normal speed, an open stop's is reset.  True when a stop is
+    engaged."""
+    engaged = False
+    for i in range(ws.pen.shape[0]):
+        if ws.pen_new[i] > 0.0:
+            engaged = True
+            ws.speed[i] = max(ws.speed[i], abs(ws.rate[i]), abs(ws.rate_new[i]))
+        else:
+            ws.speed[i] = 0.0
+        ws.pen[i], ws.rate[i] = ws.pen_new[i], ws.rate_new[i]
+    return engaged
+
+
+@jit
 def deflection_check(L, Q, c, status):  # pragma: no cover - compiled
     """False (and the body and its deflection, m, in status) when a body's elastic deflection
     |w Q| exceeds its limit (the floating frame's small-deformation range)."""
@@ -250,6 +328,7 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
         u_o, ud_o = inertial_velocities(L, x.A, x.u), inertial_accelerations(L, x.A, x.u, x.ud)
         evaluate_into(L, e, x.R, x.A, x.Q, u_o, t, lam_all, refs)
         mass_power = moving_masses(L, e.kin, x.R, x.A, x.Q, u_o, ud_o, t)[0] if masses else 0.0
+        stop_states(L, e.kin, ws.pen, ws.rate)
         to_body_frame(L, x.A, x.u, e)
         put(flows0, 0, state_flows(L, e, x, lam_all, mass_power))
     end_tol = 1e-12 * max(1.0, t_end)
@@ -262,11 +341,16 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
     lam_prev = x.lam.copy()
     h_prev = -1.0
     factor = 1.0
+    stops = has_stops(L)
+    speed_floor = CONTACT_REST_SPEED * c.length / c.h_nominal
+    in_contact = False
     status.code = RUNNING
     while t < t_end - end_tol:
         if status.steps >= status.max_steps:
             status.code = MAX_STEPS
             break
+        if stops:
+            h = approach_bound(ws, h)
         h = min(h, t_end - t)
         if c.out_dt > 0.0 and ns > ns0 and ns + int(h / c.out_dt) + 2 > room:
             break  # the samples this step may give would not fit: the stepper resumes
@@ -353,6 +437,15 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
                 break
             continue
         an, R2, A2, Q2, un = ga_state(L, udn, x, h, c.prm)
+        contact_growth = np.inf
+        if stops:  # the last evaluation is the converged state's, within the Newton tolerance
+            stop_states(L, e.kin, ws.pen_new, ws.rate_new)
+            accept, contact_growth = contact_factor(ws, speed_floor)
+            if not accept:
+                status.rejected += 1
+                h *= contact_growth
+                h_prev = -1.0
+                continue
         if c.rtol > 0.0:
             est = local_error(udn, an, x, h, c)
             factor = SAFETY * est ** (-1.0 / 3.0) if est > 0 else H_GROW
@@ -362,6 +455,8 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
                 continue
         if not deflection_check(L, Q2, c, status):
             break
+        if stops:
+            in_contact = contact_accepted(ws)
         ud_prev, lam_prev, h_prev = x.ud, x.lam, h
         t_old, x_old, work_old = t, x, work.copy()
         t += h
@@ -399,7 +494,9 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
             store_sample(buf, ns, t, x.R, x.A, x.Q, u_o, ud_o, x.lam, refs, work)
             ns += 1
         if c.rtol > 0.0:
-            h *= min(H_GROW, max(H_SHRINK, factor))
+            h *= min(H_GROW, max(H_SHRINK, factor), max(1.0, contact_growth))
+        elif in_contact:  # the contact's rate bound sets the step, at most the nominal one
+            h = min(h * min(H_GROW, max(1.0, contact_growth)), c.h_nominal)
         elif h < c.h_nominal and status.steps % RECOVER_STEPS == 0:
             h = min(2.0 * h, c.h_nominal)
         if ns == room and not final:
