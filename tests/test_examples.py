@@ -215,6 +215,13 @@ SLIDER_CRANK_CLOSURE = 1e-4
 SLIDER_CRANK_LOSSES_RTOL = 1e-4
 #: slider against the rigid mechanism's x(theta): the links' deformation, 67 um in the full run
 SLIDER_CRANK_RIGID_M = 2e-4
+#: the strain energy left at the end and the modal damping's work are bounded, not printed: they move
+#: by 25 % between OpenBLAS kernels (Coulomb friction at the slider amplifies round-off; the motor
+#: work moves by 3e-4, so the README prints the energies to three digits)
+SLIDER_CRANK_STRAIN_J = 0.01
+SLIDER_CRANK_DAMPING_J = 0.001
+#: the crank's largest modal coordinate, 7.50e-6 to 7.56e-6 by the OpenBLAS kernel: bounded
+SLIDER_CRANK_CRANK_Q = 1e-5
 
 
 def test_slider_crank(tmp_path):
@@ -239,10 +246,12 @@ def test_slider_crank(tmp_path):
     assert out["closure"] < SLIDER_CRANK_CLOSURE
     losses = out["friction_from_reactions"] + out["damping_from_modal_rates"]
     assert abs(losses / out["dissipated"] - 1) < SLIDER_CRANK_LOSSES_RTOL
+    assert abs(out["strain"]) < SLIDER_CRANK_STRAIN_J and out["damping_from_modal_rates"] < SLIDER_CRANK_DAMPING_J
     check_numbers(ROOT / "examples/slider_crank/README.md", "results", [
-        out["external"], out["kinetic"], out["gravity"], out["strain"], out["dissipated"],
-        out["friction_from_reactions"], out["damping_from_modal_rates"], abs(losses / out["dissipated"] - 1),
+        out["external"], out["kinetic"], out["gravity"], SLIDER_CRANK_STRAIN_J, out["dissipated"],
+        out["friction_from_reactions"], SLIDER_CRANK_DAMPING_J, SLIDER_CRANK_LOSSES_RTOL,
         out["closure"], SLIDER_CRANK_CLOSURE, out["slider_deviation_m"] * 1e3, out["conrod_q_max"],
-        out["crank_q_max"]])
+        SLIDER_CRANK_CRANK_Q])
+    assert out["crank_q_max"] < SLIDER_CRANK_CRANK_Q
     assert out["slider_deviation_m"] < SLIDER_CRANK_RIGID_M
     assert out["dissipated"] > 50.0 and not out["warnings"]
