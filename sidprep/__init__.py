@@ -15,7 +15,7 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     reduce_model(mesh_or_path, ReduceOptions(...)) -> ReductionResult (.sid, .checks, .notes)
     reduce_assembly(read_job("assembly.toml")) -> ReductionResult   (components joined: docs/scale.md)
     read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
-    sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks: ``sidprep info``)
+    sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks {name: Check}: ``sidprep info``)
     run_batch(jobs, BatchOptions(...)) -> BatchReport
     beam(BeamOptions(...)) -> SID                           (analytical Euler-Bernoulli beam)
     load_scene(path) -> Scene;  simulate(scene) -> Result  (the solver: docs/scenes.md)

@@ -128,16 +128,28 @@ _JOINT_UNITS = {**JOINT_VECTORS, **JOINT_SCALARS}
 
 
 @dataclass(frozen=True)
+class BodySource:
+    """Where a body of a scene comes from (results provenance; attrs ``kind``, ``source`` of the
+    file's ``bodies/<name>`` group).
+
+    kind : "flexible" (a SID file), "beam" (an analytical beam of the scene), "rigid",
+    "absolute_nodal", or "" when not known; source : the SID or OBJ path, "" without one.
+    """
+
+    kind: str = ""
+    source: str = ""
+
+
+@dataclass(frozen=True)
 class ResultsFile:
     """A results file read back: the solver ``Result`` plus where it came from.
 
-    scene : {"path", "sha256", "text"} of the scene file; bodies : {name: {"kind": "flexible" |
-    "rigid", "source": SID or OBJ path}}.
+    scene : {"path", "sha256", "text"} of the scene file; bodies : {name: BodySource}.
     """
 
     result: Result
     scene: Mapping[str, str] = field(default_factory=dict)
-    bodies: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+    bodies: Mapping[str, BodySource] = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -251,10 +263,10 @@ def _put(group, name: str, data, units: str) -> None:
 
 
 def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str, str] | None = None,
-                  bodies: Mapping[str, Mapping[str, str]] | None = None) -> Path:
+                  bodies: Mapping[str, BodySource] | None = None) -> Path:
     """Write ``result`` (Result) to the HDF5 file ``path`` atomically.
 
-    scene : {"path", "sha256", "text"} provenance; bodies : {name: {"kind", "source"}}.
+    scene : {"path", "sha256", "text"} provenance; bodies : {name: BodySource}.
     """
 
     path = Path(path)
@@ -265,7 +277,8 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
         _put(f, "time", result.t, "s")
         for name, b in result.bodies.items():
             g = f.create_group(f"bodies/{name}")
-            g.attrs.update({"kind": "", "source": "", **bodies.get(name, {})})
+            source = bodies.get(name, BodySource())
+            g.attrs.update(kind=source.kind, source=source.source)
             for qty in _BODY_ARRAYS:
                 _put(g, qty, getattr(b, qty), _BODY_UNITS[qty])
             g["omega"].attrs["frame"] = "body (K components)"
@@ -319,7 +332,7 @@ def read_results(path: str | os.PathLike) -> ResultsFile:
             effects=_effects_from_dict(json.loads(f["effects"].attrs["json"])),
             stats=json.loads(f["stats"].attrs["json"]))
         return ResultsFile(result, scene={key: str(v) for key, v in f["scene"].attrs.items()},
-                           bodies={name: {"kind": str(g.attrs["kind"]), "source": str(g.attrs["source"])}
+                           bodies={name: BodySource(str(g.attrs["kind"]), str(g.attrs["source"]))
                                    for name, g in f.get("bodies", {}).items()})
 
 

@@ -38,7 +38,7 @@ from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, 
     SpringDamper, Table, bump_stop)
 from sidprep.solver.model.joints import ConstantSpeed, Driver, JOINT_TYPES, SmoothStart, TabulatedMotion
 from sidprep.solver.model.system import System
-from sidprep.solver.results import BodyHistory, JointHistory, Result, signal
+from sidprep.solver.results import BodyHistory, BodySource, JointHistory, Result, signal
 from sidprep.solver.run import check_settings, simulate as simulate_system
 from sidprep.solver.scene_tables import OutputSettings, read_output_settings, read_solver_settings
 from sidprep.tables import TomlTable, read_toml_text, subtables
@@ -58,8 +58,8 @@ class Scene:
     called ([scene] name, else the folder of a ``scene.toml``, else the file's stem); title : [scene] title;
     system : the built System (an AbsoluteNodalModel for a scene of absolute-nodal beams);
     t_end : s; settings : the SolverSettings of [solver] and [output] rate (the solver's own
-    defaults for every key not given); output : OutputSettings; sources : {body name: {"kind",
-    "source"}} (results provenance).
+    defaults for every key not given); output : OutputSettings; sources : {body name: BodySource}
+    (results provenance).
     """
 
     path: Path
@@ -118,7 +118,7 @@ def _flexible_body(name: str, t: TomlTable, pose: dict):
     qd0 = t.array("qd0", None, shape=(sid.nq,))
     body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), source=str(path),
                         **pose)
-    return body, {"kind": "flexible", "source": str(path)}
+    return body, BodySource("flexible", str(path))
 
 
 def _beam_body(name: str, t: TomlTable, pose: dict):
@@ -131,7 +131,7 @@ def _beam_body(name: str, t: TomlTable, pose: dict):
     q0 = t.array("q0", None, shape=(sid.nq,))
     qd0 = t.array("qd0", None, shape=(sid.nq,))
     body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), **pose)
-    return body, {"kind": "beam", "source": ""}
+    return body, BodySource("beam")
 
 
 def _rigid_body(name: str, t: TomlTable, pose: dict):
@@ -144,7 +144,7 @@ def _rigid_body(name: str, t: TomlTable, pose: dict):
     if obj is not None and not obj.is_file():
         t.fail("obj", f"OBJ file {obj} not found", "fix the path (relative to the scene file) or remove `obj`")
     body = RigidBody(mass, t.vector("com", [0.0, 0.0, 0.0]), inertia, name=name, obj=obj, **pose)
-    return body, {"kind": "rigid", "source": "" if obj is None else str(obj)}
+    return body, BodySource("rigid", "" if obj is None else str(obj))
 
 
 #: body tables by their `type`: a SID file, an inline analytical beam, a rigid body
@@ -460,7 +460,7 @@ def load_scene(path, *, t_end: float | None = None) -> Scene:
         an = load_absolute_nodal_scene(root, path, t_end=t_end)
         return Scene(path=path, text=text, sha256=sha256, title=an.model.title, system=an.model, t_end=an.t_end,
                      settings=an.settings, output=an.output,
-                     sources={b.name: {"kind": "absolute_nodal", "source": ""} for b in an.model.beams},
+                     sources={b.name: BodySource("absolute_nodal") for b in an.model.beams},
                      name=scene_name(path, TomlTable(path, "scene", root.get("scene", {}))))
     known = ("scene", "solver", "output", "bodies", "markers", "joints", "drivers", "forces")
     for key in root:

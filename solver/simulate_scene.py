@@ -109,10 +109,10 @@ def animation_surfaces(scene: Scene) -> dict:
     surfaces = {}
     for b in getattr(scene.system, "bodies", ()):          # absolute-nodal beams carry no surface
         src = scene.sources[b.name]
-        if src["kind"] in ("flexible", "beam"):
+        if src.kind in ("flexible", "beam"):
             surfaces[b.name] = sid_surface(b.sid)
-        elif src["source"]:
-            surfaces[b.name] = rigid_surface(*read_obj(src["source"]), str(src["source"]))
+        elif src.source:
+            surfaces[b.name] = rigid_surface(*read_obj(src.source), src.source)
     return surfaces
 
 

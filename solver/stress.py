@@ -126,8 +126,8 @@ def body_stress_modes(results_path: Path, rf, body: str | None) -> tuple[str, st
     """(body name, its SID path or "analytical Beam of the scene", its StressModes) of the body asked
     for (or the only flexible body)."""
     bodies = dict(rf.bodies)
-    beams = [n for n, b in bodies.items() if b["kind"] == "beam"]
-    flexible = [n for n, b in bodies.items() if b["kind"] == "flexible" and b["source"]] + beams
+    beams = [n for n, b in bodies.items() if b.kind == "beam"]
+    flexible = [n for n, b in bodies.items() if b.kind == "flexible" and b.source] + beams
     if body is None:
         if len(flexible) != 1:
             raise InputError(f"{results_path}: {len(flexible)} flexible bodies (SID file or Beam) "
@@ -136,11 +136,11 @@ def body_stress_modes(results_path: Path, rf, body: str | None) -> tuple[str, st
     if body not in bodies:
         raise InputError(f"{results_path}: no body {body!r}; bodies: {', '.join(bodies) or 'none'}")
     if body not in flexible:
-        raise InputError(f"{results_path}: body {body!r} is {bodies[body]['kind'] or 'not flexible'} with no SID "
+        raise InputError(f"{results_path}: body {body!r} is {bodies[body].kind or 'not flexible'} with no SID "
                          f"file, so it has no stress modes; choose one of: {', '.join(flexible) or 'none'}")
     if body in beams:
         return body, "analytical Beam of the scene", beam_stress_modes(rf.scene.get("text", ""), body, results_path)
-    path = sid_path(bodies[body]["source"], results_path)
+    path = sid_path(bodies[body].source, results_path)
     sid = read_sid(path, physical="error")         # non-finite modal stresses included
     if sid.stress is None:
         raise InputError(f"{path}: the SID of body {body!r} has no modal stresses; reduce it again with "

@@ -16,7 +16,7 @@ from sidprep.sid.io.obj import read_obj
 from sidprep.sid.surface import Surface, rigid_surface
 from sidprep.solver.animation import write_animation
 from sidprep.solver.effects import EffectEntry, EffectsReport
-from sidprep.solver.results import energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
+from sidprep.solver.results import BodySource, energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
 from sidprep.solver import BodyHistory, JointHistory, Result
 
 NT = 4
@@ -47,7 +47,7 @@ def make_result():
 def test_hdf5_round_trip_is_exact(tmp_path):
     res = make_result()
     scene = {"path": "scene.toml", "sha256": "00", "text": "x = 1"}
-    kinds = {"bar": {"kind": "flexible", "source": "bar.sid.h5"}, "box": {"kind": "rigid", "source": "box.obj"}}
+    kinds = {"bar": BodySource("flexible", "bar.sid.h5"), "box": BodySource("rigid", "box.obj")}
     back = read_results(write_results(res, tmp_path / "r.h5", scene=scene, bodies=kinds))
     r = back.result
     assert np.array_equal(r.t, res.t) and np.array_equal(r.constraint_error, res.constraint_error)

@@ -12,6 +12,7 @@ import pytest
 from sidprep.errors import InputError
 from sidprep.sid.io.sid_hdf5 import write_sid_hdf5
 from sidprep.sid.model import sid_invariants
+from sidprep.solver.results import BodySource
 from sidprep.solver.run import simulate as simulate_system
 from sidprep.solver.scene import load_scene, simulate
 
@@ -83,7 +84,7 @@ def test_scene_builds_the_system(scene_dir):
     scene = load_scene(scene_dir / "scene.toml", t_end=0.02)
     assert scene.title == "tiny" and scene.t_end == 0.02 and scene.settings.output_dt == 0.01
     (bar,) = scene.system.bodies
-    assert bar.name == "bar" and bar.nq == 2 and scene.sources["bar"]["kind"] == "flexible"
+    assert bar.name == "bar" and bar.nq == 2 and scene.sources["bar"].kind == "flexible"
     (hinge,) = scene.system.joints
     assert hinge.kind == "revolute" and hinge.name == "hinge"
     root = hinge.marker2
@@ -211,7 +212,7 @@ ramp_time = 0.5
     scene = load_scene(write(scene_dir, TINY_SCENE + extra))
     s = scene.system
     assert [type(f).__name__ for f in s.forces] == ["SpringDamper", "PointForce", "JointForce"]
-    assert len(s.drivers) == 1 and scene.sources["box"] == {"kind": "rigid", "source": str(scene_dir / "box.obj")}
+    assert len(s.drivers) == 1 and scene.sources["box"] == BodySource("rigid", str(scene_dir / "box.obj"))
     assert s.forces[0].length is None                         # default: the marker distance at the start
     r = simulate_system(s, 2e-3, h=1e-3)
     assert s.forces[0].length is None                         # the run resolved it, the model is unchanged

@@ -44,7 +44,7 @@ def test_inline_beam_has_the_closed_form_frequencies(tmp_path):
     f_ref = np.array([n**2 * np.pi / (2 * L**2) * np.sqrt(EI / rhoA) for n in (1, 2, 3)])  # pinned-pinned
     f = np.sqrt(np.diag(sid.Ke.M0) / np.diag(sid.Me.M0)) / (2 * np.pi)
     assert np.allclose(f, f_ref, rtol=1e-8)
-    assert scene.sources["beam"]["kind"] == "beam"
+    assert scene.sources["beam"].kind == "beam"
     result = simulate(scene)                     # clamped frame, no load: stays at rest
     assert np.abs(signal(result, "beam.q.1")[0]).max() < 1e-12
 

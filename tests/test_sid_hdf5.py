@@ -84,7 +84,7 @@ def test_real_file_round_trip_and_schema(tmp_path):
         assert np.isclose(G0[0, 0, 0], j1[0], rtol=1e-10) and np.isclose(G0[0, 1, 1], j1[1], rtol=1e-10)
         assert "numpy" in f["provenance"].attrs["libraries"]
     checks = read_checks(path)
-    assert checks["origin.M1 = phi.M0"]["passed"]
+    assert checks["origin.M1 = phi.M0"].passed
 
 
 def test_bad_files(tmp_path):

@@ -12,7 +12,7 @@ import pytest
 from sidprep.cli.main import main
 from sidprep.sid.io.obj import write_obj
 from sidprep.solver.effects import EffectsReport
-from sidprep.solver.results import write_results
+from sidprep.solver.results import BodySource, write_results
 from sidprep.solver import BodyHistory, Result
 from test_view import assert_renders, browser
 
@@ -48,8 +48,8 @@ def results(tmp_path_factory):
                     joints={}, markers={}, energy={"total": np.zeros_like(t)}, constraint_error=np.zeros_like(t),
                     effects=EffectsReport(bodies={}, notes=()))
     path = folder / "run.results.h5"
-    write_results(result, path, bodies={"bar": {"kind": "flexible", "source": str(BAR_SID)},
-                                        "block": {"kind": "rigid", "source": str(folder / "block.obj")}})
+    write_results(result, path, bodies={"bar": BodySource("flexible", str(BAR_SID)),
+                                        "block": BodySource("rigid", str(folder / "block.obj"))})
     return path
 
 

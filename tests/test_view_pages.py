@@ -18,7 +18,7 @@ import pytest
 from sidprep.cli.main import main
 from sidprep.solver import BodyHistory, Result
 from sidprep.solver.effects import EffectsReport
-from sidprep.solver.results import JointHistory, write_results
+from sidprep.solver.results import BodySource, JointHistory, write_results
 from sidprep.view.page import page_data, page_part
 from test_view import BROWSER_TIMEOUT_S, browser
 
@@ -84,7 +84,7 @@ def pendulum_results(folder: Path, nt: int, sid: Path = BAR_SID) -> Path:
                     markers={"pivot": z3.copy(), "root": z3.copy(), "tip": tip}, energy={"total": np.zeros(nt)},
                     constraint_error=np.zeros(nt), effects=EffectsReport(bodies={}, notes=()))
     path = folder / "pendulum.results.h5"
-    write_results(result, path, bodies={"bar": {"kind": "flexible", "source": str(sid)}},
+    write_results(result, path, bodies={"bar": BodySource("flexible", str(sid))},
                   scene={"path": "", "text": "[scene]\ngravity = [0.0, -9.81, 0.0]\n"})
     return path
 

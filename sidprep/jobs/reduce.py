@@ -45,6 +45,7 @@ from sidprep.reduction.modes import modal_basis, modal_damping, mode_labels
 from sidprep.reduction.paths import fe_path, located_paths
 from sidprep.reduction.stiffening import stiffening_parts, support_dofs
 from sidprep.reduction.stress import stress_check, stress_modes, structured_stress_check
+from sidprep.sid.check import checks_as_dicts
 from sidprep.sid.model import SurfaceModes, sid_invariants
 
 
@@ -436,8 +437,8 @@ def reduce_fe_model(model: FEModel, o: ReduceOptions, ph, reducer=None) -> Reduc
         if imported is not None:
             checks.update(imported_checks(imported, red.basis))
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)
-    sid = replace(sid, metadata={**sid.metadata, "notes": notes,
-                                 "checks": {**structured_checks(checks), **structured_stress_check(checks)}})
+    sid = replace(sid, metadata={**sid.metadata, "notes": notes, "checks": checks_as_dicts(
+        {**structured_checks(checks), **structured_stress_check(checks)})})
     return ReductionResult(sid, checks, tuple(notes), int(mesh.n_dof), dict(ph.timings_s), peak_memory_mb())
 
 

@@ -10,6 +10,7 @@ from sidprep.fe.linalg import eigen_modes
 from sidprep.reduction.craig_bampton import interior_operator
 from sidprep.reduction.interfaces import rigid_rows
 from sidprep.reduction.modes import hz
+from sidprep.sid.check import Check
 from sidprep.sid.model import inertia_matrix
 
 #: relative tolerance of the mass / CM / inertia check (spec: equal to round-off)
@@ -303,33 +304,31 @@ def fe_checks(red, mesh, M_fe, sid, full_frequencies=True) -> dict:
 
 
 def structured_checks(checks: dict) -> dict:
-    """The FE comparison as named checks {value, tolerance, passed, severity, description} for the
-    SID metadata (sidprep.sid.checks reads this form)."""
-    def entry(value, tol, severity, description):
-        return {"value": float(value), "tolerance": tol, "severity": severity, "description": description,
-                "passed": bool(tol is None or value <= tol)}
-
+    """The FE comparison as named checks {name: Check} (sidprep.sid.check) for the SID metadata."""
     out = {
-        "FE mass": entry(checks["mass_rel_error"], MASS_CHECK_TOL, "error",
-                         f"SID mass vs full consistent mass matrix ({checks['mass_fe_kg']:.6g} kg), relative"),
-        "FE centre of mass": entry(checks["cm_rel_error"], MASS_CHECK_TOL, "error", "mdCM vs full FE, relative"),
-        "FE inertia": entry(checks["inertia_rel_error"], MASS_CHECK_TOL, "error", "J vs full FE, relative"),
-        "FE zero-energy modes": entry(abs(checks["zero_energy_modes"] - checks["zero_energy_modes_expected"]), 0.0,
-                                      "error", f"reduced model: {checks['zero_energy_modes']} zero-energy modes, "
-                                               f"expected {checks['zero_energy_modes_expected']}"),
-        "FE static deflection": entry(checks["static_deflection_max_rel_error"], STATIC_CHECK_TOL, "warning",
-                                      "largest relative error of a master's deflection under a unit force "
-                                      "(FEMBS promise < 1 %)"),
-        "FE static rotation": entry(checks["static_rotation_max_rel_error"], None, "info",
-                                    "largest relative error of a master's rotation under a unit moment"),
+        "FE mass": Check.measured(checks["mass_rel_error"], MASS_CHECK_TOL,
+                                  f"SID mass vs full consistent mass matrix ({checks['mass_fe_kg']:.6g} kg), relative"),
+        "FE centre of mass": Check.measured(checks["cm_rel_error"], MASS_CHECK_TOL, "mdCM vs full FE, relative"),
+        "FE inertia": Check.measured(checks["inertia_rel_error"], MASS_CHECK_TOL, "J vs full FE, relative"),
+        "FE zero-energy modes": Check.measured(
+            abs(checks["zero_energy_modes"] - checks["zero_energy_modes_expected"]), 0.0,
+            f"reduced model: {checks['zero_energy_modes']} zero-energy modes, "
+            f"expected {checks['zero_energy_modes_expected']}"),
+        "FE static deflection": Check.measured(checks["static_deflection_max_rel_error"], STATIC_CHECK_TOL,
+                                               "largest relative error of a master's deflection under a unit "
+                                               "force (FEMBS promise < 1 %)", "warning"),
+        "FE static rotation": Check.measured(checks["static_rotation_max_rel_error"], None,
+                                             "largest relative error of a master's rotation under a unit moment",
+                                             "info"),
     }
     if "rigid_energy_ratio" in checks:
-        out["FE rigid-body energy"] = entry(checks["rigid_energy_ratio"], checks["rigid_energy_tol"], "error",
-                                            "imported K: strain energy of the six rigid motions / the same "
-                                            "without cancellation (zero for a free model)")
+        out["FE rigid-body energy"] = Check.measured(checks["rigid_energy_ratio"], checks["rigid_energy_tol"],
+                                                     "imported K: strain energy of the six rigid motions / the "
+                                                     "same without cancellation (zero for a free model)")
     if "eigen_frequency_max_rel_error" in checks:
-        out["FE eigenfrequencies"] = entry(checks["eigen_frequency_max_rel_error"], FREQUENCY_CHECK_TOL, "error",
-                                           "eigen-kind coordinates vs the full model, relative (certified bound or full eigen solve)")
+        out["FE eigenfrequencies"] = Check.measured(checks["eigen_frequency_max_rel_error"], FREQUENCY_CHECK_TOL,
+                                                    "eigen-kind coordinates vs the full model, relative (certified "
+                                                    "bound or full eigen solve)")
     return out
 
 

@@ -20,6 +20,7 @@ from sidprep.fe.element_stress import DeckStress, add_to_nodes, hooke
 from sidprep.fe.topology import TET10_EDGES
 from sidprep.reduction.fe_checks import relieved_static_solve
 from sidprep.reduction.interfaces import linear_surface_triangles
+from sidprep.sid.check import Check
 from sidprep.sid.stress import StressModes
 
 #: where modal stresses are kept: the outer surface's nodes (default) or every node
@@ -136,12 +137,10 @@ def stress_check(red, mesh, material, stress: StressModes) -> dict:
 
 
 def structured_stress_check(checks: dict) -> dict:
-    """The stress check as a named check for the SID metadata (sidprep.sid.checks reads this form)."""
+    """The stress check as a named check {"FE stress": Check} (sidprep.sid.check) for the SID metadata."""
     if "stress_static_max_rel_error" not in checks:
         return {}
-    value = checks["stress_static_max_rel_error"]
-    return {"FE stress": {"value": value, "tolerance": STRESS_CHECK_TOL, "severity": "warning",
-                          "passed": bool(value <= STRESS_CHECK_TOL),
-                          "description": f"modal stresses under {checks['stress_load_cases']} unit master forces "
-                                         "vs the full model's static stress, largest error relative to the "
-                                         "load case's largest stress"}}
+    return {"FE stress": Check.measured(
+        checks["stress_static_max_rel_error"], STRESS_CHECK_TOL,
+        f"modal stresses under {checks['stress_load_cases']} unit master forces vs the full model's static "
+        "stress, largest error relative to the load case's largest stress", "warning")}

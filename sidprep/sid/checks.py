@@ -1,11 +1,11 @@
 """Model checks of a SID: the self-consistency identities of sid-spec.md 4.8 and the modal data.
 
-``sid_checks(sid)`` returns ``{name: {"value", "tolerance", "passed", "severity", "description"}}``.
+``sid_checks(sid)`` returns ``{name: Check}`` (sidprep.sid.check).
 ``value`` is a relative residual unless the description says otherwise.  Severity "error" marks an
 identity every SID must satisfy; "warning" marks one that legitimately breaks (nodal rotary
 inertia, geometric stiffening mixed into a sum, a third-party generator's known quirk).
 Checks computed by the reduction against the full FE model (mass, CM, inertia, static
-deflection, frequencies) arrive in ``sid.metadata["checks"]`` in the same form and are merged.
+deflection, frequencies) arrive in ``sid.metadata["checks"]`` in their dict form and are merged.
 
 Metadata keys read here: ``free_body`` (bool) and ``n_rigid_modes`` (int, zero-energy modes of
 the unconstrained FE model).
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sidprep.sid.check import Check
 from sidprep.sid.model import IDENTITY, SID, axial, ge_tensor, gr_tensor, inertia_matrix, skew
 
 #: relative tolerance of exact identities (covers 12-digit ASCII rounding and round-off)
@@ -46,11 +47,6 @@ def _relative(residual: np.ndarray, reference: np.ndarray) -> float:
     return r / s if s > 0 else (0.0 if r == 0 else float("inf"))
 
 
-def _entry(value: float, tolerance: float, description: str, severity: str = "error") -> dict:
-    return {"value": float(value), "tolerance": float(tolerance), "passed": bool(value <= tolerance),
-            "severity": severity, "description": description}
-
-
 def _m1(T, shape) -> np.ndarray:
     return np.zeros(shape) if T.M1 is None else T.M1
 
@@ -64,17 +60,17 @@ def node_identities(sid: SID) -> dict:
         ref = np.stack([skew(n.psi.M0[:, k]) @ n.AP.M0 for k in range(nq)], 1) if nq else np.zeros((3, 0, 3))
         ap.append(_relative(_m1(n.AP, (3, nq, 3)) - ref, ref))
     return {
-        "origin.M1 = phi.M0": _entry(max(origin, default=0.0), IDENTITY_RTOL,
-                                     "node positions move with the translational mode shapes (4.8 #1)"),
-        "AP.M1 = skew(psi) AP0": _entry(max(ap, default=0.0), IDENTITY_RTOL,
-                                        "node orientations turn with the rotational mode shapes (4.8 #2)"),
+        "origin.M1 = phi.M0": Check.measured(max(origin, default=0.0), IDENTITY_RTOL,
+                                             "node positions move with the translational mode shapes (4.8 #1)"),
+        "AP.M1 = skew(psi) AP0": Check.measured(max(ap, default=0.0), IDENTITY_RTOL,
+                                                "node orientations turn with the rotational mode shapes (4.8 #2)"),
     }
 
 
 def inertia_identities(sid: SID) -> dict:
     """Identities 3-7 of sid-spec.md 4.8."""
     nq = sid.nq
-    out = {"mdCM.M1 = Ct.M0^T": _entry(
+    out = {"mdCM.M1 = Ct.M0^T": Check.measured(
         _relative(_m1(sid.mdCM, (3, nq, 1))[:, :, 0] - sid.Ct.M0.T, sid.Ct.M0), IDENTITY_RTOL,
         "the CM shift per mode is the modal momentum (4.8 #3)")}
     if nq == 0:
@@ -82,13 +78,13 @@ def inertia_identities(sid: SID) -> dict:
     G, J1, I1 = gyroscopic_and_inertia_change(sid)
     from_oe = inertia_change_from_oe(sid.Oe.M0)
     cr = np.stack([skew(c) for c in sid.Cr.M0])
-    out["J.M1 = sym(Gr0)"] = _entry(_relative(0.5 * (G + G.transpose(0, 2, 1)) - I1, G), IDENTITY_RTOL,
-                                    "inertia change per mode vs Gr (4.8 #4; rotary inertia breaks it)",
-                                    "warning")
-    out["J.M1 = -Oe0 (2xx,2yy,2zz,xy,xz,yz)"] = _entry(
+    out["J.M1 = sym(Gr0)"] = Check.measured(_relative(0.5 * (G + G.transpose(0, 2, 1)) - I1, G), IDENTITY_RTOL,
+                                            "inertia change per mode vs Gr (4.8 #4; rotary inertia breaks it)",
+                                            "warning")
+    out["J.M1 = -Oe0 (2xx,2yy,2zz,xy,xz,yz)"] = Check.measured(
         _relative(J1 - from_oe, from_oe), IDENTITY_RTOL,
         "inertia change per mode vs centrifugal term (4.8 #4; rotary inertia breaks it)", "warning")
-    out["Gr0 - Gr0^T = -2 skew(Cr0)"] = _entry(
+    out["Gr0 - Gr0^T = -2 skew(Cr0)"] = Check.measured(
         _relative(G - G.transpose(0, 2, 1) + 2 * cr, G), IDENTITY_RTOL,
         "antisymmetric part of Gr vs Cr (4.8 #5; rotary inertia breaks it)", "warning")
 
@@ -96,23 +92,23 @@ def inertia_identities(sid: SID) -> dict:
     anti = lambda A: A - A.transpose(0, 2, 1)  # noqa: E731
     if "Kr" in sid.stiffening:
         kr = 2 * np.asarray(sid.stiffening["Kr"])
-        out["Ge = 2 Kr"] = _entry(_relative(Ge - kr, kr), IDENTITY_RTOL,
-                                  "Coriolis coupling of the elastic equation (4.8 #6)")
+        out["Ge = 2 Kr"] = Check.measured(_relative(Ge - kr, kr), IDENTITY_RTOL,
+                                          "Coriolis coupling of the elastic equation (4.8 #6)")
     else:
         cr1 = 2 * _m1(sid.Cr, (nq, nq, 3)).transpose(2, 0, 1)
-        out["Ge = 2 Cr.M1 (antisymmetric parts)"] = _entry(
+        out["Ge = 2 Cr.M1 (antisymmetric parts)"] = Check.measured(
             _relative(anti(Ge) - anti(cr1), cr1), IDENTITY_RTOL,
             "Coriolis coupling vs the Kr part of Cr.M1 (4.8 #6)")
-    out["Ge antisymmetric"] = _entry(_relative(Ge + Ge.transpose(0, 2, 1), Ge), IDENTITY_RTOL,
-                                     "Ge_a = 2 Kr_a is antisymmetric (3.9); a symmetric part means "
-                                     "Ge was built from Cr.M1 including K0r", "warning")
+    out["Ge antisymmetric"] = Check.measured(_relative(Ge + Ge.transpose(0, 2, 1), Ge), IDENTITY_RTOL,
+                                             "Ge_a = 2 Kr_a is antisymmetric (3.9); a symmetric part means "
+                                             "Ge was built from Cr.M1 including K0r", "warning")
     if sid.Oe.M1 is not None:
         oe1 = sid.Oe.M1
-        out["Oe.M1 symmetric"] = _entry(_relative(oe1 - oe1.transpose(1, 0, 2), oe1), IDENTITY_RTOL,
-                                        "centrifugal mode coupling is symmetric per omega-hat slice "
-                                        "(4.8 #7)", "warning")
+        out["Oe.M1 symmetric"] = Check.measured(_relative(oe1 - oe1.transpose(1, 0, 2), oe1), IDENTITY_RTOL,
+                                                "centrifugal mode coupling is symmetric per omega-hat slice "
+                                                "(4.8 #7)", "warning")
         kom = np.asarray(sid.stiffening["Kom"]).transpose(1, 2, 0) if "Kom" in sid.stiffening else oe1
-        out["Kom_xx + Kom_yy + Kom_zz = -2 Me"] = _entry(
+        out["Kom_xx + Kom_yy + Kom_zz = -2 Me"] = Check.measured(
             _relative(kom[:, :, 0] + kom[:, :, 1] + kom[:, :, 2] + 2 * sid.Me.M0, sid.Me.M0),
             IDENTITY_RTOL, "centrifugal softening trace (4.8 #7; needs Oe.M1 without K0omega)",
             "error" if "Kom" in sid.stiffening else "warning")
@@ -192,7 +188,7 @@ def zeroed_entry_checks(sid: SID) -> dict:
         scale = max(bound, float(np.max(np.abs(stored), initial=0.0)), float(np.max(np.abs(twin), initial=0.0)))
         count = zeroed_entries(stored, twin, scale, mirrored)
         if count is not None:
-            out[f"no zeroed entry: {name}"] = _entry(
+            out[f"no zeroed entry: {name}"] = Check.measured(
                 count, 0, "entries exactly 0 where the identity's other side is not (a deleted line "
                           "of a file that omits zeros); value = their number")
     return out
@@ -207,10 +203,9 @@ def file_notes(sid: SID) -> dict:
     how = ("the file writes its zeros: none may be missing" if entries["zeros_written"] else
            "read as 0: the file's writer omits zeros, so a deleted line there is told from a zero "
            "only by the identities")
-    return {"SID_FEM entries not written": {
-        "value": entries["omitted_entries"], "tolerance": None, "passed": True, "severity": "info",
-        "description": f"{entries['omitted_entries']} of {entries['omitted_entries'] + entries['written_entries']} "
-                       f"entries; {how}"}}
+    return {"SID_FEM entries not written": Check.note(
+        entries["omitted_entries"],
+        f"{entries['omitted_entries']} of {entries['omitted_entries'] + entries['written_entries']} entries; {how}")}
 
 
 def modal_checks(sid: SID) -> dict:
@@ -218,27 +213,27 @@ def modal_checks(sid: SID) -> dict:
     nq = sid.nq
     Me, Ke = sid.Me.M0, sid.Ke.M0
     out = {
-        "Me symmetric positive definite": _entry(
+        "Me symmetric positive definite": Check.measured(
             0.0 if nq == 0 else (_relative(Me - Me.T, Me) if np.all(np.linalg.eigvalsh(0.5 * (Me + Me.T)) > 0)
                                  else float("inf")), IDENTITY_RTOL, "modal mass matrix"),
-        "Ke symmetric": _entry(_relative(Ke - Ke.T, Ke), IDENTITY_RTOL, "modal stiffness matrix"),
+        "Ke symmetric": Check.measured(_relative(Ke - Ke.T, Ke), IDENTITY_RTOL, "modal stiffness matrix"),
     }
     if sid.Me.structure == IDENTITY:
-        out["Me = E (structure 4)"] = _entry(_relative(Me - np.eye(nq), np.eye(nq)), IDENTITY_RTOL,
-                                             "structure 4 promises mass-orthonormal coordinates")
+        out["Me = E (structure 4)"] = Check.measured(_relative(Me - np.eye(nq), np.eye(nq)), IDENTITY_RTOL,
+                                                     "structure 4 promises mass-orthonormal coordinates")
     eigen = [k for k in range(nq) if sid.mode_kinds[k:k + 1] == ("eigen",)]
     if eigen:
         sub = np.ix_(eigen, eigen)
         off = lambda A: A - np.diag(np.diag(A))  # noqa: E731
-        diagonal = _entry(max(_relative(off(Me[sub]), Me[sub]), _relative(off(Ke[sub]), Ke[sub])),
-                          MODAL_DIAGONAL_RTOL, "eigen-type coordinates are M- and K-orthogonal", "warning")
+        diagonal = Check.measured(max(_relative(off(Me[sub]), Me[sub]), _relative(off(Ke[sub]), Ke[sub])),
+                                  MODAL_DIAGONAL_RTOL, "eigen-type coordinates are M- and K-orthogonal", "warning")
         out["Me, Ke diagonal for eigen modes"] = diagonal
         # every coordinate whose label gives a frequency: eigenmodes and the (orthonormalised)
         # frequency-response modes, whose labels carry theirs too
         labelled = [k for k in range(nq) if sid.mode_kinds[k:k + 1] in (("eigen",), ("frm",))]
         lab = np.ix_(labelled, labelled)
         lab_diagonal = max(_relative(off(Me[lab]), Me[lab]), _relative(off(Ke[lab]), Ke[lab])) <= MODAL_DIAGONAL_RTOL
-        out["labels: f = sqrt(Ke/Me)/2pi"] = _entry(
+        out["labels: f = sqrt(Ke/Me)/2pi"] = Check.measured(
             label_frequency_deviation(np.asarray(sid.frequencies_hz, dtype=float)[labelled], Me[lab], Ke[lab],
                                       lab_diagonal), LABEL_FREQUENCY_RTOL,
             "label frequencies vs the modal stiffness (4.8 #8): per coordinate sqrt(Ke_ii/Me_ii)/2pi, "
@@ -359,7 +354,8 @@ def finite_entries(sid: SID) -> dict:
     check meaningless)."""
     bad = non_finite_entries(sid)
     shown = f" ({', '.join(bad[:3])}{' ...' if len(bad) > 3 else ''})" if bad else ""
-    return {"entries finite": _entry(len(bad), 0, f"members with NaN or inf entries{shown}; value = their number")}
+    return {"entries finite": Check.measured(len(bad), 0,
+                                             f"members with NaN or inf entries{shown}; value = their number")}
 
 
 #: the check of the principal moments of inertia (physical_checks)
@@ -397,25 +393,25 @@ def physical_checks(sid: SID) -> dict:
     AP0 must be a rotation.
     """
     mass = float(sid.mass)
-    out = {"mass > 0": _entry(0.0 if mass > 0 else float("inf"), 0.0,
-                              f"rigid-body mass m = {mass:.6g} kg (value 0 when positive)")}
+    out = {"mass > 0": Check.measured(0.0 if mass > 0 else float("inf"), 0.0,
+                                      f"rigid-body mass m = {mass:.6g} kg (value 0 when positive)")}
     if not mass > 0:
         return out
     p, negative, triangle = inertia_defects(sid)
-    out[INERTIA_CHECK] = _entry(
+    out[INERTIA_CHECK] = Check.measured(
         negative, TRIANGLE_RTOL,
         f"principal moments about the CM {p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g} kg m^2 (value -min/max; inf when "
         "two are 0: one zero moment only for a line body)")
-    out["inertia triangle inequalities"] = _entry(
+    out["inertia triangle inequalities"] = Check.measured(
         triangle, TRIANGLE_RTOL, "largest principal moment <= sum of the other two (value (I3 - I1 - I2)/I3)")
     if sid.nq:
         Ke = 0.5 * (sid.Ke.M0 + sid.Ke.M0.T)
         ev = np.linalg.eigvalsh(Ke)
-        out["Ke positive semidefinite"] = _entry(
+        out["Ke positive semidefinite"] = Check.measured(
             max(-ev[0], 0.0) / max(abs(ev).max(), 1e-300), KE_PSD_RTOL,
             "modal stiffness has no negative eigenvalue (value -min/max)")
     if sid.nodes:
-        out["node orientations AP0 are rotations"] = _entry(
+        out["node orientations AP0 are rotations"] = Check.measured(
             max(rotation_defect(n.AP.M0) for n in sid.nodes), ROTATION_TOL,
             "AP0 maps node-frame to body-frame components (3.2): value max |AP0^T AP0 - E|, |det - 1|")
     return out
@@ -521,22 +517,22 @@ def free_body_checks(sid: SID) -> dict:
     out = {}
     n = meta.get("n_rigid_modes", report.get("zero_energy_modes"))
     if n is not None:
-        out["6 zero-energy modes"] = _entry(abs(int(n) - FREE_BODY_RIGID_MODES), 0,
-                                            f"the unconstrained FE model has {n} zero-energy modes "
-                                            f"(value = |n - 6|)")
+        out["6 zero-energy modes"] = Check.measured(abs(int(n) - FREE_BODY_RIGID_MODES), 0,
+                                                    f"the unconstrained FE model has {n} zero-energy modes "
+                                                    f"(value = |n - 6|)")
     if sid.nq:
         me = np.sqrt(np.abs(np.diag(sid.Me.M0)))
         i_max = max(np.max(np.linalg.eigvalsh(inertia_matrix(sid.J.M0))), 1e-300)
         ct = np.linalg.norm(sid.Ct.M0, axis=1) / (np.sqrt(sid.mass) * me)
         cr = np.linalg.norm(sid.Cr.M0, axis=1) / (np.sqrt(i_max) * me)
-        out["free modes orthogonal to rigid motion"] = _entry(
+        out["free modes orthogonal to rigid motion"] = Check.measured(
             max(ct.max(), cr.max()), RIGID_ORTHOGONALITY_RTOL,
             "|Ct0_k|/sqrt(m Me_kk), |Cr0_k|/sqrt(I Me_kk): no rigid motion in the basis")
     return out
 
 
 def normalise_external(checks) -> dict:
-    """Checks from ``metadata["checks"]`` in the common form.
+    """Checks from ``metadata["checks"]`` as ``{name: Check}``.
 
     Two forms are accepted: ``{name: {value, tolerance, passed|pass|ok, ...}}``, or one flat report
     of the reduction (scalars plus an overall ``passed`` flag): the flag becomes the check
@@ -546,23 +542,22 @@ def normalise_external(checks) -> dict:
     if isinstance(checks.get("passed"), bool):
         scalars = {k: v for k, v in checks.items()
                    if isinstance(v, (int, float)) and not isinstance(v, bool)}
-        out = {"FE comparison": {
-            "value": float(not checks["passed"]), "tolerance": 0.0, "passed": checks["passed"],
-            "severity": "error", "description": "reduction vs full FE model (mass, CM, inertia, "
-                                                "zero-energy modes, static deflection)"}}
-        out.update({f"FE {k}": {"value": v, "tolerance": None, "passed": True, "severity": "info",
-                                "description": "reported by the reduction"} for k, v in scalars.items()})
+        out = {"FE comparison": Check(float(not checks["passed"]), 0.0, checks["passed"], "error",
+                                      "reduction vs full FE model (mass, CM, inertia, zero-energy modes, "
+                                      "static deflection)")}
+        out.update({f"FE {k}": Check.note(v, "reported by the reduction") for k, v in scalars.items()})
         return out
     out = {}
     for name, c in checks.items():
+        if isinstance(c, Check):
+            out[str(name)] = c
         if not isinstance(c, dict):
             continue
         passed = c.get("passed", c.get("pass", c.get("ok")))
         if passed is None and "value" in c and "tolerance" in c:
             passed = float(c["value"]) <= float(c["tolerance"])
-        out[str(name)] = {"value": c.get("value"), "tolerance": c.get("tolerance"),
-                          "passed": bool(passed), "severity": c.get("severity", "error"),
-                          "description": c.get("description", "")}
+        out[str(name)] = Check(c.get("value"), c.get("tolerance"), bool(passed), c.get("severity", "error"),
+                               c.get("description", ""))
     return out
 
 
@@ -574,7 +569,7 @@ def sid_checks(sid: SID) -> dict:
     """
     meta = sid.metadata if isinstance(sid.metadata, dict) else {}
     finite = finite_entries(sid)
-    if not finite["entries finite"]["passed"]:
+    if not finite["entries finite"].passed:
         return {**file_notes(sid), **finite}
     with np.errstate(all="ignore"):
         return {**file_notes(sid), **finite, **physical_checks(sid), **node_identities(sid),
@@ -584,15 +579,15 @@ def sid_checks(sid: SID) -> dict:
 
 def failed_checks(checks: dict) -> list[str]:
     """Names of the failed checks of severity "error"."""
-    return [name for name, c in checks.items() if not c["passed"] and c["severity"] == "error"]
+    return [name for name, c in checks.items() if not c.passed and c.severity == "error"]
 
 
 def checks_summary(checks: dict) -> str:
     """One line counting the lines of ``format_checks``: "all 30 checks passed (and 1 info line)",
     or the failed checks (errors) and the warnings by name."""
-    tested = {n: c for n, c in checks.items() if c["severity"] != "info"}
+    tested = {n: c for n, c in checks.items() if c.severity != "info"}
     failed = failed_checks(checks)
-    warned = [n for n, c in tested.items() if not c["passed"] and c["severity"] != "error"]
+    warned = [n for n, c in tested.items() if not c.passed and c.severity != "error"]
     info = len(checks) - len(tested)
     notes = f" ({info} info line{'s' * (info != 1)})" if info else ""
     if failed:
@@ -611,7 +606,7 @@ def format_checks(checks: dict) -> str:
 
     lines = []
     for name, c in checks.items():
-        flag = ("info" if c["severity"] == "info" else "ok  " if c["passed"]
-                else "FAIL" if c["severity"] == "error" else "warn")
-        lines.append(f"  {flag} {name:<42s} {number(c['value'])} (tol {number(c['tolerance'])})")
+        flag = ("info" if c.severity == "info" else "ok  " if c.passed
+                else "FAIL" if c.severity == "error" else "warn")
+        lines.append(f"  {flag} {name:<42s} {number(c.value)} (tol {number(c.tolerance)})")
     return "\n".join(lines)

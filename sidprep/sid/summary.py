@@ -1,4 +1,4 @@
-"""What a SID file contains, as a JSON-ready summary (``sidprep info``, ``sidprep.sid_info``)."""
+"""What a SID file contains, as a summary (``sidprep info``, ``sidprep.sid_info``)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from sidprep.sid.check import Check
 from sidprep.sid.checks import sid_checks
 from sidprep.sid.io import read_sid
 from sidprep.sid.model import inertia_matrix
@@ -19,7 +20,8 @@ def sid_info(path) -> dict:
 
 
 def body_summary(sid, checks: dict) -> dict:
-    """JSON-ready summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes."""
+    """Summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes, and ``checks``
+    ({name: Check}); :func:`strict_json` makes it JSON."""
     with np.errstate(all="ignore"):    # a damaged SID (NaN, inf, m = 0) is summarised as it is; checks flag it
         return _summary(sid, checks)
 
@@ -62,9 +64,12 @@ def stress_summary(stress) -> dict | None:
 
 
 def strict_json(value):
-    """``value`` with numpy types as Python numbers and non-finite floats as None (valid JSON)."""
+    """``value`` with numpy types as Python numbers, checks as their dicts and non-finite floats as
+    None (valid JSON)."""
 
 
+    if isinstance(value, Check):
+        value = value.as_dict()
     if isinstance(value, dict):
         return {str(k): strict_json(v) for k, v in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):

@@ -68,10 +68,10 @@ def mechanism_surfaces(results_path) -> tuple[object, dict]:
     scene_path = rf.scene.get("path", "")
     surfaces = {}
     for name, info in rf.bodies.items():
-        if not info.get("source"):
+        if not info.source:
             continue
-        path = resolve_source(info["source"], results_path, scene_path)
-        if info.get("kind") == "flexible":
+        path = resolve_source(info.source, results_path, scene_path)
+        if info.kind == "flexible":
             surfaces[name] = body_surface(read_sid(path), str(path))
         else:
             points, triangles = read_obj(path)

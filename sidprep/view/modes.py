@@ -98,8 +98,8 @@ def checks_rows(sid) -> list[tuple[str, str]]:
     """Side-table rows of the SID's model checks: ok / FAIL / info and the value."""
     rows = []
     for name, c in sid_checks(sid).items():
-        flag = "info" if c["severity"] == "info" else "ok" if c["passed"] else "FAIL"
-        value = c["value"]
+        flag = "info" if c.severity == "info" else "ok" if c.passed else "FAIL"
+        value = c.value
         shown = f"{value:.2e}" if isinstance(value, (int, float)) else html.escape(str(value))
         rows.append((name, f"<span class='{flag}'>{flag}</span> {shown}"))
     return rows

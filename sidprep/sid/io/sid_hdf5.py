@@ -30,6 +30,7 @@ import numpy as np
 
 from sidprep import __version__
 from sidprep.errors import InputError
+from sidprep.sid.check import Check, checks_as_dicts
 from sidprep.sid.checks import sid_checks
 from sidprep.sid.io.atomic import atomic_hdf5
 from sidprep.sid.io.hdf5 import open_hdf5
@@ -97,7 +98,8 @@ def _library_versions() -> dict:
 
 
 def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
-    """Write ``sid`` to ``path`` (.sid.h5) atomically; ``checks`` (sid_checks result) default computed."""
+    """Write ``sid`` to ``path`` (.sid.h5) atomically; ``checks`` ({name: Check}, sid_checks result) default
+    computed."""
     if checks is None:
         checks = sid_checks(sid)
     nq = sid.nq
@@ -171,7 +173,7 @@ def write_sid_hdf5(sid: SID, path, checks: dict | None = None) -> Path:
 
         prov = f.create_group("provenance")
         prov.attrs.update(metadata=to_json(dict(sid.metadata)), libraries=to_json(_library_versions()))
-        f.create_group("checks").attrs["json"] = to_json(checks)
+        f.create_group("checks").attrs["json"] = to_json(checks_as_dicts(checks))
     return Path(path)
 
 
@@ -281,6 +283,7 @@ def read_sid_hdf5(path) -> SID:
 
 
 def read_checks(path) -> dict:
-    """The model checks stored in a ``.sid.h5`` file at write time."""
+    """The model checks stored in a ``.sid.h5`` file at write time, ``{name: Check}``."""
     with open_hdf5(path, "SID file", "give a .sid.h5 file written by sidprep") as f:
-        return json.loads(f["checks"].attrs["json"]) if "checks" in f else {}
+        stored = json.loads(f["checks"].attrs["json"]) if "checks" in f else {}
+    return {name: Check.from_dict(entry) for name, entry in stored.items()}
