@@ -534,7 +534,7 @@ def free_body_checks(sid: SID) -> dict:
 def normalise_external(checks) -> dict:
     """Checks from ``metadata["checks"]`` as ``{name: Check}``.
 
-    Two forms are accepted: ``{name: {value, tolerance, passed|pass|ok, ...}}``, or one flat report
+    Two forms are accepted: ``{name: {value, tolerance, passed|pass|ok, ...}}`` (or ``{name: Check}``), or one flat report
     of the reduction (scalars plus an overall ``passed`` flag): the flag becomes the check
     "FE comparison", each scalar an "info" entry.
     """
@@ -551,13 +551,12 @@ def normalise_external(checks) -> dict:
     for name, c in checks.items():
         if isinstance(c, Check):
             out[str(name)] = c
-        if not isinstance(c, dict):
-            continue
-        passed = c.get("passed", c.get("pass", c.get("ok")))
-        if passed is None and "value" in c and "tolerance" in c:
-            passed = float(c["value"]) <= float(c["tolerance"])
-        out[str(name)] = Check(c.get("value"), c.get("tolerance"), bool(passed), c.get("severity", "error"),
-                               c.get("description", ""))
+        elif isinstance(c, dict):
+            passed = c.get("passed", c.get("pass", c.get("ok")))
+            if passed is None and "value" in c and "tolerance" in c:
+                passed = float(c["value"]) <= float(c["tolerance"])
+            out[str(name)] = Check(c.get("value"), c.get("tolerance"), bool(passed), c.get("severity", "error"),
+                                   c.get("description", ""))
     return out
 
 
