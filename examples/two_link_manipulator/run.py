@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))   # the repository'
 
 from sidprep.solver.absolute_nodal.run import simulate_absolute_nodal  # noqa: E402
 from sidprep.solver.absolute_nodal.scene import load_absolute_nodal_scene  # noqa: E402
-from sidprep.solver.results import write_csv, write_results  # noqa: E402
+from sidprep.solver.results import BodySource, write_csv, write_results  # noqa: E402
 from sidprep.tables import read_toml_text  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -72,7 +72,7 @@ def main(argv=None):
     result = simulate_absolute_nodal(scene.model, scene.t_end, scene.settings)
     args.out.mkdir(parents=True, exist_ok=True)
     write_results(result, args.out / "two_link.results.h5", scene={"path": str(scene_path), "text": text},
-                  bodies={b.name: {"kind": "absolute_nodal", "source": str(scene_path)} for b in scene.model.beams})
+                  bodies={b.name: BodySource("absolute_nodal", str(scene_path)) for b in scene.model.beams})
     write_csv(result, list(scene.output.signals), args.out / "two_link.csv")
     figures(result, args.out / "two_link_figures.png")
     total = result.energy["total"]
