@@ -281,8 +281,8 @@ def study_file_switches(tables: list[dict], batch: dict, path) -> dict:
 def failed_record(job: BatchJob, error: str) -> dict:
     """The record of a job that did not produce a body (every field of a report row)."""
     return {"name": job.name, "mesh": job.mesh, "params": dict(job.params), "status": "failed", "error": error,
-            "wall_s": None, "peak_memory_mb": None, "dof": None, "frequencies_hz": [], "checks_passed": None,
-            "checks": {}, "files": {}}
+            "wall_s": None, "cpu_s": None, "peak_memory_mb": None, "dof": None, "nq": None, "frequencies_hz": [],
+            "checks_passed": None, "checks": {}, "files": {}}
 
 
 def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) -> dict:
@@ -298,7 +298,7 @@ def run_job(job: BatchJob, outdir: str, sid_fem: bool = True, obj: bool = True) 
         record["files"] = write_reduction(result.sid, paths, source=job.mesh)
         f = np.asarray(result.sid.frequencies_hz)
         eigen = [float(x) for x, k in zip(f, result.sid.mode_kinds) if k == "eigen"]
-        record.update(status="ok", dof=result.n_dof, frequencies_hz=eigen[:RECORD_FREQUENCIES],
+        record.update(status="ok", dof=result.n_dof, nq=result.sid.nq, frequencies_hz=eigen[:RECORD_FREQUENCIES],
                       checks_passed=result.passed,
                       checks={k: v for k, v in result.checks.items() if isinstance(v, (bool, int, float))})
     except InputError as exc:
@@ -424,8 +424,10 @@ def _run_pending(todo, options, client, records, cache, progress, total):
         pool.close()
 
 
-CSV_COLUMNS = ("name", "status", "error", "wall_s", "peak_memory_mb", "dof", "frequencies_hz", "checks_passed",
-               "files", "params")
+CSV_COLUMNS = ("name", "status", "error", "wall_s", "cpu_s", "peak_memory_mb", "dof", "nq", "frequencies_hz",
+               "static_deflection_max_rel_error", "eigen_frequency_max_rel_error", "checks_passed", "files", "params")
+#: the columns read from a record's FE checks: the accuracy of the body, beside its cost (cpu_s) and size (nq)
+CHECK_COLUMNS = ("static_deflection_max_rel_error", "eigen_frequency_max_rel_error")
 
 
 def write_report(report: BatchReport) -> dict:
@@ -442,7 +444,9 @@ def write_report(report: BatchReport) -> dict:
     for r in report.records:
         w.writerow([" ".join(f"{x:.6g}" for x in r.get(c) or []) if c == "frequencies_hz"
                     else (" ".join(r.get(c, {}).values()) if c == "files"
-                          else (json.dumps(r.get(c)) if c == "params" else r.get(c))) for c in CSV_COLUMNS])
+                          else (json.dumps(r.get(c)) if c == "params"
+                                else ((r.get("checks") or {}).get(c) if c in CHECK_COLUMNS else r.get(c))))
+                    for c in CSV_COLUMNS])
     with atomic_path(outdir / "batch.csv") as tmp:
         tmp.write_text(buf.getvalue())
     files = {"json": str(outdir / "batch.json"), "csv": str(outdir / "batch.csv")}
