@@ -84,8 +84,9 @@ def test_bundled_meshes_plus_a_corrupt_one_give_good_outputs_and_one_failure_the
     # the study's accuracy beside its cost and size: the FE checks' static and frequency errors, CPU-s, nq
     row = next(r for r in csv.DictReader(io.StringIO((out / "batch.csv").read_text())) if r["name"] == "bar_a")
     assert int(row["nq"]) == read_sid_hdf5(out / "bar_a.sid.h5").nq and float(row["cpu_s"]) > 0
-    for column in ("static_deflection_max_rel_error", "eigen_frequency_max_rel_error"):
-        assert float(row[column]) == pytest.approx(rec["checks"][column], rel=1e-12)
+    assert float(row["static_deflection_max_rel_error"]) == rec["checks"]["static_deflection_max_rel_error"]
+    frequency = rec["checks"].get("eigen_frequency_max_rel_error")       # only when the run counts the spectrum
+    assert row["eigen_frequency_max_rel_error"] == ("" if frequency is None else str(frequency))
     # re-run: served from the cache, says so, same exit code
     assert main(argv) == 1
     captured = capsys.readouterr()
