@@ -5,7 +5,7 @@ examples/two_link_manipulator/scene.toml (2 links x 4 elements, 16 DOF), classic
 paper's step 2.5e-4 s, 2 s simulated; also 8 and 16 elements per link at the steps their axial
 modes allow (RK4 stability).  CPU = process time of the compiled integration loop only
 (``stats["cpu_time"]``; compilation and the post-processing of the samples excluded), median
-of ``--repeat`` runs after a warm-up run.  Target (issue 11): <= 0.1 CPU-s per simulated second;
+of ``--repeat`` runs after a warm-up run.  Target: <= 0.1 CPU-s per simulated second;
 the paper took ~15 s for its run on a 100 MHz Pentium.
 
     python benchmarks/absolute_nodal.py [--repeat 7]
@@ -22,7 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-#: issue 11 target, CPU seconds per simulated second
+#: target, CPU seconds per simulated second
 TARGET = 0.1
 T_END = 2.0
 #: (elements per link, RK4 step s)

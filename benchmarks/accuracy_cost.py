@@ -363,7 +363,7 @@ class MethodCase:
 
 
 def method_cases(quick: bool) -> list[MethodCase]:
-    """The three scenes of issue 21 item 6 and their ladders (h in s)."""
+    """The three scenes and their ladders (h in s)."""
     def ladders(steps, h0, rtols, rk4, rk45, dop853):
         out = {GA_FIXED: [dict(h=h) for h in steps], GA_RTOL: [dict(h=h0, rtol=r) for r in rtols],
                RK4: [dict(method="rk4", h=h) for h in rk4], RK45: [dict(method="rk45", h=h0, rtol=r) for r in rk45],

@@ -1,7 +1,7 @@
-"""Batch benchmark (issue 12): 16 reductions (the bar and the piston rod at several mesh sizes).
+"""Batch benchmark: 16 reductions (the bar and the piston rod at several mesh sizes).
 
 Measures, side by side and repeated (median): the wall time of ``run_batch`` with one worker (the
-jobs one by one) and with 2 workers (target >= 1.85x on 2 cores, issue 27), and the cache-hit
+jobs one by one) and with 2 workers (target >= 1.85x on 2 cores), and the cache-hit
 re-run of the whole batch (target < 1 s).  Each worker runs single-threaded (sidprep.jobs.batch
 SINGLE_THREAD_ENV).  On a shared machine the pool can only be as fast as the cores it gets: each
 run also prints the cores it obtained (the jobs' CPU seconds over the wall time) and the load

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""What the effects report's estimates cost (issue 22 item 5: at most 10 % of the run), on demand.
+"""What the effects report's estimates cost (at most 10 % of the run), on demand.
 
 For each example scene: the CPU (process time) of the whole run, of its post-processing and of
 the effects estimates inside it (``solver.effects.estimate_changes``, timed where the

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The one-cylinder engine with the flexible piston rod (examples/engine, issue 8 target):
+"""The one-cylinder engine with the flexible piston rod (examples/engine target):
 CPU s per simulated second of the time integration against the step size, and the error of
 each step against a run at h = 25 us (crank speed, relative to its peak; the rod's largest modal
 coordinate q3, relative to its peak), flexible and with the rigid rod of the same mass

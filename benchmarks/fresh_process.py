@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The flexible pendulum as a user runs it once: a fresh process per solver, sidprep vs Exudyn 1.13.6
-(issue 21's benchmark row "vs Exudyn, fresh process, h = 1e-3"), CPU seconds of the whole process.
+(the benchmark row "vs Exudyn, fresh process, h = 1e-3"), CPU seconds of the whole process.
 
 The body and the scene are ``simulate.py``'s: the bundled bar (tet10) clamped at its hinge face and
 reduced to ``--modes`` clamped eigenmodes by sidprep's FE side once, in this process; the child

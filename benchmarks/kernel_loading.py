@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""What loading the compiled kernels costs a warm process (issue 21 item 2), entry point by entry point.
+"""What loading the compiled kernels costs a warm process, entry point by entry point.
 
 numba loads a cached kernel on its first call from Python: it unpickles the entry's cache file,
 parses the LLVM bitcode of the entry's whole call tree (kept in the cache so that a later caller

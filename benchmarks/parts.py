@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A model reduced in parts (issue 28) against the monolithic reduction of the same mesh.
+"""A model reduced in parts against the monolithic reduction of the same mesh.
 
 The tet10 bar of benchmarks/scale.py (1.0 x 0.05 x 0.08 m, RBE2 masters on both end faces, 30
 modes + FRMs, all checks), meshed once to a binary .msh for the DOF target; then, alternating,

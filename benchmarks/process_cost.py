@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""What a warm `sidprep simulate` process spends, split up (issue 21 items 2 and 3): imports, scene
+"""What a warm `sidprep simulate` process spends, split up: imports, scene
 building, the start (consistent initial state), the kernel cache loading, the integration and the
 post-processing, each in CPU seconds, medians of ``--repeat`` fresh processes; with ``--before``
 the same for another checkout (e.g. /work/main), the two alternating, so that the pairs share the
@@ -11,7 +11,7 @@ step and per sample (second run): the compiled samples' outputs (``sample_output
 more from Python on the second run's samples, timed) per output sample, and the steps' CPU per
 step (the integration less those outputs where the compiled loop computes them: a checkout from
 the fourth pass on, where "integration" includes the outputs and "post" does not); "whole run /
-steps" is start + integration + post over the steps alone (issue 21 item 3's ratio).
+steps" is start + integration + post over the steps alone).
 
     python benchmarks/process_cost.py examples/beam_slider_crank/scene.toml --repeat 5
     python benchmarks/process_cost.py examples/engine/scene_rigid.toml --before /work/main --h 1e-4

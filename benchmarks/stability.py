@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Long runs of the hard cases of issue 22 on every integrator (run on demand).
+"""Long runs of the hard cases of tests/test_stability.py on every integrator (run on demand).
 
     python benchmarks/stability.py [--cases whirl rotor dead_centres] [--methods genalpha rk4 rk45 dop853]
                                    [--t-end 60] [--explicit-t-end 5]

@@ -1,4 +1,4 @@
-"""Cost of stress recovery (issue 24, run on demand).
+"""Cost of stress recovery (run on demand).
 
     python benchmarks/stress.py [--repeat 5]
 

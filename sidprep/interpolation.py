@@ -1,4 +1,4 @@
-"""Elastic-like interpolation from a few simulation nodes onto many animation points (seed 000 s. 5).
+"""Elastic-like interpolation from a few simulation nodes onto many animation points (Heckmann et al. 2006 section 5).
 
 The displacement field is a polyharmonic spline in 3-D: the kernel phi(r) = r^3 is the fundamental
 solution of the triharmonic operator (Delta^3 r^3 ~ delta in R^3), plus an affine part,

@@ -1,4 +1,4 @@
-"""Absolute-nodal planar beams (solver/absolute_nodal.py, seed 002) against independent references:
+"""Absolute-nodal planar beams (solver/absolute_nodal.py, Kisu Lee's paper) against independent references:
 energy and angular-momentum conservation, the rigid pendulum (scipy ODE), the rigid driven link
 (closed-form motor torque) and RK4's order of convergence."""
 
@@ -22,10 +22,10 @@ from sidprep.tables import read_toml_text
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "two_link_manipulator" / "scene.toml"
 G = 9.81
-#: issue 11: energy error of the two-link example over 2 s, relative to the initial total
-#: (the paper, seed 002 section 3, reports 0.03 %; we ask ten times better)
+#: energy error of the two-link example over 2 s, relative to the initial total
+#: (the paper, section 3, reports 0.03 %; we ask ten times better)
 TWO_LINK_ENERGY_TOL = 3e-5
-#: issue 11: a very stiff link against the rigid pendulum (rad)
+#: a very stiff link against the rigid pendulum (rad)
 RIGID_PENDULUM_TOL = 1e-4
 #: fourth order: the step-halving ratio of the position error is 16 +- 10 %
 ORDER_RATIO, ORDER_RATIO_TOL = 16.0, 0.10

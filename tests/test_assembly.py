@@ -2,7 +2,7 @@
 sidprep.fe.ties).
 
 Independent references: CalculiX's own element matrices of a component (ccx); the monolithic reduction of the same geometry as ONE mesh (shared joins:
-frequencies within 1e-4, mass properties within 1e-10, issue 28); monolithic meshes of the tied
+frequencies within 1e-4, mass properties within 1e-10); monolithic meshes of the tied
 halves' sizes and a finer one (tied joins); the closed-form mass and centre of mass of a bar of two
 materials; the triangle shape functions' exact reproduction of linear fields (the ties' weights).
 """
@@ -36,9 +36,9 @@ from sidprep.sid.io import read_sid
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "assembly"
-#: eigen-mode frequencies of a shared-node assembly vs the monolithic reduction of the same mesh (issue 28)
+#: eigen-mode frequencies of a shared-node assembly vs the monolithic reduction of the same mesh
 ASSEMBLY_FREQ_RTOL = 1e-4
-#: mass, centre of mass and inertia vs the monolithic reduction / the closed form, relative (issue 28)
+#: mass, centre of mass and inertia vs the monolithic reduction / the closed form, relative
 MASS_RTOL = 1e-10
 #: a tied assembly (halves at h = 40 and 30 mm) lies between the monolithic bar at h = 20 mm (closer to
 #: the converged frequencies, which conforming elements approach from above) and the stiffer of the
@@ -212,7 +212,7 @@ def test_cli_reduces_the_example_as_its_readme_says_and_exits_2_on_a_bad_assembl
 
 #: a component from CalculiX's own C3D10 matrices vs the same mesh assembled by sidprep: mass to
 #: 1e-8 (ccx's 13-digit files); frequencies to 1e-4 (CalculiX's C3D10 mass quadrature differs from the
-#: exact one by ~3e-5: tests/test_import_calculix.py, issue 25)
+#: exact one by ~3e-5: tests/test_import_calculix.py)
 CCX_MASS_RTOL = 1e-8
 CCX_FREQUENCY_RTOL = 1e-4
 

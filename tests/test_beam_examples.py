@@ -75,7 +75,7 @@ def test_beam_buckling(tmp_path):
     assert not reports["scene.toml"]["effects"]["warnings"]
 
 
-#: seed 000 section 6.3 / issue 9: pinned-free blade frequencies, flap xz 1-7 and lag xy 1-2, Hz
+#: Heckmann et al. 2006 section 6.3: pinned-free blade frequencies, flap xz 1-7 and lag xy 1-2, Hz
 ROTOR_PAPER_HZ = (7.9, 25.6, 53.4, 91.3, 139.4, 197.5, 265.8, 78.0, 252.8)
 #: the paper's values have 3-4 digits
 ROTOR_FREQ_RTOL = 1e-3

@@ -12,7 +12,7 @@ from sidprep.fe.mesh import read_mesh
 from sidprep.fe.topology import TET10_EDGES, connected_parts
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
-#: the paper's (seed 000, section 6.4) lowest piston-rod modes and the accepted gap
+#: the paper's (Heckmann et al. 2006, section 6.4) lowest piston-rod modes and the accepted gap
 PAPER_PISTON_ROD_HZ = (809.0, 1040.0, 1244.0)
 PAPER_RTOL = 0.15
 #: the frequencies documented in data/meshes/README.md, to the printed digits
@@ -63,7 +63,7 @@ def test_piston_rod_groups_and_size(rod):
 
 
 def test_piston_rod_frequencies_match_the_paper(rod):
-    """Both bores held, steel: the README's numbers, within 15 % of seed 000's 809/1040/1244 Hz."""
+    """Both bores held, steel: the README's numbers, within 15 % of Heckmann et al. 2006's 809/1040/1244 Hz."""
     check = _load("_modal_check")
     f = check.clamped_frequencies_hz(rod, ["big_end", "small_end"], **_load("make_piston_rod").STEEL)
     assert np.allclose(f, README_PISTON_ROD_HZ, atol=README_DIGITS_ATOL_HZ)

@@ -1,4 +1,4 @@
-"""`sidprep check` tests physical possibility of any SID (issue 14 item 2).
+"""`sidprep check` tests physical possibility of any SID.
 
 Reference: a lumped-mass body whose inertia about its CM is computed here in closed form
 (sum m_i (|r_i|^2 E - r_i r_i^T)), and the third-party SID_FEM files, which must stay valid.
@@ -91,7 +91,7 @@ def test_real_files_are_physical(name):
 
 
 # ------------------------------------------------------------------------------------------------
-# deleted lines (issue 14 item 2): refused by the reader where the writer writes zeros, found by
+# deleted lines refused by the reader where the writer writes zeros, found by
 # `check` through the identities where it omits them
 # ------------------------------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""Paths on FE-reduced bodies (issue 10 item 1, sidprep.reduction.paths): curves through points or ordered
+"""Paths on FE-reduced bodies (sidprep.reduction.paths): curves through points or ordered
 node sets, resampled at equal arc length, with the mode shapes interpolated from the full FE
 modes; against closed forms (arc lengths of a parabola and a circle, polynomial fields that P2
 elements represent exactly) and the straight-segment path."""

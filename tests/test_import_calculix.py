@@ -34,7 +34,7 @@ CCX_EIGEN_RTOL = 1e-6
 SID_VS_CCX_RTOL = 2e-3
 #: C3D20 (8 x 2 x 2) vs sidprep's tet10 (h = 12.5 mm) of the same block: discretisation of both
 HEX_VS_TET_RTOL = 1e-2
-#: piston rod, ccx's C3D10 matrices vs sidprep's assembly of the same mesh (issue 25): mass to 1e-8;
+#: piston rod, ccx's C3D10 matrices vs sidprep's assembly of the same mesh: mass to 1e-8;
 #: frequencies to 1e-4 (CalculiX's C3D10 mass quadrature differs from the exact one by ~3e-5)
 ROD_MASS_RTOL = 1e-8
 ROD_FREQUENCY_RTOL = 1e-4

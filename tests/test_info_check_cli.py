@@ -122,7 +122,7 @@ def test_free_body_checks():
 
 def test_sid_fem_keeps_the_kind_of_every_mode(tmp_path, capsys):
     """A reduction with frequency-response modes: `info` of the .SID_FEM labels them as the
-    .sid.h5 does (issue 27: all 20 were "eigen")."""
+    .sid.h5 does (all 20 were "eigen")."""
     from pathlib import Path
 
     from sidprep.sid.io import read_sid

@@ -1,7 +1,7 @@
-"""Elastic (biharmonic-spline) interpolation from simulation nodes to animation points (issue 15).
+"""Elastic (biharmonic-spline) interpolation from simulation nodes to animation points.
 
 Independent references: rigid-body motion u = a + omega x c (closed form), the interpolation
-conditions at the nodes, the seed 000 s. 5 plate (1 x 1.3, corner 4 moving), and the exact FE
+conditions at the nodes, the Heckmann et al. 2006 section 5 plate (1 x 1.3, corner 4 moving), and the exact FE
 surface modes the SID stores (piston rod, when the bundled mesh reduces within the test budget).
 """
 
@@ -13,7 +13,7 @@ from sidprep.interpolation import elastic_interpolation
 RIGID_TOL = 1e-12          # rigid motion reproduced to round-off
 NODE_TOL = 1e-12           # interpolation conditions at the nodes
 
-PLATE_CORNERS = np.array([[0, 0, 0], [1, 0, 0], [0, 1.3, 0], [1, 1.3, 0.0]])  # seed 000 s. 5.1
+PLATE_CORNERS = np.array([[0, 0, 0], [1, 0, 0], [0, 1.3, 0], [1, 1.3, 0.0]])  # Heckmann et al. 2006 section 5.1
 
 
 def plate_grid():
@@ -63,9 +63,9 @@ def test_plate_smooth_without_artefacts():
     assert second < 0.05                                         # curvature bounded: smooth
 
 
-PISTON_ROD_NODES = 97          # seed 000 s. 5: 97 simulation nodes on the piston rod
+PISTON_ROD_NODES = 97          # Heckmann et al. 2006 section 5: 97 simulation nodes on the piston rod
 PISTON_ROD_FIRST_MODES = 5     # the first eigenmodes (262-1120 Hz) must stay below the target
-PISTON_ROD_TARGET = 0.05       # max error / peak displacement (issue 15)
+PISTON_ROD_TARGET = 0.05       # max error / peak displacement
 
 
 def farthest_points(points, n):

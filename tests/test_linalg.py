@@ -137,7 +137,7 @@ def test_interposed_blas_gives_the_reference_blas_result():
     assert np.allclose(out["1"][1], out["0"][1], rtol=DIRECT_RTOL)
 
 
-#: Kane, Ryan & Banerjee (1987) spin-up beam: L = 10 m, EI = 1.4e4 N m^2, rho A = 1.2 kg/m (issue 14 item 5)
+#: Kane, Ryan & Banerjee (1987) spin-up beam: L = 10 m, EI = 1.4e4 N m^2, rho A = 1.2 kg/m
 KANE_L, KANE_EI, KANE_RHOA = 10.0, 1.4e4, 1.2
 #: Euler-Bernoulli beta_1 L: clamped-free 1.87510, free-free 4.73004 (closed form)
 BETA_L_CLAMPED, BETA_L_FREE = 1.87510407, 4.73004074

@@ -1,5 +1,5 @@
 """The memory estimate before a run (sidprep.fe.linalg.estimate_peak_memory) against peaks measured in a
-fresh process, and the automatic backend choice / refusal it drives (issue 13 item 2)."""
+fresh process, and the automatic backend choice / refusal it drives."""
 
 import json
 import os

@@ -1,4 +1,4 @@
-"""Moving loads (issue 10, seed 003): a force travelling along a path on a flexible body, against
+"""Moving loads (Hartweg and Heckmann 2012): a force travelling along a path on a flexible body, against
 the closed-form modal series of the simply supported Euler-Bernoulli beam (Fryba 1972, ch. 1)."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from sidprep.solver import ConstantSpeed, Fixed, FlexibleBody, PointForce, Syste
 from sidprep.solver.run import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
-#: examples/moving_force: steel beam 15 m, 0.1 x 0.1 m, force 981 N (issue 10)
+#: examples/moving_force: steel beam 15 m, 0.1 x 0.1 m, force 981 N
 L, B, E, RHO, P = 15.0, 0.1, 2.1e11, 7850.0, 981.0
 EI, MU = E * B**4 / 12, RHO * B * B
 #: gravity, m/s^2
@@ -247,7 +247,7 @@ def test_moving_mass_energy_balances_under_rk4():
     assert moving_mass_energy_drift(ConstantSpeed(10.0, 0.0), 0.5, h=2e-4, method="rk4") < MOVING_MASS_RK4_ENERGY_RTOL
 
 
-#: the free sliding mass (seed 003 eq. 30, frictionless): energy of beam and mass, max drift
+#: the free sliding mass (Hartweg and Heckmann 2012 eq. 30, frictionless): energy of beam and mass, max drift
 #: relative to the largest energy change over 3 s at h = 1 ms (measured 1.9e-7; 7.4e-7 at 2 ms)
 SLIDING_ENERGY_RTOL = 1e-6
 #: the mass on the deformed axis w(x) = sum q_k phi_k(x) of the Beam's closed-form eigenforms
@@ -287,7 +287,7 @@ def test_a_free_sliding_mass_conserves_energy_and_stays_on_the_deformed_beam():
     assert np.max(np.abs(z - w)) < ON_PATH_TOL
 
 
-#: examples/moving_mass (seed 003 section 2.3): 100 kg released at x = 2 m on the beam with its
+#: examples/moving_mass (Hartweg and Heckmann 2012 section 2.3): 100 kg released at x = 2 m on the beam with its
 #: first bending form, 2 % damping, gravity; the mass's x against the reference, m, over 10 s
 #: (measured 2.1e-5; 4.4e-5 over the full 60 s)
 SLIDING_X_TOL = 2e-4
@@ -451,7 +451,7 @@ def test_a_sliding_mass_with_coulomb_friction_stops_after_v0_squared_over_2_mu_g
     assert np.max(np.abs(e["total"] - e["total"][0])) < FRICTION_ENERGY_RTOL * scale
 
 
-#: a sprung carriage guided along the beam (issue 10 item 2d, seed 003 section 2.2): a stiff
+#: a sprung carriage guided along the beam, Hartweg and Heckmann 2012 section 2.2): a stiff
 #: simply supported beam (0.3 x 0.3 m steel, 15 m, first form 3.1 Hz, five forms) crossed at
 #: 20 m/s by a 2000 kg carriage on a vertical spring-damper (4 Hz, 30 % damping) held upright by
 #: a prismatic joint on a path marker, under gravity, from rest and undeformed
@@ -508,7 +508,7 @@ def sprung_carriage(h):
 
 
 def test_a_sprung_carriage_guided_along_the_beam_follows_the_moving_oscillator_equations():
-    """The general subsystem of seed 003 section 2.2: the guidance joint on the moving point has
+    """The general subsystem of Hartweg and Heckmann 2012 section 2.2: the guidance joint on the moving point has
     its rheonomic term b_t (the carriage starts at the path speed), the damper sees the moving
     point's convective velocity c w', and the drive's work closes the energy balance."""
     drift = {}

@@ -1,4 +1,4 @@
-"""One import namespace: sidprep, sidprep.solver, sidprep.cli (issue 12). Every package folder of the
+"""One import namespace: sidprep, sidprep.solver, sidprep.cli. Every package folder of the
 repository is listed in pyproject.toml under the name it installs as, so a wheel holds all of it."""
 
 import ast

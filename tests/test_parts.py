@@ -46,9 +46,9 @@ from sidprep.reduction import substructured as sub
 ROOT = Path(__file__).resolve().parents[1]
 ROD = ROOT / "data" / "meshes" / "piston_rod.msh"
 BAR = ROOT / "data" / "meshes" / "bar.msh"
-#: eigen-kind frequencies in parts vs the monolithic reduction of the same model (issue 28)
+#: eigen-kind frequencies in parts vs the monolithic reduction of the same model
 PARTS_FREQ_RTOL = 1e-4
-#: mass, centre of mass and inertia in parts vs monolithic, relative (issue 28)
+#: mass, centre of mass and inertia in parts vs monolithic, relative
 MASS_RTOL = 1e-10
 #: the substructured K_ii solve against a direct sparse solve, relative residual
 SOLVE_RTOL = 1e-9

@@ -1,4 +1,4 @@
-"""Unit plausibility warnings (issue 14 item 3): a mesh in mm run as SI must not pass silently.
+"""Unit plausibility warnings a mesh in mm run as SI must not pass silently.
 
 References: the bundled meshes' geometry (bar 1.0 x 0.05 x 0.08 m, piston rod 0.494 m long) and
 the frequencies in data/meshes/README.md computed with plain scikit-fem.

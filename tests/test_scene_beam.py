@@ -1,4 +1,4 @@
-"""A scene body of `type = "beam"`: the analytical Euler-Bernoulli Beam declared inline (issue 9)."""
+"""A scene body of `type = "beam"`: the analytical Euler-Bernoulli Beam declared inline."""
 
 import numpy as np
 import pytest

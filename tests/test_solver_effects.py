@@ -106,7 +106,7 @@ def pendulum_scene(effects):
 @pytest.mark.parametrize("h, measured", [(1e-3, 0.70), (2.5e-4, 1.04)])
 def test_flexible_pendulum_estimate_against_a_second_run(h, measured):
     """The example's bar (Oe.M1 = Kom only: auto leaves centrifugal stiffening out).  Including
-    it changes q by 3.2e-4 at the scene's step (issue 22: 3.0e-4; the force ratio said 5.5e-7)
+    it changes q by 3.2e-4 at the scene's step (3.0e-4; the force ratio said 5.5e-7)
     and 8.0e-4 at h / 4, where generalised-alpha resolves the phase of the 416 Hz in-plane
     bending (at omega h = 2.6 it shows 0.37 of a frequency shift); the estimate (2.2e-4, 8.3e-4)
     is mostly the free vibration's accumulated phase error."""

@@ -73,7 +73,7 @@ def test_constraint_rows_are_the_time_derivative_of_g(kind):
 @pytest.mark.parametrize("kind", sorted(set(JOINT_TYPES) - {"on_path"}))
 def test_rows_on_a_marker_moving_along_a_path_carry_its_motion_in_b_t(kind):
     """B u + b_t equals dg/dt along the motion when marker 1 travels along the deformed,
-    twisted axis of a Beam at s(t) (issue 10 item 2d: a carriage guided on a moving point): b_t
+    twisted axis of a Beam at s(t) a carriage guided on a moving point): b_t
     holds the point's convective velocity s_dot dp/ds and its frame's turning rate.  (The frame's
     modal columns JR = A Psi are exact to first order in q only, like those of node markers: the
     SID's rotations are linear; here the modal rates are zero.)"""

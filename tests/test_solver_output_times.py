@@ -1,5 +1,5 @@
 """Output samples at the asked times: every sample at exactly k / rate, taken from the stepper's own
-interpolant inside the step that contains it (issue 21 item 5), against an independent reference."""
+interpolant inside the step that contains it, against an independent reference."""
 
 import math
 

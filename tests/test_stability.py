@@ -3,7 +3,7 @@
 FE side: nearly incompressible material, mm-t-s units, slender and thin free bodies, extreme moduli,
 a body far from the origin, sliver elements.  Solver: a stiff 16-mode body with a step far above
 1/f_max, a body spinning near its first critical speed, a 100 s rigid pendulum, the cases of
-issue 22 (whirl, energy books, watchdog, broken SIDs, failures that name their numerical cause)
+the hard cases (whirl, energy books, watchdog, broken SIDs, failures that name their numerical cause)
 and the hard-case suite on every integrator (genalpha, rk4, rk45, dop853): a spinning flexible
 body on a joint, dead centres, a start off the assembled pose, a near-zero mass link, 60 modes up
 to 22 kHz at h = 1 ms, a rotor above its first critical speed with and without stiffening.
@@ -319,7 +319,7 @@ SOUTHWELL_LAG = 1.193 - 1.0
 LAG_FREQUENCY_RTOL = 1e-2
 #: bound of the lag amplitude, in units of its start 1e-4: the Coriolis exchange with the other
 #: modes lifts it to 1.0451 (DOP853, rtol 1e-10; genalpha 1.0448 at h = 0.25 ms, 1.0451 at
-#: 0.125 ms; the R^3 x SO(3) stepper before issue 22 damped it to <= 1.01)
+#: 0.125 ms; an R^3 x SO(3) stepper damped it to <= 1.01)
 LAG_AMPLITUDE_BOUND = 1.06
 
 
@@ -388,10 +388,10 @@ def test_hundred_seconds_of_a_rigid_pendulum_keep_energy_and_constraints():
 
 
 # ---------------------------------------------------------------------------------------------
-# Hard cases of issue 22
+# Hard cases
 # ---------------------------------------------------------------------------------------------
 
-#: whirl of the hinged bar (issue 22 item 1): spin about the hinge, rad/s, run length, s, step, s
+#: whirl of the hinged bar spin about the hinge, rad/s, run length, s, step, s
 WHIRL_SPIN, WHIRL_T, WHIRL_H = 50.0, 10.0, 1e-3
 #: energy law: |E - E0| / E0 over the run, no work done (measured 2.5e-6 free-free modes, 4.6e-5
 #: clamped-frame modes, 2.2e-6 rigid twin; R^3 x SO(3) before: +2.5e-2, divergence at 7.95 s, +1e-2)
@@ -608,7 +608,7 @@ def test_energy_watchdog_warns_with_cause_and_fix_on_a_coarse_step():
     assert fine["balance_error"] <= fine["tolerance"] and fine["warning"] is None
 
 
-#: rho_inf = 1 whirl (issue 22 item 3: blew up at 0.30 s before): energy law over 3 s
+#: rho_inf = 1 whirl blew up at 0.30 s before): energy law over 3 s
 #: (measured 2.5e-6)
 WHIRL_NO_DAMPING_RTOL = 1e-4
 
@@ -690,7 +690,7 @@ def test_a_failure_after_the_energy_went_astray_names_the_integration_and_the_fi
 
 
 # ---------------------------------------------------------------------------------------------
-# Hard-case suite on every integrator (issue 22 item 7).  Each case runs on genalpha, rk4, rk45
+# Hard-case suite on every integrator.  Each case runs on genalpha, rk4, rk45
 # and dop853; where a method cannot do a case (an explicit method on a stiff body at a large
 # step) the test asserts that it stops and says so.  Long runs: benchmarks/stability.py.
 # ---------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Stress recovery (issue 24) against independent references: Hooke's law for a uniform strain,
+"""Stress recovery against independent references: Hooke's law for a uniform strain,
 Euler-Bernoulli beam theory, the closed-form Beam eigenforms, our own full FE static and harmonic
 solutions, CalculiX (named constants below) and F/A in the engine's piston rod."""
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Parametric connecting rod ("piston rod", cf. seed 000 section 6.4) as a tet10 gmsh mesh.
+"""Parametric connecting rod ("piston rod", cf. Heckmann et al. 2006 section 6.4) as a tet10 gmsh mesh.
 
 A big-end eye and a small-end eye (annular cylinders, axis z, centres (0,0,0) and (L,0,0))
 joined by an I-section shank along x (web in the plane of motion z = 0, flanges at the

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The sliding mass of seed 003 section 2.3: its x and z accelerations (the seed: peaks near
+"""The sliding mass of Hartweg and Heckmann 2012 section 2.3: its x and z accelerations (the seed: peaks near
 20 m/s^2, a periodic x acceleration as it slides to and fro in the sag), the period of the
 sliding, the energy balance; writes analysis.png.
 

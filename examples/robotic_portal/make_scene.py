@@ -73,7 +73,7 @@ markers = ["{name}_column", "{name}_base"]
 
 
 def robot(name: str, beam_name: str, start: float, end: float, beam_y: float) -> str:
-    """A robot (seed 003 section 2.2's subsystem): its guide point moving along the beam's axis,
+    """A robot (Hartweg and Heckmann 2012 section 2.2's subsystem): its guide point moving along the beam's axis,
     the carriage held upright by a prismatic joint (vertical slide) on it and carried by a
     spring-damper preloaded with the carriage's weight, and its tool point."""
     t, s = cycle(start, end)
@@ -116,7 +116,7 @@ length = {HANG - ROBOT_MASS * G / k:.6g}         # preloaded with the carriage's
 
 
 def scene() -> str:
-    head = f"""# Robotic portal (seed 003 section 3, issue 10): see README.md.  Made by make_scene.py.
+    head = f"""# Robotic portal (Hartweg and Heckmann 2012 section 3): see README.md.  Made by make_scene.py.
 [scene]
 title = "robotic portal"
 gravity = [0.0, 0.0, -9.81]

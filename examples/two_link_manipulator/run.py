@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Run the two-link manipulator and draw the paper's figures (Figs. 5-14 of seed 002).
+"""Run the two-link manipulator and draw the paper's figures (Figs. 5-14 of Kisu Lee's paper).
 
     python examples/two_link_manipulator/run.py [--t-end 2] [--out DIR]
 

@@ -47,11 +47,11 @@ SHIFT_REL = 1e-6
 RIGID_GAP = 1e4
 #: ... and the rigid eigenvalues below RIGID_LOOSE_REL * median(diag K / diag M), a loose bound (the
 #: round-off of a zero eigenvalue is ~ eps x that scale).  An absolute bound alone (1e-10 x scale) took
-#: the 0.605 Hz mode of a soft 10 m beam (lambda = 14.45, scale 3.3e11) for rigid (issue 14 item 5).
+#: the 0.605 Hz mode of a soft 10 m beam (lambda = 14.45, scale 3.3e11) for rigid.
 RIGID_LOOSE_REL = 1e-6
 #: below this many DOFs (backend "auto"), or when half the modes or more are wanted (any backend), the
 #: eigenproblem is solved densely (LAPACK): ARPACK cannot give k >= n - 1 modes, and ARPACK with
-#: CHOLMOD aborted the process (malloc / segfault) on a one-tet mesh (issue 14 item 1)
+#: CHOLMOD aborted the process (malloc / segfault) on a one-tet mesh
 DENSE_MAX_DOF = 600
 EIGEN_BACKENDS = ("auto", "cholmod", "superlu", "lobpcg", "dense")
 #: nearly all modes of a larger problem are refused above this size (dense K, M, vectors: ~0.6 GB)

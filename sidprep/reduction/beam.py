@@ -366,7 +366,7 @@ def stiffening_cases(L: float, rhoA: float, x: np.ndarray, frame_x) -> dict[str,
 
 
 def beam_sid(options: BeamOptions) -> SID:
-    """The SID of a Beam (seed 000 section 3): every invariant of the FE route, with stiffening."""
+    """The SID of a Beam (Heckmann et al. 2006 section 3): every invariant of the FE route, with stiffening."""
     o = options
     check_beam_options(o)
     A, Iy, Iz, J = o.section.properties

@@ -2,7 +2,7 @@
 reduced model.
 
 * Eigenmodes in the range of interest (the first ``n_modes`` elastic modes, or all up to ``fmax``).
-* Frequency-response modes (FRM, seed 000 eq. 11): (K - Omega^2 M) u_i = p_i for a unit load p_i
+* Frequency-response modes (FRM, Heckmann et al. 2006 eq. 11): (K - Omega^2 M) u_i = p_i for a unit load p_i
   at every interface master DOF, with Omega = 2 pi f_low / 2, f_low = the LOWEST eigenfrequency of
   interest (the first kept elastic eigenfrequency) - "half the minimum eigenfrequency of
   interest".  Omega stays below every eigenfrequency, so the matrix is regular.  The FRMs are
@@ -29,7 +29,7 @@ from sidprep.sid.model import mode_label
 
 #: default cut-off of the FRM selection, as a multiple of the highest frequency of interest (FEMBS)
 CUTOFF_FACTOR = 5.0
-#: the FRM excitation frequency as a fraction of the lowest frequency of interest (seed 000)
+#: the FRM excitation frequency as a fraction of the lowest frequency of interest (Heckmann et al. 2006)
 OMEGA_FRACTION = 0.5
 #: directions whose M-norm falls below this fraction of their original norm are linearly dependent
 DEPENDENCE_TOL = 1e-8
@@ -104,7 +104,7 @@ def eigen_pairs(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def frequency_response_modes(K, M, loads: np.ndarray, omega: float) -> np.ndarray:
-    """U = (K - omega^2 M)^-1 P for the unit loads P (nr, nl); omega in rad/s (seed 000 eq. 11)."""
+    """U = (K - omega^2 M)^-1 P for the unit loads P (nr, nl); omega in rad/s (Heckmann et al. 2006 eq. 11)."""
     return sla.solve(_sym(K) - omega ** 2 * _sym(M), loads, assume_a="sym")
 
 

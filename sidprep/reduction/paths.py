@@ -1,4 +1,4 @@
-"""Paths through or on a meshed body, along which loads move (issue 10 item 1, seed 003).
+"""Paths through or on a meshed body, along which loads move (Hartweg and Heckmann 2012).
 
 A path is a smooth curve in the body frame K (the mesh coordinates) given by
 

@@ -85,8 +85,7 @@ class SIDNode:
 
 @dataclass(frozen=True)
 class BodyPath:
-    """A curve on or in a flexible body along which loads and bodies can move (issue: moving
-    loads, seed 003): the undeformed points and the mode shapes sampled along its arc length.
+    """A curve on or in a flexible body along which loads and bodies can move (moving loads, Hartweg and Heckmann 2012): the undeformed points and the mode shapes sampled along its arc length.
 
     s : (n,) arc length, m, increasing; points : (n, 3) undeformed positions in K, m;
     phi : (n, 3, nq) displacement per unit q_k; psi : (n, 3, nq) small rotation per unit q_k.

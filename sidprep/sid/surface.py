@@ -61,7 +61,7 @@ def stored_surface(sid) -> Surface | None:
 
 def interpolated_surface(sid, points, triangles, source: str) -> Surface:
     """A surface (points (ns, 3) m, triangles) whose points follow the SID's nodes by the elastic
-    interpolation (seed 000 section 5)."""
+    interpolation (Heckmann et al. 2006 section 5)."""
     nodes, phi = node_points(sid)
     points = np.asarray(points, float)
     return Surface(points, np.asarray(triangles, np.int64), elastic_interpolation(nodes, points)(phi), source)

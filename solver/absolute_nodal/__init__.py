@@ -1,4 +1,4 @@
-"""Interconnected planar flexible beams in absolute nodal coordinates (Kisu Lee, seed 002).
+"""Interconnected planar flexible beams in absolute nodal coordinates (Kisu Lee).
 
 No floating frame and no joint constraints: the unknowns are the absolute positions x_i (m,
 inertial X-Y plane) of the nodes of two-node elements; beams joined by a revolute share one node.

@@ -1,4 +1,4 @@
-"""The description of a scene of absolute-nodal beams (Kisu Lee, seed 002): beams, supports,
+"""The description of a scene of absolute-nodal beams (Kisu Lee): beams, supports,
 drivers, nodal forces, and its checks.  The formulation: solver/absolute_nodal/__init__.py."""
 
 from __future__ import annotations

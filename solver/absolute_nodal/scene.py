@@ -14,7 +14,7 @@ from sidprep.solver.results import signal
 from sidprep.solver.scene_tables import OutputSettings, read_output_settings, read_solver_settings
 from sidprep.tables import TomlTable, subtables
 
-#: RK4 step of a scene that gives none, s (the two-link manipulator of seed 002 resolved)
+#: RK4 step of a scene that gives none, s (the two-link manipulator of Kisu Lee's paper resolved)
 DEFAULT_STEP = 2.5e-4
 #: the top-level tables of an absolute-nodal scene file
 SCENE_TABLES = ("scene", "solver", "output", "beams", "supports", "drivers", "forces")

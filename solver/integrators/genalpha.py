@@ -1,7 +1,7 @@
 """Lie-group generalised-alpha for the index-3 DAE (Arnold & Bruls 2007; Bruls, Cardona &
 Arnold 2012), on SE(3) x R^nq per body (se3.py: body-frame translational velocities, so that a
 uniform rotation about any fixed axis is integrated exactly; on R^3 x SO(3) a body whirling
-about a hinge away from its frame origin gained energy ~ h^2 Omega^3, issue 22):
+about a hinge away from its frame origin gained energy ~ h^2 Omega^3):
 
     x_{n+1} = x_n (+) h dx,  dx = u_n + h (1/2 - beta) a_n + h beta a_{n+1}
     u_{n+1} = u_n + h (1 - gamma) a_n + h gamma a_{n+1}

@@ -7,7 +7,7 @@ integrated acceleration.  In R^3 x SO(3) a body whirling at Omega about a hinge 
 frame origin O has the rotating inertial acceleration Omega^2 |O - hinge| of O; the error of a
 rotating vector has a component along the motion, and through the coupling blocks of the mass
 matrix (md~, Ct) it becomes a torque or a modal force of one sign: energy grows ~ h^2 Omega^3
-per second (issue 22: the bundled bar, frame at a corner, hinged at its end-face centre,
+per second (the bundled bar, frame at a corner, hinged at its end-face centre,
 +2.5 % per 10 s at 50 rad/s, h = 1 ms; a rigid body with that frame placement did the same;
 with clamped modes the growth diverged).  In SE(3) a uniform rotation about any fixed axis is
 a one-parameter subgroup: v_K and omega stay constant, their accelerations are zero, the

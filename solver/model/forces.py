@@ -184,7 +184,7 @@ class JointFriction:
 
 class MovingMass:
     """A point mass carried along a body path at the prescribed arc length s(t) of its
-    PathMarker (seed 003 section 2, a moving mass whose along-path motion is driven): its inertia
+    PathMarker (Hartweg and Heckmann 2012 section 2, a moving mass whose along-path motion is driven): its inertia
     m (g - a) acts on the body at the path point, with the full acceleration a of that point
     including the convective terms (2 s_dot Phi' q_dot, s_dot^2 (p'' + Phi'' q), s_ddot (p' + Phi' q)
     and those of the body's rotation), and its mass joins the body's mass matrix (m J^T J).

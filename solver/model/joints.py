@@ -116,7 +116,7 @@ class Fixed(Joint):
 
 class OnPath(Joint):
     """Marker 2 slides freely along the path of marker 1, a path marker without a motion (its
-    arc length s is the projection of marker 2 onto the deformed path; seed 003 eq. 30): the
+    arc length s is the projection of marker 2 onto the deformed path; Hartweg and Heckmann 2012 eq. 30): the
     two position rows across the path (2 rows; marker 1's z axis is the path tangent).  Its
     coordinate is the slide along the tangent from the contact point (~0; its rate is the
     sliding speed relative to the body's material there, which JointFriction uses)."""
