@@ -1,4 +1,4 @@
-"""The compiled entries a run calls from Python, docs/performance.md "Fourth pass"):
+"""The compiled entries a run calls from Python, docs/performance.md "Allocation-free step"):
 a process loads each entry's whole call tree from the kernel cache, so the evaluation's tree is
 reached through as few entries as possible.  A generalised-alpha or RK4 run calls the start's one
 entry (``state_equations``) and the loop (which computes its samples' outputs too), never

@@ -1,5 +1,5 @@
 """The solver's entry kernels compiled ahead of time, and ``jit``, the decorator of every kernel
-(docs/performance.md, "Fifth pass: entry kernels ahead of time").
+(docs/performance.md, "First run: kernel compilation").
 
 The install's prebuild (solver/prebuild.py) runs the example scenes and records every kernel call
 made from Python: the kernel and its arguments' types.  numba.pycc compiles each recorded

@@ -387,7 +387,7 @@ def state_equations(L, R, A, Q, u, t, lam, refs, free, kept, solve):  # pragma: 
     there (index1_accelerations without Baumgarte, lam[kept] the first guess; the Evaluation is
     then at the last guess), else two empty arrays.  The one compiled entry of the start and the
     other callers in Python (``evaluate``, initial.accelerations): a process loads the
-    evaluation's call tree once for all of them (docs/performance.md, "Fourth pass")."""
+    evaluation's call tree once for all of them (docs/performance.md, "Allocation-free step")."""
     W = evaluation_arrays(L)
     if solve:
         guess = np.empty(kept.shape[0])

@@ -5,7 +5,7 @@ Every output sample is evaluated once more with the compiled equations (``evalua
 every marker active), all samples of a stretch in one compiled loop (``sample_outputs``).  The
 compiled integration loops call it on their own samples before they return (one compiled entry
 runs the steps and their outputs, so a process loads the evaluation's call tree once:
-docs/performance.md, "Fourth pass"); ``postprocess`` calls it for the steppers driven from
+docs/performance.md, "Allocation-free step"); ``postprocess`` calls it for the steppers driven from
 Python.
 """
 
