@@ -33,13 +33,20 @@ def rod_sid(tmp_path_factory):
     return out
 
 
+#: headless Chromium without its background connections (sync, component updates, QUIC, first-run
+#: pages), which a machine without network refuses or lets time out, in a profile of its own
+QUIET_BROWSER = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--disable-quic", "--no-first-run"]
+
+
 def browser():
     return shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 
 
 def render(page: Path, png: Path, fragment: str = "") -> str:
     """Screenshot ``page`` in headless Chromium; returns its console log (stderr)."""
-    run = subprocess.run([browser(), "--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr",
+    profile = png.with_suffix(".profile")
+    run = subprocess.run([browser(), *QUIET_BROWSER, f"--user-data-dir={profile}", "--enable-logging=stderr",
                           "--v=0", "--window-size=1400,800", "--virtual-time-budget=3000",
                           f"--screenshot={png}", page.resolve().as_uri() + fragment],
                          capture_output=True, text=True, timeout=BROWSER_TIMEOUT_S)

@@ -5,9 +5,7 @@ colour bar placed clear of plotly's toolbar, and the compact number arrays the p
 
 from __future__ import annotations
 
-import base64
 import functools
-import gzip
 import html
 import json
 from pathlib import Path
@@ -27,9 +25,6 @@ PAGE_DIGITS = 5
 COLORBAR_LENGTH = 0.75
 COLORBAR_CENTRE = 0.45
 
-#: gzip level of the page's packed parts (plotly.js 4.8 MB -> 1.5 MB at level 6 in 0.17 CPU-s)
-GZIP_LEVEL = 6
-
 _PAGE = """<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{title}</title>
 <style>
@@ -44,44 +39,39 @@ vertical-align: top; border-bottom: 1px solid #ddd; }}
 </style></head><body>
 <div id="main"><div id="controls">{controls}</div><div id="{plot_id}"></div></div>
 <div id="side"><h3>{title}</h3>{side}</div>
-<script type="application/octet-stream" id="plotly-js">{plotly}</script>
-<script type="application/octet-stream" id="figure">{figure}</script>
-<script type="application/octet-stream" id="data">{data}</script>
+<script type="application/json" id="figure">{figure}</script>
+<script type="application/json" id="data">{data}</script>
 """
 
-#: unpacks plotly.js, the figure and the data (gzip + base64), draws the figure, then runs the
-#: page's own script as start(D, gd) with its data D and the plot element gd
-_LOADER = """<script>
-async function unpack(id) {
-  const bytes = Uint8Array.from(atob(document.getElementById(id).textContent), c => c.charCodeAt(0));
-  return new Response(new Blob([bytes]).stream().pipeThrough(new DecompressionStream('gzip'))).text();
-}
+#: plotly.js inline, then the figure drawn from its JSON and the page's own script run as
+#: start(D, gd) with its data D and the plot element gd
+_LOADER = """<script>{plotly}</script>
+<script>
 function start(D, gd) {
 {script}
 }
-(async () => {
-  (0, eval)(await unpack('plotly-js'));
-  const F = JSON.parse(await unpack('figure'));
+(() => {
+  const F = JSON.parse(document.getElementById('figure').textContent);
   const gd = document.getElementById('{plot_id}');
-  await Plotly.newPlot(gd, F.data, F.layout, {responsive: true});
-  start(JSON.parse(await unpack('data')), gd);
+  Plotly.newPlot(gd, F.data, F.layout, {responsive: true}).then(
+    () => start(JSON.parse(document.getElementById('data').textContent), gd));
 })();
 </script>
 </body></html>
 """
 
 
-def packed(text: str) -> str:
-    """base64 of the gzip-compressed UTF-8 ``text`` (what the page's loader unpacks)."""
-    return base64.b64encode(gzip.compress(text.encode("utf-8"), GZIP_LEVEL)).decode("ascii")
+def inline_json(text: str) -> str:
+    """JSON text safe inside a <script> element ("</" written as the equal JSON escape "<\\/")."""
+    return text.replace("</", "<\\/")
 
 
 @functools.lru_cache(maxsize=1)
-def packed_plotly() -> str:
-    """plotly.js as the page carries it, packed once per process."""
+def plotly_js() -> str:
+    """plotly.js, inlined into every page (4.8 MB)."""
     from plotly.offline import get_plotlyjs  # deferred: 0.25 s import, pages only
 
-    return packed(get_plotlyjs())
+    return get_plotlyjs()
 
 
 def colorbar(title: str) -> dict:
@@ -137,12 +127,12 @@ def js_object(members: dict[str, str]) -> str:
 
 
 def page_part(path, part: str) -> str:
-    """The unpacked text of one packed part of a page written by ``write_page``: "figure" (the
-    plotly figure's JSON), "data" (the JSON of D) or "plotly-js"."""
+    """The JSON text of one part of a page written by ``write_page``: "figure" (the plotly
+    figure) or "data" (its D)."""
     text = Path(path).read_text(encoding="utf-8")
-    opening = f'<script type="application/octet-stream" id="{part}">'
+    opening = f'<script type="application/json" id="{part}">'
     start = text.index(opening) + len(opening)
-    return gzip.decompress(base64.b64decode(text[start:text.index("</script>", start)])).decode("utf-8")
+    return text[start:text.index("</script>", start)]
 
 
 def page_data(path) -> dict:
@@ -151,16 +141,15 @@ def page_data(path) -> dict:
 
 
 def write_page(path, title: str, figure, controls: str, side: str, script: str, data: str) -> Path:
-    """Write one self-contained HTML page atomically; returns the path.
+    """Write one self-contained HTML page atomically (plotly.js inlined: it opens offline by
+    double-click); returns the path.
 
     figure : a plotly Figure; controls, side : HTML of the control bar and the side panel;
     script : JavaScript run as start(D, gd) once the figure is drawn; data : the JSON text of D.
-    plotly.js, the figure and the data travel gzip-compressed (the page opens offline in any
-    browser with DecompressionStream: Chromium 80, Firefox 113, Safari 16.4).
     """
     text = _PAGE.format(title=html.escape(title), plot_id=PLOT_ID, controls=controls, side=side,
-                        plotly=packed_plotly(), figure=packed(figure.to_json()), data=packed(data))
-    text += _LOADER.replace("{script}", script).replace("{plot_id}", PLOT_ID)
+                        figure=inline_json(figure.to_json()), data=inline_json(data))
+    text += _LOADER.replace("{script}", script).replace("{plot_id}", PLOT_ID).replace("{plotly}", plotly_js())
     path = Path(path)
     with atomic_path(path) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
