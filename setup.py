@@ -5,7 +5,7 @@ theirs (docs/architecture.md, "The compiled code"); they need a C compiler and P
 
 The install also compiles the solver's numba kernels into the package (docs/performance.md, "First
 run"): the JIT kernels of numba's cache, and the kernels called from Python ahead of time into one
-extension module (solver/equations/aot.py; else the JIT kernels serve alone).  ``SIDPREP_PREBUILD=0``
+extension module (sidprep/solver/equations/aot.py; else the JIT kernels serve alone).  ``SIDPREP_PREBUILD=0``
 skips that step (the kernels then compile on first use), ``SIDPREP_AOT=0`` only the numba extension;
 editable installs always skip it.
 

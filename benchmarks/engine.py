@@ -3,7 +3,7 @@
 CPU s per simulated second of the time integration against the step size, and the error of
 each step against a run at h = 25 us (crank speed, relative to its peak; the rod's largest modal
 coordinate q3, relative to its peak), flexible and with the rigid rod of the same mass
-properties.  The rod's first in-mechanism mode (linearised at the start, solver/linear.py) is
+properties.  The rod's first in-mechanism mode (linearised at the start, sidprep/solver/linear.py) is
 given with the steps per period.
 
 CPU = process time, median of ``--repeat`` runs after a warm-up run.

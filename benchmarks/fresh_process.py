@@ -11,7 +11,7 @@ interpreter's start to its exit: imports, the kernel cache loading (sidprep) or 
 (Exudyn), set-up, integration and, for sidprep, the post-processing of ``simulate``; measured as
 the CPU time (user + system, every thread) the parent collects from the child.  sidprep runs twice:
 as a script of its Python API ("sidprep API", the same calls as ``simulate.py``, doing first what
-``sidprep simulate`` does to its process: cli/options.py ``process_setup``) and as its command
+``sidprep simulate`` does to its process: sidprep/cli/options.py ``process_setup``) and as its command
 on a scene file of the same pendulum ("sidprep simulate": parsing, the results file, the command's
 exit); the Exudyn child is a plain user script.  With ``--before`` another checkout's sidprep runs too,
 the children alternating so that they share the machine's load.  With ``--installed PYTHON``

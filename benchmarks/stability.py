@@ -17,7 +17,7 @@ The scenes are those of ``tests/test_stability.py`` (imported from there, one de
 Per method the settings of the test suite: genalpha h = 1 ms, rho_inf 0.9 (rotor: 0.25 ms);
 rk4 inside its stability limit (h = 0.1 ms, rotor 0.05 ms); rk45 / dop853 rtol 1e-8.  The
 explicit methods run ``--explicit-t-end`` (they take ~100x the CPU).  Columns: simulated time,
-the energy balance error (solver/energy.py: largest |E(t) - E(0)| over the energy exchanged),
+the energy balance error (sidprep/solver/energy.py: largest |E(t) - E(0)| over the energy exchanged),
 |E(end) - E(0)| / E(0) (secular drift), steps, integration CPU s and CPU s per simulated s.  The
 machine's load average is printed: the CPU columns are noisy on the shared machine.
 """

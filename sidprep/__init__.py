@@ -5,8 +5,7 @@ the functions below import the FE modules (mesh, assemble, linalg, reduce, ...) 
 `sidprep.sid.model` and `sidprep.sid.io` depend on numpy and h5py only, so the solver can read SID files
 without pulling in the FE side.
 
-The solver and the command line are the subpackages ``sidprep.solver`` and ``sidprep.cli`` (the
-repository's top-level folders solver/ and cli/).
+The solver and the command line are the subpackages ``sidprep.solver`` and ``sidprep.cli``.
 
 Python API (all lengths m, masses kg, times s, frequencies Hz)::
 
@@ -159,17 +158,3 @@ def run_batch(jobs, options=None, *, progress=None):
 def reduce(mesh, options=None, *, phases=None):
     """The same as ``reduce_model`` (the CLI's ``sidprep reduce`` without files)."""
     return reduce_model(mesh, options, phases=phases)
-
-
-def _source_checkout_subpackages() -> None:
-    """Installed, the repository's top-level folders solver/ and cli/ are the subpackages
-    sidprep.solver and sidprep.cli (pyproject's package-dir); in a source checkout they sit beside
-    this package, so the checkout's top is added to the package's search path."""
-    from pathlib import Path
-
-    top = Path(__file__).resolve().parent.parent
-    if (top / "pyproject.toml").is_file() and (top / "solver" / "__init__.py").is_file():
-        __path__.append(str(top))  # noqa: F821 - the package's own search path
-
-
-_source_checkout_subpackages()

@@ -1,4 +1,4 @@
-"""Absolute-nodal planar beams (solver/absolute_nodal.py, Kisu Lee's paper) against independent references:
+"""Absolute-nodal planar beams (sidprep/solver/absolute_nodal.py, Kisu Lee's paper) against independent references:
 energy and angular-momentum conservation, the rigid pendulum (scipy ODE), the rigid driven link
 (closed-form motor torque) and RK4's order of convergence."""
 

@@ -1,4 +1,4 @@
-"""The entry kernels compiled ahead of time (solver/equations/aot.py): a Python-level kernel call
+"""The entry kernels compiled ahead of time (sidprep/solver/equations/aot.py): a Python-level kernel call
 runs the export recorded for exactly its argument types, anything else numba's dispatcher, and
 both give the same results.
 

@@ -56,9 +56,9 @@ PENDULUM = ROOT / "examples" / "flexible_pendulum" / "scene.toml"
                                                     (["info", "missing.sid.h5"], 2, True),
                                                     (["simulate", str(PENDULUM), "--list-signals"], 0, False)])
 def test_the_command_ends_with_its_exit_code_its_output_and_the_atexit_handlers(tmp_path, argv, code, collector):
-    """``command`` skips Python's module teardown (cli/main.py): the exit code, everything written
+    """``command`` skips Python's module teardown (sidprep/cli/main.py): the exit code, everything written
     and the atexit handlers are kept; the sub-command's process set-up runs (simulate's pauses
-    the cyclic garbage collector, cli/options.py)."""
+    the cyclic garbage collector, sidprep/cli/options.py)."""
     r = subprocess.run([sys.executable, "-c", COMMAND, *argv], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == code, r.stderr
     assert r.stdout.endswith(f"atexit handler ran, collector {collector}\n")

@@ -1,4 +1,4 @@
-"""The kernel cache (solver/equations/kernel_cache.py): one namespace per solver source text,
+"""The kernel cache (sidprep/solver/equations/kernel_cache.py): one namespace per solver source text,
 wherever the sources lie; seeded once from the kernels the install compiled."""
 
 from __future__ import annotations

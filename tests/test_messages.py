@@ -66,7 +66,7 @@ def test_no_command_prints_a_note_that_is_a_warning():
     """Every place a command prints library notes goes through sidprep.errors.note_line (no "note: WARNING:")."""
     import re
 
-    for path in (ROOT / "cli").glob("*.py"):
+    for path in (ROOT / "sidprep" / "cli").glob("*.py"):
         text = path.read_text()
         assert not re.search(r'f"note: \{note\}"', text), path
         assert 'print(f"WARNING' not in text, path

@@ -1,5 +1,5 @@
-"""One import namespace: sidprep, sidprep.solver, sidprep.cli. Every package folder of the
-repository is listed in pyproject.toml under the name it installs as, so a wheel holds all of it."""
+"""One import namespace: every package folder under sidprep/ is listed in pyproject.toml under the
+name its path gives, so a wheel holds all of it."""
 
 import ast
 from pathlib import Path
@@ -10,16 +10,15 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
-#: top-level folder -> the import name it installs as
-INSTALLED_AS = {"sidprep": "sidprep", "solver": "sidprep.solver", "cli": "sidprep.cli"}
+#: the package's folder
+PACKAGE = ROOT / "sidprep"
 
 
 def test_every_package_folder_is_installed_under_sidprep():
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-    found = {INSTALLED_AS[init.relative_to(ROOT).parts[0]] + "".join("." + p for p in init.relative_to(ROOT).parts[1:-1])
-             for top in INSTALLED_AS for init in (ROOT / top).rglob("__init__.py")}
+    found = {".".join(init.relative_to(ROOT).parts[:-1]) for init in PACKAGE.rglob("__init__.py")}
     assert found == set(config["packages"])
-    assert config["package-dir"] == {v: k for k, v in INSTALLED_AS.items() if k != v}
+    assert "package-dir" not in config
 
 
 def test_no_generic_top_level_names_in_the_source():
@@ -49,7 +48,7 @@ def test_every_cython_module_is_built_and_portable():
     """Each .pyx file is a compiled module of setup.py (one list, no file left unbuilt), its package is
     installed, and no flag ties the build to the machine that compiles it (-march=native)."""
     modules = setup_constant("CYTHON_MODULES")
-    found = {".".join(p.relative_to(ROOT).with_suffix("").parts) for top in INSTALLED_AS for p in (ROOT / top).rglob("*.pyx")}
+    found = {".".join(p.relative_to(ROOT).with_suffix("").parts) for p in PACKAGE.rglob("*.pyx")}
     assert set(modules) == found
     packages = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
     assert {m.rpartition(".")[0] for m in modules} <= set(packages)

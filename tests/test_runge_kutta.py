@@ -1,4 +1,4 @@
-"""Classic RK4 (solver/integrators/runge_kutta.py) against closed-form solutions."""
+"""Classic RK4 (sidprep/solver/integrators/runge_kutta.py) against closed-form solutions."""
 
 import numba
 import numpy as np

@@ -159,7 +159,7 @@ print(json.dumps([os.environ.get("OPENBLAS_NUM_THREADS"), [p["num_threads"] for 
 @pytest.mark.parametrize("user, threads", [(None, "1"), ("2", "2")])
 def test_simulate_process_starts_one_blas_thread_unless_the_user_sets_it(user, threads):
     """The command's process: BLAS pools with one thread (their idle threads cost 0.2 CPU-s of every
-    process, cli/options.py SOLVER_THREADS; the user's own OPENBLAS_NUM_THREADS wins) and no
+    process, sidprep/cli/options.py SOLVER_THREADS; the user's own OPENBLAS_NUM_THREADS wins) and no
     cyclic garbage collector."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | (
         {"OPENBLAS_NUM_THREADS": user} if user else {})

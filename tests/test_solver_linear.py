@@ -1,4 +1,4 @@
-"""Eigenmodes of a mechanism linearised at its assembled start (solver/linear.py) against
+"""Eigenmodes of a mechanism linearised at its assembled start (sidprep/solver/linear.py) against
 closed forms: a compound pendulum and an Euler-Bernoulli cantilever."""
 
 from __future__ import annotations

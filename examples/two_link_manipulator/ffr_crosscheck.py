@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Cross-check: the two-link manipulator in absolute nodal coordinates (solver/absolute_nodal/)
+"""Cross-check: the two-link manipulator in absolute nodal coordinates (sidprep/solver/absolute_nodal/)
 against the same links as meshed, reduced flexible bodies in the floating-frame solver.
 
 Each link is a steel strip 1 m x 67.246 mm x 9.4718 mm (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3:

@@ -3,7 +3,7 @@
 
     python examples/two_link_manipulator/run.py [--t-end 2] [--out DIR]
 
-Writes DIR/two_link.results.h5 (solver/results.py format), DIR/two_link.csv and
+Writes DIR/two_link.results.h5 (sidprep/solver/results.py format), DIR/two_link.csv and
 DIR/two_link_figures.png; prints the energy error and the CPU time.
 """
 

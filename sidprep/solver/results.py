@@ -1,6 +1,6 @@
 """Results files of a simulation (HDF5), their reader, CSV export and PNG plots of signals.
 
-The data are a ``Result`` (defined here; built by solver/postprocess.py).  HDF5 layout (SI; each dataset carries
+The data are a ``Result`` (defined here; built by sidprep/solver/postprocess.py).  HDF5 layout (SI; each dataset carries
 its unit in the attribute ``units``)::
 
     /                      attrs: format="sidprep-results", format_version, units="SI",
@@ -89,7 +89,7 @@ class JointHistory:
 
 @dataclass
 class Result:
-    """Everything a simulation produced (solver/results.py writes it to files).
+    """Everything a simulation produced (sidprep/solver/results.py writes it to files).
 
     t (nt,) s; bodies {name: BodyHistory}; joints {name: JointHistory} (joints and drivers);
     markers {name: (nt, 3)} inertial marker positions; energy {kinetic, strain, gravity,

@@ -24,7 +24,7 @@ from importlib import metadata
 from pathlib import Path
 
 
-#: the solver's source folder (solver/ in a checkout, sidprep/solver when installed)
+#: the solver's source folder (sidprep/solver/ in a checkout, sidprep/solver when installed)
 SOLVER_ROOT = Path(__file__).resolve().parents[1]
 #: the user's kernel cache: NUMBA_CACHE_DIR when set, else the user's cache folder
 KERNEL_CACHE = Path(os.environ.get("NUMBA_CACHE_DIR") or Path(

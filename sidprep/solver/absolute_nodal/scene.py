@@ -1,5 +1,5 @@
 """Scene files of absolute-nodal beams: the [beams], [supports], [drivers] and [forces] tables
-(docs/scenes.md), with the [solver] and [output] tables every scene has (solver/scene_tables.py)."""
+(docs/scenes.md), with the [solver] and [output] tables every scene has (sidprep/solver/scene_tables.py)."""
 
 from __future__ import annotations
 
@@ -61,7 +61,7 @@ def load_absolute_nodal_scene(root: dict, source, t_end: float | None = None) ->
                              f"use: {', '.join(SCENE_TABLES)}")
     head = TomlTable(source, "scene", root.get("scene", {}))
     title = head.string("title", source.stem)
-    head.string("name", None)                    # what the outputs are called: read by solver/scene.py
+    head.string("name", None)                    # what the outputs are called: read by sidprep/solver/scene.py
     gravity = tuple(head.array("gravity", [0.0, -9.81], shape=(2,)))
     zero = head.string("gravity_zero", "origin", ("origin", "hanging"))
     head.finish()

@@ -1,6 +1,6 @@
 """Entry point of the ``sidprep`` command: discovers the sub-command modules of this package.
 
-Each module ``cli/<name>.py`` that defines ``register(subparsers)`` adds one sub-command; the
+Each module ``sidprep/cli/<name>.py`` that defines ``register(subparsers)`` adds one sub-command; the
 parser it adds must set ``func=run`` with ``run(args) -> int``.  Modules import their heavy
 dependencies inside ``run`` so that ``sidprep --help`` stays fast.
 Errors: ``InputError`` -> one line on stderr, exit 2; anything else -> one line naming the

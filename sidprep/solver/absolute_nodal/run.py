@@ -1,5 +1,5 @@
 """Integration of an absolute-nodal model: classic RK4 at a fixed step under the stepper contract
-of solver/integrators/base.py (``BeamRK4.advance``), after a check of the step against RK4's
+of sidprep/solver/integrators/base.py (``BeamRK4.advance``), after a check of the step against RK4's
 stability limit for the highest frequency of the beams."""
 
 from __future__ import annotations

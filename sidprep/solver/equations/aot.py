@@ -1,7 +1,7 @@
 """The solver's entry kernels compiled ahead of time, and ``jit``, the decorator of every kernel
 (docs/performance.md, "First run: kernel compilation").
 
-The install's prebuild (solver/prebuild.py) runs the example scenes and records every kernel call
+The install's prebuild (sidprep/solver/prebuild.py) runs the example scenes and records every kernel call
 made from Python: the kernel and its arguments' types.  numba.pycc compiles each recorded
 (kernel, argument types) into one extension module, ``entry_kernels``, beside the shipped JIT
 kernels (``<kernel cache>/<NAMESPACE>/aot``), with a table: export name <-> kernel <-> argument

@@ -391,7 +391,7 @@ def _check_names(file: Path, root: dict) -> None:
 
 def empty_result(system):
     """A Result with no samples but every body, joint, marker and energy of ``system``: what the
-    signal names of a run will be (solver/results.py ``signal_names``), known before running it."""
+    signal names of a run will be (sidprep/solver/results.py ``signal_names``), known before running it."""
     if isinstance(system, AbsoluteNodalModel):
         from sidprep.solver.absolute_nodal.results import initial_result  # deferred: 28 CPU-ms, its kernels
         return initial_result(system)

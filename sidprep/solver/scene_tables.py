@@ -16,7 +16,7 @@ class OutputSettings:
     """What ``sidprep simulate`` writes besides the results file.
 
     rate : samples per second of the results (None: every step); signals : names plotted and
-    exported (solver/results.py); plot, csv, animate : write a PNG, a CSV, a ParaView series.
+    exported (sidprep/solver/results.py); plot, csv, animate : write a PNG, a CSV, a ParaView series.
     """
 
     rate: float | None = None

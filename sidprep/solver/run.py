@@ -295,7 +295,7 @@ class Run:
 
     # ------------------------------------------------------------------ run
     def execute(self):
-        """Integrate and return the Result (solver/results.py)."""
+        """Integrate and return the Result (sidprep/solver/results.py)."""
         cpu0 = time.process_time()
         notice = CompileNotice()
         with notice.watching():
@@ -349,7 +349,7 @@ class Run:
 
 def simulate(system, t_end: float, settings: SolverSettings | None = None, **overrides):
     """Integrate ``system`` (model.System) from t = 0 to t_end (s) and return the Result
-    (solver/results.py).
+    (sidprep/solver/results.py).
 
     settings : a SolverSettings (its defaults when None); overrides : any of its fields by name,
     e.g. ``simulate(system, 1.0, h=1e-3, method="rk4", rtol=1e-6)``.

@@ -1,5 +1,5 @@
 """The description of a scene of absolute-nodal beams (Kisu Lee): beams, supports,
-drivers, nodal forces, and its checks.  The formulation: solver/absolute_nodal/__init__.py."""
+drivers, nodal forces, and its checks.  The formulation: sidprep/solver/absolute_nodal/__init__.py."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ Usage::
 A System holds no per-run state: ``solver.run.simulate`` builds a ``Run`` that owns the
 compiled layout, the kept constraint rows, the angle references and the recorder, so that
 simulating the same System twice gives identical results.  Equations: docs/solver.md and
-``solver/equations``.
+``sidprep/solver/equations``.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ class System:
     Parameters
     ----------
     gravity : (3,) m/s^2, inertial components (used when the gravity effect is on)
-    effects : "auto" (default), "all", or a list of effect names (solver/effects.py), used by
+    effects : "auto" (default), "all", or a list of effect names (sidprep/solver/effects.py), used by
         every flexible body that does not name its own
     planar : None (default: detect a planar scene and integrate its in-plane coordinates only),
         True (require it) or False (always the 3D coordinates); see integrate.planar_coordinates

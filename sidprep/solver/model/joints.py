@@ -19,7 +19,7 @@ planar normal).  Markers must coincide/align initially up to what the joint cons
 the run assembles the initial state onto the constraints.
 
 This module describes joints, drivers and motion profiles; the rows are evaluated (compiled)
-in ``solver/equations/constraints.py`` and the profiles in ``solver/equations/curves.py``.
+in ``sidprep/solver/equations/constraints.py`` and the profiles in ``sidprep/solver/equations/curves.py``.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ A scene names the effects it wants, or ``"auto"``.  Each effect switches a group
 estimate of the change it would make to the body's modal coordinates, computed from the run's
 own result, with a WARNING above :data:`WARN_LEVEL`.
 
-The effect names and their SID terms: solver/model/effects.py.
+The effect names and their SID terms: sidprep/solver/model/effects.py.
 """
 
 from __future__ import annotations
@@ -307,7 +307,7 @@ def genalpha_phase_response(omega, h: float, rho_inf: float) -> np.ndarray:
     (1 when omega h << 1; 1 / (1 + (omega h / 2)^2) for the trapezoidal rule, rho_inf = 1).
 
     omega_num = |arg lambda| / h of the principal eigenvalue lambda of the one-step map of
-    x'' + omega^2 x = 0 (Chung & Hulbert 1993; state x, v, a, ud; solver/integrators/genalpha.py).
+    x'' + omega^2 x = 0 (Chung & Hulbert 1993; state x, v, a, ud; sidprep/solver/integrators/genalpha.py).
     """
     am, af, gamma, beta = genalpha_parameters(rho_inf)
 

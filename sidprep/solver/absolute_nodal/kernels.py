@@ -1,6 +1,6 @@
 """The compiled kernels of the absolute-nodal beams: beam kinematics and elastic forces (eq. 3-10),
 the drivers, the accelerations and the right-hand side, and the RK4 loop (the stages and their
-combination of solver/integrators/runge_kutta.py around this rhs, cached)."""
+combination of sidprep/solver/integrators/runge_kutta.py around this rhs, cached)."""
 
 from __future__ import annotations
 

@@ -84,7 +84,7 @@ class Setting:
 class Outcome:
     """What a run returns from its worker: the window's sample times (nt,), signal values
     (n_signals, nt), CPU-s of the run (kernels already loaded), CPU-s of the process's warm-up
-    (0 when it was warm), the energy balance error (solver/energy.py) and a failure (or None)."""
+    (0 when it was warm), the energy balance error (sidprep/solver/energy.py) and a failure (or None)."""
 
     t: np.ndarray
     values: np.ndarray
@@ -134,7 +134,7 @@ class LadderRun:
 
 @dataclass(frozen=True)
 class ConvergeOptions:
-    """signals : names (solver/results.py), default the scene's [output] signals but energy.*;
+    """signals : names (sidprep/solver/results.py), default the scene's [output] signals but energy.*;
     tol : relative error to meet; window : (t0, t1) s, the scene runs to t1 and is compared on
     [t0, t1] (default: 0 to its t_end); methods : the ladders' methods; levels : rungs per
     ladder; effects : also run the other effects choice; progress : None or callable(done, total)."""

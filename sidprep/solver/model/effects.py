@@ -1,5 +1,5 @@
 """The effects a simulation may assemble: their names, the SID terms each switches, and the
-parsing of a scene's or a body's choice (the report of what was left out: solver/effects.py).
+parsing of a scene's or a body's choice (the report of what was left out: sidprep/solver/effects.py).
 
 Effects (names used in scenes and in the API):
 

@@ -15,7 +15,7 @@ inertial X-Y plane) of the nodes of two-node elements; beams joined by a revolut
 * M x'' + sum_J dV_J/dx = f (eq. 10), f = gravity + constant nodal forces; pinned nodes are
   removed; prescribed-angle drivers Phi = phi_J + theta_end - psi(t) = 0 at a support add
   Lagrange multipliers (the paper's remark after eq. 14) with Baumgarte stabilisation.
-* Classic RK4 (the stages of solver/integrators/runge_kutta.py) with a compiled right-hand side,
+* Classic RK4 (the stages of sidprep/solver/integrators/runge_kutta.py) with a compiled right-hand side,
   driven under the stepper contract (run.py).
 
 Modules, in the order of the data: model (the description) -> assembly (nodes, constant

@@ -20,7 +20,7 @@ MAX_STEPS = 10_000_000
 MAX_SAMPLES = 1_000_000
 #: shortest step, s: no mechanical time scale is shorter, and h^2 underflows near 1e-160
 MIN_STEP_S = 1e-12
-#: energy balance error above which a run warns, relative to the energy exchanged (solver/energy.py)
+#: energy balance error above which a run warns, relative to the energy exchanged (sidprep/solver/energy.py)
 ENERGY_TOL = 1e-3
 
 
@@ -61,7 +61,7 @@ class SolverSettings:
         fraction of its size (the floating frame's small-deformation range; docs/solver.md)
     max_steps : the run stops with an error after this many steps
     baumgarte : constraint stabilisation rate of the explicit methods, 1/s
-    energy_tol : energy balance error (relative to the energy exchanged, solver/energy.py) above
+    energy_tol : energy balance error (relative to the energy exchanged, sidprep/solver/energy.py) above
         which the run warns
     effects : None (the System's choice), "auto", "all" or a list of effect names
     progress : None, or a callable(t, t_end, steps) the run calls between chunks of steps (the
