@@ -30,6 +30,7 @@ from sidprep.fe.material import material_from_options, unit_system
 from sidprep.fe.matrices.deck import read_model
 from sidprep.fe.matrices.deck_sections import deck_stress
 from sidprep.fe.matrices.onto_model import imported_checks, imported_model
+from sidprep.reduction.grid_interfaces import six_dof_interface
 from sidprep.fe.mesh import FEMesh, read_mesh
 from sidprep.fe.topology import connected_parts
 from sidprep.fe.plausibility import unit_warnings
@@ -142,7 +143,8 @@ def imported_interfaces(imported, specs, o: ReduceOptions, length_to_m: float):
     a spec naming a rigid body is its reference and rotation nodes (the FE code's own 6-DOF master);
     a clamped export gets an interface on its supports (an RBE2 on clamped solid nodes, or a rigid
     body's two nodes), which carries the frame (the options' frame set to it, first in the list
-    unless a spec names it); default interfaces that hold dependent nodes are left out."""
+    unless a spec names it); default interfaces that hold dependent nodes are left out; interfaces on
+    6-DOF nodes (beams, shells) use their rotations (sidprep.reduction.grid_interfaces)."""
     mesh = imported.mesh
     dependent = set() if mesh.ties is None else set(mesh.ties.slaves.tolist())
     clamp = None
@@ -166,7 +168,7 @@ def imported_interfaces(imported, specs, o: ReduceOptions, length_to_m: float):
             out.append(Interface(parse_interface(spec)[0], np.array([ref, rot]), mesh.points[ref].copy(), "node"))
         elif o.interfaces or name is None or not dependent.intersection(
                 mesh.node_sets.get(parse_interface(spec)[0], np.zeros(0, np.int64)).tolist()):
-            out.append(interface_from_spec(mesh, spec, length_to_m))
+            out.append(six_dof_interface(mesh, spec, imported.rotation_of) or interface_from_spec(mesh, spec, length_to_m))
     return out, o
 
 

@@ -42,7 +42,9 @@ class Interface:
     the master in the mesh frame (m); kind : "rbe2" or "rbe3", or "node": the master is an FE node
     pair that already has 6 DOFs (nodes = [translation node, rotation node], e.g. a rigid body's
     reference and rotation nodes of an imported model); weights : (k,) RBE3 weights (tributary
-    areas, m^2), uniform when None.
+    areas, m^2), uniform when None; rotations : (r,) rotation nodes of an imported model (their 3
+    DOFs are a 6-DOF node's rotations) that an RBE2 ties to the master's rotation (Nastran RBE2 with
+    components 123456), none when None.
     """
 
     name: str
@@ -50,6 +52,7 @@ class Interface:
     master_point: np.ndarray
     kind: str = "rbe2"
     weights: np.ndarray | None = None
+    rotations: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -247,12 +250,13 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
     n_dof = 3 * n_nodes
     owner = np.full(n_nodes, -1)
     for i, itf in enumerate(interfaces):
-        clash = owner[itf.nodes] >= 0
+        held = np.r_[itf.nodes, _rotations(itf)]
+        clash = owner[held] >= 0
         if clash.any():
-            other = interfaces[owner[itf.nodes][clash][0]].name
+            other = interfaces[owner[held][clash][0]].name
             raise InputError(f"interfaces '{other}' and '{itf.name}' share {int(clash.sum())} node(s); "
                              "patches must not overlap — shrink one of the selections")
-        owner[itf.nodes] = i
+        owner[held] = i
     dependent = np.zeros(n_dof, bool)
     deps, averaging = [], []                           # per interface: dependent FE DOFs, RBE3 W
     for itf in interfaces:
@@ -260,6 +264,7 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
         W = None if itf.kind in ("rbe2", "node") else rbe3_averaging(points[itf.nodes], _weights(itf), itf.master_point)
         d = dofs if W is None else dofs[best_columns(W, 6)]
         dependent[d] = True
+        dependent[(3 * _rotations(itf)[:, None] + np.arange(3)).ravel()] = True
         deps.append(d), averaging.append(W)
     retained = np.flatnonzero(~dependent)
     col = np.full(n_dof, -1)
@@ -272,6 +277,8 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
         elif W is None:
             R = rigid_rows(points[itf.nodes] - itf.master_point).reshape(-1, 6)
             rows.append(np.repeat(d, 6)), cols.append(np.tile(m, len(d))), vals.append(R.ravel())
+            r = (3 * _rotations(itf)[:, None] + np.arange(3)).ravel()      # theta_r = theta_master
+            rows.append(r), cols.append(np.tile(m[3:], len(r) // 3)), vals.append(np.ones(len(r)))
         else:
             dofs = (3 * itf.nodes[:, None] + np.arange(3)).ravel()
             is_dep = np.isin(dofs, d)
@@ -282,6 +289,10 @@ def interface_model(n_nodes: int, interfaces, points: np.ndarray) -> InterfaceMo
     T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(n_dof, len(retained) + 6 * len(interfaces)))
     return InterfaceModel(T, master_dofs, retained, interfaces)
+
+
+def _rotations(itf: Interface) -> np.ndarray:
+    return np.zeros(0, np.int64) if itf.rotations is None else np.asarray(itf.rotations, np.int64)
 
 
 def _weights(itf: Interface) -> np.ndarray:

@@ -17,6 +17,14 @@ holds the rows i > j of every DOF pair of nodes that share an element, in increa
 rebuild holds for decks without *BOUNDARY, *EQUATION, MPCs and couplings (they remove or add
 equations): the entry count it gives must equal the file's, else InputError naming the
 MATRIXSTORAGE route.
+
+Shells, beams and plane elements (S3, S4, S6, S8, B31, B32, CPS, CPE, CAX, M3D) are expanded by
+CalculiX into solid elements before the matrices are built (ccx 2.x User's Manual, "Shell
+elements", "Beam elements"): the files then hold the expanded nodes under the original node
+numbers (each node listed twice or three times in the ``.dof``, positions off the mid-surface that
+the deck does not give) and the internal nodes of incompatible modes, numbered after the deck's.
+They cannot be mapped onto the deck's nodes: such matrices are refused with one line naming the
+Nastran (DMIG punch) and Abaqus (``*MATRIX GENERATE``) routes, which write 6 DOFs per node.
 """
 
 from __future__ import annotations
@@ -28,7 +36,7 @@ import scipy.sparse as sp
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices.record import FEMatrices, symmetric_matrix, text_blocks
-from sidprep.fe.matrices.deck import deck_elements
+from sidprep.fe.matrices.deck import abaqus_types, deck_elements
 from sidprep.fe.matrices.numbers import mirrored
 from sidprep.fe.matrices.triangles import lower_dofs
 
@@ -43,6 +51,7 @@ def read(path) -> FEMatrices:
     """K (``.sti``), M (``.mas``) and the DOF map (``.dof``) of a MATRIXSTORAGE run (``path`` is any
     of the three files), or K, M, DOF map and eigenvalues of a STORAGE=YES ``.eig`` (:func:`read_eig`)."""
     path = Path(path)
+    refuse_expanded(path, path.with_suffix(".inp"))
     if path.suffix.lower() == ".eig":
         return read_eig(path)
     stem = path.with_suffix("")
@@ -52,10 +61,27 @@ def read(path) -> FEMatrices:
         raise InputError(f"{path}: CalculiX matrix storage needs {', '.join(missing)} beside it; run ccx with "
                          "*FREQUENCY, SOLVER=MATRIXSTORAGE and keep the three files together")
     dofs = read_dof_file(files[".dof"])
+    if len(np.unique(8 * dofs[:, 0] + dofs[:, 1])) != len(dofs):
+        refuse_expanded(path)
     n = len(dofs)
     K = storage_matrix(files[".sti"], n, "stiffness matrix")
     M = storage_matrix(files[".mas"], n, "mass matrix")
     return FEMatrices(K, M, dofs, str(files[".sti"]), FORMAT_VERSION)
+
+
+#: CalculiX element types expanded into solids (prefixes of the *ELEMENT TYPE)
+EXPANDED_TYPES = ("S3", "S4", "S6", "S8", "B31", "B32", "CPS", "CPE", "CAX", "M3D")
+
+
+def refuse_expanded(path, deck=None) -> None:
+    """InputError when ``deck`` (a CalculiX deck; None: the matrices show it) has elements that
+    CalculiX expands into solids (module docstring)."""
+    found = sorted(t for t in abaqus_types(deck) if t.startswith(EXPANDED_TYPES)) if deck and deck.is_file() else []
+    if deck is None or found:
+        what = f"{', '.join(found)} elements" if found else "shell or beam elements (the .dof lists nodes twice)"
+        raise InputError(f"{path}: CalculiX expands {what} into solids with nodes the deck does not hold, so its "
+                         "matrices cannot be mapped onto the model; write them with Nastran (PARAM,EXTOUT,DMIGPCH "
+                         "punch, --matrices .pch) or Abaqus (*MATRIX GENERATE, --matrices .mtx), 6 DOFs per node")
 
 
 def read_dof_file(path) -> np.ndarray:

@@ -164,8 +164,10 @@ def solid_mass(M: sp.csr_matrix, constraints: Constraints | None, points: np.nda
         Mq = M[q]
         coupled = np.setdiff1d(np.unique(Mq.indices // 3), [ref, rot])
         if np.isin(coupled, rots).any():
-            raise InputError(f"{path}: the nodes of two rigid bodies share elements (their rotation nodes are coupled "
-                             "by the mass); sidprep unfolds the mass of separate rigid bodies: merge them into one")
+            raise InputError(f"{path}: the mass couples two rotation nodes (the nodes of two rigid bodies share "
+                             "elements, or a consistent beam or shell mass couples the rotations of neighbouring "
+                             "nodes); merge the rigid bodies into one, or export the lumped mass of beams and shells "
+                             "(Nastran PARAM,COUPMASS,-1, the default)")
         blocks = Mq[:, (3 * coupled[:, None] + np.arange(3)).ravel()].toarray().reshape(3, len(coupled), 3)
         W = np.linalg.lstsq(rho.T, skew_vector(blocks), rcond=None)[0]     # (k, nj): sum_d W_dj rho_d = v_j
         v = -skew_vector(Mq[:, 3 * ref:3 * ref + 3].toarray())
@@ -189,6 +191,7 @@ def solid_mass(M: sp.csr_matrix, constraints: Constraints | None, points: np.nda
     worst = float(abs(back - M).max()) / float(abs(M).max())
     if worst > SOLID_MASS_RTOL:
         raise InputError(f"{path}: the mass matrix is not that of solid nodes (relative difference {worst:.1e} from "
-                         "a mass that is the same in x, y and z): rotary inertia or offsets couple the directions; "
-                         "sidprep reduces solid models (consistent or lumped solid mass, point masses, rigid bodies)")
+                         "a mass that is the same in x, y and z): rotary inertia, offsets or a consistent beam mass "
+                         "couple the directions; sidprep reduces consistent or lumped solid mass, point masses with "
+                         "inertia, rigid bodies and the lumped mass of beams and shells (Nastran PARAM,COUPMASS,-1)")
     return Ms

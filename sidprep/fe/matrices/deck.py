@@ -1,13 +1,16 @@
-"""MODEL of an import: nodes, node sets and outer surface of an FE deck of any solid elements.
+"""MODEL of an import: nodes, node sets and outer surface of an FE deck of solid, shell and beam elements.
 
 Tetrahedral models are read by sidprep.fe.mesh.read_mesh (all of sidprep's features).  Decks with
-hexahedra, wedges or pyramids (linear or quadratic; ``.inp``, ``.bdf`` and the other formats meshio
-reads) become an FEMesh whose ``surface`` holds the outer faces of the FE code's elements (corner
-nodes, quadrilaterals split in two), for the OBJ surface, the surface mode shapes and RBE3 weights,
-and whose ``cells`` are a split of each element's corner nodes into tetrahedra (6 per hexahedron,
-3 per wedge, 2 per pyramid): used only to locate path points, which are then interpolated
-linearly between corner nodes.  Nodes on no solid element are dropped (the FE code gives them no
-DOF).  Stiffness and mass come from the FE code (sidprep.fe.matrices), never from these cells.
+hexahedra, wedges or pyramids (linear or quadratic), shells (triangles, quadrilaterals) or beams
+(``.inp``, Nastran ``.bdf``/``.nas``/``.dat`` read by sidprep.fe.matrices.nastran_deck, the other
+formats meshio reads) become an FEMesh whose ``surface`` holds the outer faces of the FE code's
+solid elements and both sides of its shell elements (corner nodes, quadrilaterals split in two),
+for the OBJ surface, the surface mode shapes and RBE3 weights, and whose ``cells`` are a split of
+each solid element's corner nodes into tetrahedra (6 per hexahedron, 3 per wedge, 2 per pyramid;
+none for a model of shells and beams): used only to locate path points, which are then
+interpolated linearly between corner nodes.  Beams are drawn by sidprep.fe.matrices.tubes.  Nodes
+on no element are dropped (the FE code gives them no DOF).  Stiffness and mass come from the FE
+code (sidprep.fe.matrices), never from these cells.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.matrices.keywords import deck_text_path, single_node_block
+from sidprep.fe.matrices.nastran_deck import is_nastran, nastran_mesh
 from sidprep.fe.mesh import FEMesh, file_sha256, read_mesh
 from sidprep.fe.readers.abaqus import abaqus_ids, abaqus_lines
 from sidprep.fe.readers.meshio import meshio_read
@@ -37,11 +41,14 @@ FACES = {"tetra": [tuple(f) for f in TET_FACES],
          "wedge": [(0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (1, 2, 5, 4), (2, 0, 3, 5)],
          "pyramid": [(0, 3, 2, 1), (0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4)]}
 #: corner nodes of each family
-CORNERS = {"tetra": 4, "hexahedron": 8, "wedge": 6, "pyramid": 5}
+CORNERS = {"tetra": 4, "hexahedron": 8, "wedge": 6, "pyramid": 5, "triangle": 3, "quad": 4, "line": 2, "vertex": 1}
 #: meshio cell type -> its linear family
 FAMILY = {"tetra": "tetra", "tetra10": "tetra", "hexahedron": "hexahedron", "hexahedron20": "hexahedron",
           "hexahedron27": "hexahedron", "wedge": "wedge", "wedge15": "wedge", "pyramid": "pyramid",
           "pyramid13": "pyramid"}
+#: meshio cell types of shells, beams and point masses -> their linear family
+STRUCTURAL = {"triangle": "triangle", "triangle6": "triangle", "quad": "quad", "quad8": "quad", "quad9": "quad",
+              "line": "line", "line3": "line", "vertex": "vertex"}
 
 
 def read_model(path, *, size=None, order: int = 2) -> FEMesh:
@@ -53,12 +60,14 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
         return read_mesh(path, size=size, order=order)
     if path.suffix.lower() == ".inp" and single_node_block(path) is not None:
         return several_node_blocks(path)
-    if path.suffix.lower() == ".inp" and abaqus_types(path) <= {"C3D4", "C3D10"}:
+    if path.suffix.lower() == ".inp" and abaqus_types(path) <= {"C3D4", "C3D10"} and abaqus_types(path):
         return read_mesh(path)                             # a tetrahedral deck: read once, as a sidprep mesh
-    m = meshio_read(path, abaqus_lines(path) if path.suffix.lower() == ".inp" else None)
-    if {b.type for b in m.cells if b.type in FAMILY} <= {"tetra", "tetra10"}:
+    m, ids = nastran_mesh(path) if is_nastran(path) else (
+        meshio_read(path, abaqus_lines(path) if path.suffix.lower() == ".inp" else None), None)
+    types = {b.type for b in m.cells if b.type in FAMILY or b.type in STRUCTURAL}
+    if types and types <= {"tetra", "tetra10"}:
         return read_mesh(path)
-    return solid_model(m, path)
+    return element_model(m, path, ids)
 
 
 def several_node_blocks(path) -> FEMesh:
@@ -83,23 +92,25 @@ def abaqus_types(path) -> set[str]:
 def abaqus_types_of(line: str) -> set[str]:
     """{the element type} of one ``*ELEMENT`` keyword line (solid types without their R/H/M/I suffix)."""
     kind = dict(w.split("=", 1) for w in (x.strip().upper() for x in line.split(",")[1:]) if "=" in w).get("TYPE", "")
-    return {kind.rstrip("RHIM") if kind.rstrip("RHIM") in ABAQUS_NODES else kind}
+    return {kind.rstrip("RHIM") if kind.rstrip("RHIM") in ELEMENT_NODES else kind}
 
 
-def solid_model(m, path) -> FEMesh:
-    """The FEMesh of a meshio mesh of solid elements of any type (module docstring)."""
+def element_model(m, path, node_ids=None) -> FEMesh:
+    """The FEMesh of a meshio mesh of solid, shell and beam elements of any type (module docstring);
+    ``node_ids``: the FE code's node numbers of ``m.points`` (None: read from the deck)."""
     blocks = [b for b in m.cells if b.type in FAMILY]
-    if not blocks:
-        raise InputError(f"{path}: no solid elements (tetrahedra, hexahedra, wedges, pyramids); sidprep "
-                         "reduces solid models: give the deck with the volume elements")
+    others = [b for b in m.cells if b.type in STRUCTURAL]
+    if not blocks and not any(STRUCTURAL[b.type] != "vertex" for b in others):
+        raise InputError(f"{path}: no solid, shell or beam elements (tetrahedra, hexahedra, wedges, pyramids, "
+                         "triangles, quadrilaterals, lines); give the deck with the model's elements")
     points = np.asarray(m.points, dtype=float)
-    node_ids = _node_ids(m, path)
+    node_ids = _node_ids(m, path) if node_ids is None else node_ids
     used = np.zeros(len(points), bool)
-    for b in blocks:
+    for b in blocks + others:
         used[b.data] = True
     keep = np.flatnonzero(used)
     renumber = np.cumsum(used) - 1
-    tets, faces = [], []
+    tets, faces = [np.zeros((0, 4), np.int64)], []
     for b in blocks:
         family = FAMILY[b.type]
         corners = renumber[b.data[:, :CORNERS[family]]]                 # VTK: corner nodes first
@@ -120,16 +131,30 @@ def solid_model(m, path) -> FEMesh:
         if nodes and name not in node_sets:
             nodes = np.concatenate(nodes)
             node_sets[name] = np.unique(renumber[nodes[used[nodes]]])
+    shells = [renumber[b.data[:, :CORNERS[STRUCTURAL[b.type]]]] for b in others
+              if STRUCTURAL[b.type] in ("triangle", "quad")]
+    surface = np.concatenate([outer_surface(faces), both_sides(shells)]).astype(np.int64)
     return FEMesh(points=points[keep], cells=np.concatenate(tets), node_ids=node_ids[keep], node_sets=node_sets,
-                  source=str(path), sha256=file_sha256(path), surface=outer_surface(faces),
-                  notes=(f"{path}: {', '.join(sorted({b.type for b in blocks}))} elements: K and M from the "
-                         "FE code; paths interpolate linearly between corner nodes",))
+                  source=str(path), sha256=file_sha256(path), surface=surface,
+                  notes=(f"{path}: {', '.join(sorted({b.type for b in blocks + others}))} elements: K and M from "
+                         "the FE code" + ("; paths interpolate linearly between corner nodes" if blocks else ""),))
+
+
+def both_sides(shells) -> np.ndarray:
+    """(nt, 3) triangles of shell faces, each face once in each orientation (quadrilaterals split in
+    two; faces shared by two shells once); ``shells``: list of (ne, 3) and (ne, 4) corner rows."""
+    tri = [s if s.shape[1] == 3 else np.concatenate([s[:, [0, 1, 2]], s[:, [0, 2, 3]]]) for s in shells]
+    if not tri:
+        return np.zeros((0, 3), np.int64)
+    t = np.concatenate(tri)
+    t = t[np.unique(np.sort(t, axis=1), axis=0, return_index=True)[1]]
+    return np.concatenate([t, t[:, ::-1]])
 
 
 def outer_surface(faces) -> np.ndarray:
     """(nt, 3) triangles of the faces that belong to one element only (quadrilaterals split in two);
     ``faces``: list of (ne, 3) and (ne, 4) corner-node arrays."""
-    out = []
+    out = [np.zeros((0, 3), np.int64)]
     for k in (3, 4):
         group = [f for f in faces if f.shape[1] == k]
         if not group:
@@ -154,17 +179,22 @@ def _node_ids(m, path) -> np.ndarray:
 
 #: nodes per element of the Abaqus / CalculiX solid element types (C3D20R = C3D20, ...)
 ABAQUS_NODES = {"C3D4": 4, "C3D10": 10, "C3D8": 8, "C3D20": 20, "C3D6": 6, "C3D15": 15, "C3D5": 5, "C3D13": 13}
+#: the same of shells, beams and trusses (S4R = S4, B31H = B31, ...)
+STRUCTURAL_NODES = {"S3": 3, "STRI3": 3, "S4": 4, "S6": 6, "STRI65": 6, "S8": 8, "S9R5": 9, "B31": 2, "B32": 3,
+                    "B33": 3, "T3D2": 2, "T3D3": 3}
+ELEMENT_NODES = ABAQUS_NODES | STRUCTURAL_NODES
 
 
 def deck_elements(path) -> list[np.ndarray]:
-    """The solid elements of a deck as (ne, k) arrays of the deck's node numbers, one per element type:
-    Abaqus / CalculiX ``*ELEMENT`` blocks read directly (their numbers only, ``*INCLUDE`` followed),
-    other formats through meshio."""
+    """The solid, shell and beam elements of a deck as (ne, k) arrays of the deck's node numbers, one
+    per element type: Abaqus / CalculiX ``*ELEMENT`` blocks read directly (their numbers only,
+    ``*INCLUDE`` followed), Nastran decks by sidprep.fe.matrices.nastran_deck, other formats through
+    meshio."""
     path = Path(path)
     if path.suffix.lower() != ".inp":
-        m = meshio_read(path)
-        ids = _node_ids(m, path)
-        return [ids[b.data] for b in m.cells if b.type in FAMILY]
+        m, ids = nastran_mesh(path) if is_nastran(path) else (meshio_read(path), None)
+        ids = _node_ids(m, path) if ids is None else ids
+        return [ids[b.data] for b in m.cells if b.type in FAMILY or STRUCTURAL.get(b.type, "vertex") != "vertex"]
     blocks, numbers, per = [], [], 0
     for line in abaqus_lines(path) + ["*END\n"]:
         if line.startswith("**"):
@@ -172,7 +202,7 @@ def deck_elements(path) -> list[np.ndarray]:
         if line.startswith("*"):
             if per and numbers:
                 blocks.append(_element_table(numbers, per, path))
-            per = ABAQUS_NODES.get(next(iter(abaqus_types_of(line))), 0) if line[:8].upper() == "*ELEMENT" else 0
+            per = ELEMENT_NODES.get(next(iter(abaqus_types_of(line))), 0) if line[:8].upper() == "*ELEMENT" else 0
             numbers = []
         elif per:
             numbers.append(line)

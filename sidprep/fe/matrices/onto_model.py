@@ -66,7 +66,8 @@ class ImportedModel:
     docstring; the same mesh when there are none).  ``clamped``: node rows whose DOFs the export
     removed (supports), an interface ``clamp_name`` of ``clamp_kind`` "rbe2" (solid nodes) or "node"
     (a rigid body's reference and rotation nodes) carries the frame there; ``rigid_bodies``: {node-set name: (reference row, rotation row)},
-    ``notes``: what was recovered, one line each."""
+    ``notes``: what was recovered, one line each; ``rotation_of``: (n,) the rotation-node row of each
+    6-DOF node's translation row, -1 elsewhere."""
 
     K: sp.csr_matrix
     M: sp.csr_matrix
@@ -80,6 +81,7 @@ class ImportedModel:
     clamp_kind: str = ""
     rigid_bodies: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    rotation_of: np.ndarray | None = None
 
 
 def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
@@ -92,7 +94,8 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     full = full_model(fe, mesh, deck, units, path)
     if full.rotational.any() and not n_interfaces:
         raise InputError(f"{path}: {int(full.rotational.sum())} nodes carry rotational DOFs (beams, shells, rigid "
-                         "bodies); such models need at least one interface: give --interface NAME")
+                         "bodies); such models need at least one interface: give --interface NAME (a node set, or "
+                         "GRID<number> for one beam or shell node)")
     K, M, present = embedded(fe, full, path)
     check_imported_units(mesh, M, units, path)           # the model's own numbers fit --units (before the run)
     K, M = in_si(K, M, full.rotational, units)
@@ -118,7 +121,17 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     names = {rb.name: (int(full.row_of(rb.ref)), int(full.dof(rb.rot, rb.rot_dof)) // 3) for rb in deck.rigid_bodies}
     notes = constraint_notes(deck, clamped, clamp_name, path)
     return ImportedModel(K, sp.kron(Ms, sp.identity(3), format="csr"), Ms, fe.eigenvalues, fe.fmt, ratio, mesh_out,
-                         clamped, clamp_name, clamp_kind, names, notes)
+                         clamped, clamp_name, clamp_kind, names, notes, rotation_nodes(full))
+
+
+def rotation_nodes(full) -> np.ndarray:
+    """(n,) row of the rotation node of each node row that has one (a 6-DOF node's translations),
+    -1 elsewhere (rotation, rigid-body and auxiliary nodes included)."""
+    rows = np.flatnonzero(~full.rotational & (full.keys[0::3] >= 0))
+    r = full.dof(full.mesh.node_ids[rows], 4)
+    out = np.full(full.mesh.n_nodes, -1, np.int64)
+    out[rows] = np.where(r >= 0, r // 3, -1)
+    return out
 
 
 def in_si(K: sp.csr_matrix, M: sp.csr_matrix, rotational: np.ndarray, units) -> tuple[sp.csr_matrix, sp.csr_matrix]:

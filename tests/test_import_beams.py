@@ -1,0 +1,188 @@
+"""Beam and shell models imported with their FE code's matrices (6 DOFs per grid): a Nastran deck of
+CBAR (or CQUAD4) elements and a DMIG punch of K and M.
+
+References: the matrices are the textbook frame element (Przemieniecki 1968; tests/frame_elements.py)
+assembled in the test, with the lumped mass (Nastran's default, PARAM,COUPMASS,-1); the SID's
+frequencies are compared with the eigenvalues of that full model (massless rotations condensed
+exactly) and with Euler-Bernoulli's free-free beam ((beta_n L)^2 / (2 pi L^2) sqrt(E I / (rho A)),
+beta_1 L = 4.730040745, beta_2 L = 7.853204624; Blevins, Formulas for Natural Frequency and Mode
+Shape, 1979, table 8-1); mass, centre of mass and inertia with the sums over the lumped masses."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import scipy.linalg as sl
+import scipy.sparse as sp
+from calculix_run import needs_ccx, run_ccx
+from frame_elements import RHO, E, frame_model, rectangle, write_beam_export
+
+from sidprep.errors import InputError
+from sidprep.jobs.options import ReduceOptions
+from sidprep.jobs.reduce import reduce
+from sidprep.sid.model import inertia_matrix
+
+#: the free-free beam: length (m), elements, a 20 x 10 mm steel section
+LENGTH, ELEMENTS, SECTION = 1.0, 40, rectangle(0.02, 0.01)
+#: free-free Euler-Bernoulli roots
+BETA_L = np.array([4.730040745, 7.853204624])
+#: SID vs the full model's own eigenvalues: Craig-Bampton truncation with the two end grids as
+#: interfaces (measured 4e-6 on the first bending mode, 9e-5 on the fourth elastic mode)
+SID_VS_FULL_RTOL = 1e-4
+#: 40 lumped-mass elements vs Euler-Bernoulli: the lumped mass' O(h^2) error (measured -1.9e-3)
+EULER_BERNOULLI_RTOL = 3e-3
+#: mass, centre of mass and inertia vs the sums over the lumped masses: the 17 digits of the punch
+#: and the auxiliary inertia nodes' least-squares fit
+INVARIANT_RTOL = 1e-9
+
+
+def beam_points(n=ELEMENTS, length=LENGTH):
+    x = np.linspace(0.0, length, n + 1)
+    return np.column_stack([x, np.zeros_like(x), np.zeros_like(x)]), np.column_stack([np.arange(n), np.arange(1, n + 1)])
+
+
+def full_frequencies_hz(points, elements, section) -> np.ndarray:
+    """Elastic frequencies of the full 6-DOF model: massless DOFs condensed out exactly."""
+    K, M = (A.toarray() for A in frame_model(points, elements, section))
+    m = np.diag(M) > 0
+    Kc = K[np.ix_(m, m)] - K[np.ix_(m, ~m)] @ np.linalg.solve(K[np.ix_(~m, ~m)], K[np.ix_(~m, m)])
+    w2 = sl.eigh(Kc, M[np.ix_(m, m)], eigvals_only=True)
+    return np.sqrt(np.clip(w2, 0.0, None))[6:] / (2 * np.pi)
+
+
+@pytest.fixture(scope="module")
+def beam(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("beam")
+    points, elements = beam_points()
+    bdf, pch = write_beam_export(tmp, "beam", points, elements, SECTION)
+    result = reduce(bdf, ReduceOptions(matrices=str(pch), interfaces=("GRID1", f"GRID{ELEMENTS + 1}"), modes=10))
+    return result, points, elements
+
+
+def test_cbar_beam_gives_its_frequencies(beam):
+    result, points, elements = beam
+    assert result.passed
+    f = result.sid.frequencies_hz
+    np.testing.assert_allclose(f[:4], full_frequencies_hz(points, elements, SECTION)[:4], rtol=SID_VS_FULL_RTOL)
+    bending = [BETA_L[0] ** 2 / (2 * np.pi * LENGTH ** 2) * np.sqrt(E * SECTION[k] / (RHO * SECTION["A"]))
+               for k in ("Iy", "Iz")]                          # flat (about y) first, then edgewise
+    assert f[0] == pytest.approx(bending[0], rel=EULER_BERNOULLI_RTOL)
+    assert f[1] == pytest.approx(bending[1], rel=EULER_BERNOULLI_RTOL)
+    assert [n.name for n in result.sid.nodes] == ["GRID1", f"GRID{ELEMENTS + 1}"]
+
+
+def test_cbar_beam_mass_properties(beam):
+    """Mass, first moment and inertia about the origin: the lumped masses on the axis and the
+    torsional inertia rho Ip L on the grids' rotations (auxiliary nodes, sidprep.fe.matrices.rotary)."""
+    result, points, _ = beam
+    h = LENGTH / ELEMENTS
+    m = np.full(len(points), RHO * SECTION["A"] * h)
+    m[[0, -1]] /= 2
+    x = points[:, 0]
+    sid = result.sid
+    assert sid.mass == pytest.approx(m.sum(), rel=INVARIANT_RTOL)
+    np.testing.assert_allclose(np.ravel(sid.mdCM.M0), [m @ x, 0, 0], atol=INVARIANT_RTOL * m @ x)
+    J = np.diag([RHO * SECTION["Ip"] * LENGTH, m @ x ** 2, m @ x ** 2])
+    np.testing.assert_allclose(inertia_matrix(sid.J.M0), J, atol=INVARIANT_RTOL * J.max())
+
+
+def test_consistent_beam_mass_is_refused(tmp_path):
+    """The consistent mass couples the axial and transverse directions: no point masses give it."""
+    points, elements = beam_points(8)
+    bdf, pch = write_beam_export(tmp_path, "c", points, elements, SECTION, lumped=False)
+    with pytest.raises(InputError, match="PARAM,COUPMASS,-1"):
+        reduce(bdf, ReduceOptions(matrices=str(pch), interfaces=("GRID1",), modes=4))
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", *map(str, args), "-q"],
+                          capture_output=True, text=True, timeout=300, check=False)
+
+
+def test_bad_beam_decks_are_one_line(tmp_path):
+    points, elements = beam_points(4)
+    cases = {"missing": ("CBAR,99,1,2,77,0.,0.,1.", "grid 77, which has no GRID card"),
+             "planar": ("CTRIAX6,98,1,1,2,3,4,5,2", "CTRIAX6 elements are plane or axisymmetric"),
+             "local": ("GRID,50,7,0.,0.,0.", "local input (CP) coordinate system 7")}
+    for name, (card, message) in cases.items():
+        bdf, pch = write_beam_export(tmp_path, name, points, elements, SECTION, cards=(card,))
+        done = cli(bdf, "--matrices", pch, "--interface", "GRID1", "-o", tmp_path / f"{name}.sid.h5")
+        assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+        assert message in done.stderr
+        assert not (tmp_path / f"{name}.sid.h5").exists()
+    bdf, pch = write_beam_export(tmp_path, "solo", points, elements, SECTION)
+    done = cli(bdf, "--matrices", pch, "-o", tmp_path / "solo.sid.h5")
+    assert done.returncode == 2 and "GRID<number>" in done.stderr
+
+
+@needs_ccx
+@pytest.mark.parametrize("kind, section", [("S4", "*SHELL SECTION, ELSET=EALL, MATERIAL=STEEL\n0.01"),
+                                           ("B31", ("*BEAM SECTION, ELSET=EALL, MATERIAL=STEEL, SECTION=RECT\n"
+                                                    "0.01, 0.02\n0., 0., 1."))])
+def test_calculix_shells_and_beams_name_the_other_routes(tmp_path, kind, section):
+    """ccx expands shells and beams into solids: its .dof lists the expanded nodes under the shell's
+    node numbers (S4: twice, B31: four times) and adds the nodes of incompatible modes."""
+    nodes = "\n".join(f"{i + 1}, {x:g}, {y:g}, 0" for i, (x, y) in enumerate([(0, 0), (1, 0), (1, 1), (0, 1)]))
+    connectivity = "1, 1, 2, 3, 4" if kind == "S4" else "1, 1, 2\n2, 2, 3"
+    deck = tmp_path / "model.inp"
+    deck.write_text(f"*NODE\n{nodes}\n*ELEMENT, TYPE={kind}, ELSET=EALL\n{connectivity}\n*MATERIAL, NAME=STEEL\n"
+                    f"*ELASTIC\n{E:g}, 0.3\n*DENSITY\n{RHO:g}\n{section}\n*STEP\n*FREQUENCY, SOLVER=MATRIXSTORAGE\n"
+                    "*END STEP\n")
+    run_ccx(deck)
+    done = cli(deck, "--matrices", tmp_path / "model.sti", "-o", tmp_path / "m.sid.h5")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert f"CalculiX expands {kind} elements into solids" in done.stderr and "PARAM,EXTOUT,DMIGPCH" in done.stderr
+
+
+#: SID clamped at the edge's RBE2 vs the full model with the edge grids' six DOFs removed: round-off
+#: and Craig-Bampton truncation of the small model (measured 2e-12)
+CLAMPED_RTOL = 1e-9
+
+
+def write_mtx(path, A, ids):
+    """Abaqus .mtx (``node,dof, node,dof, value``, upper triangle) of a (6n, 6n) matrix over ``ids``."""
+    C = sp.triu(A).tocoo()
+    path.write_text("".join(f"{ids[i // 6]},{i % 6 + 1}, {ids[j // 6]},{j % 6 + 1}, {v:.17g}\n"
+                            for i, j, v in zip(C.row, C.col, C.data)))
+
+
+def test_s4_shell_deck_surface_and_clamped_edge(tmp_path):
+    """An Abaqus deck of S4 shells (4 x 3 quadrilaterals) whose K and M (``*MATRIX GENERATE`` layout)
+    are those of a grillage of frame elements on the shell's edges: the OBJ surface is both sides of
+    every shell face, and an RBE2 on the straight edge X0 ties its grids' rotations too (RBE2
+    123456): with the frame there, the SID's frequencies are those of the full model with the edge
+    grids' six DOFs removed."""
+    nx, ny, a = 4, 3, 0.1
+    grid = np.array([[i * a, j * a, 0.0] for j in range(ny + 1) for i in range(nx + 1)])
+    ids = 101 + np.arange(len(grid))
+
+    def row(i, j):
+        return j * (nx + 1) + i
+
+    edges = [(row(i, j), row(i + 1, j)) for j in range(ny + 1) for i in range(nx)]
+    edges += [(row(i, j), row(i, j + 1)) for j in range(ny) for i in range(nx + 1)]
+    K, M = frame_model(grid, np.array(edges), SECTION, up=(0.0, 0.0, 1.0))
+    write_mtx(tmp_path / "plate_STIF1.mtx", K, ids)
+    write_mtx(tmp_path / "plate_MASS1.mtx", M, ids)
+    quads = [(row(i, j), row(i + 1, j), row(i + 1, j + 1), row(i, j + 1)) for j in range(ny) for i in range(nx)]
+    edge = [row(0, j) for j in range(ny + 1)]
+    lines = ["*NODE"] + [f"{n}, {x:.6f}, {y:.6f}, {z:.6f}" for n, (x, y, z) in zip(ids, grid)]
+    lines += ["*ELEMENT, TYPE=S4, ELSET=PLATE"] + [f"{k + 1}, " + ", ".join(str(ids[v]) for v in q)
+                                                   for k, q in enumerate(quads)]
+    lines += ["*NSET, NSET=X0", ", ".join(str(ids[v]) for v in edge)]
+    (tmp_path / "plate.inp").write_text("\n".join(lines) + "\n")
+    result = reduce(tmp_path / "plate.inp", ReduceOptions(matrices=str(tmp_path / "plate_STIF1.mtx"),
+                                                          interfaces=("X0",), frame="X0", modes=4))
+    assert result.passed
+    surface = result.sid.surface
+    assert len(surface.triangles) == 2 * 2 * len(quads)
+    faces = {tuple(surface.node_ids[t]) for t in surface.triangles}
+    assert all(tuple(surface.node_ids[t[::-1]]) in faces for t in surface.triangles)     # both sides
+    held = (6 * np.array(edge)[:, None] + np.arange(6)).ravel()
+    free = np.setdiff1d(np.arange(6 * len(grid)), held)
+    Kf, Mf = K[free][:, free].toarray(), M[free][:, free].toarray()
+    m = np.diag(Mf) > 0
+    Kc = Kf[np.ix_(m, m)] - Kf[np.ix_(m, ~m)] @ np.linalg.solve(Kf[np.ix_(~m, ~m)], Kf[np.ix_(~m, m)])
+    clamped = np.sqrt(sl.eigh(Kc, Mf[np.ix_(m, m)], eigvals_only=True)[:4]) / (2 * np.pi)
+    np.testing.assert_allclose(result.sid.frequencies_hz[:4], clamped, rtol=CLAMPED_RTOL)
