@@ -186,3 +186,6 @@ def test_s4_shell_deck_surface_and_clamped_edge(tmp_path):
     Kc = Kf[np.ix_(m, m)] - Kf[np.ix_(m, ~m)] @ np.linalg.solve(Kf[np.ix_(~m, ~m)], Kf[np.ix_(~m, m)])
     clamped = np.sqrt(sl.eigh(Kc, Mf[np.ix_(m, m)], eigvals_only=True)[:4]) / (2 * np.pi)
     np.testing.assert_allclose(result.sid.frequencies_hz[:4], clamped, rtol=CLAMPED_RTOL)
+    with pytest.raises(InputError, match="element type S4: no stress recovery for it"):
+        reduce(tmp_path / "plate.inp", ReduceOptions(matrices=str(tmp_path / "plate_STIF1.mtx"), interfaces=("X0",),
+                                                     stress="surface"))
