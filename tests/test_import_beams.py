@@ -32,6 +32,8 @@ BETA_L = np.array([4.730040745, 7.853204624])
 SID_VS_FULL_RTOL = 1e-4
 #: 40 lumped-mass elements vs Euler-Bernoulli: the lumped mass' O(h^2) error (measured -1.9e-3)
 EULER_BERNOULLI_RTOL = 3e-3
+#: 1 - MAC of the tube vertices' mode shapes against the full model's (Craig-Bampton truncation)
+TUBE_MAC_TOL = 1e-8
 #: mass, centre of mass and inertia vs the sums over the lumped masses: the 17 digits of the punch
 #: and the auxiliary inertia nodes' least-squares fit
 INVARIANT_RTOL = 1e-9
@@ -42,13 +44,21 @@ def beam_points(n=ELEMENTS, length=LENGTH):
     return np.column_stack([x, np.zeros_like(x), np.zeros_like(x)]), np.column_stack([np.arange(n), np.arange(1, n + 1)])
 
 
-def full_frequencies_hz(points, elements, section) -> np.ndarray:
-    """Elastic frequencies of the full 6-DOF model: massless DOFs condensed out exactly."""
+def full_modes(points, elements, section) -> tuple[np.ndarray, np.ndarray]:
+    """(elastic frequencies (Hz), (6n, k) mode shapes) of the full 6-DOF model: the massless DOFs
+    condensed out exactly and recovered from the statics, u_r = -K_rr^-1 K_rm u_m."""
     K, M = (A.toarray() for A in frame_model(points, elements, section))
     m = np.diag(M) > 0
-    Kc = K[np.ix_(m, m)] - K[np.ix_(m, ~m)] @ np.linalg.solve(K[np.ix_(~m, ~m)], K[np.ix_(~m, m)])
-    w2 = sl.eigh(Kc, M[np.ix_(m, m)], eigvals_only=True)
-    return np.sqrt(np.clip(w2, 0.0, None))[6:] / (2 * np.pi)
+    recover = -np.linalg.solve(K[np.ix_(~m, ~m)], K[np.ix_(~m, m)])
+    Kc = K[np.ix_(m, m)] + K[np.ix_(m, ~m)] @ recover
+    w2, X = sl.eigh(Kc, M[np.ix_(m, m)])
+    shapes = np.zeros((len(K), len(w2)))
+    shapes[m], shapes[~m] = X, recover @ X
+    return np.sqrt(np.clip(w2, 0.0, None))[6:] / (2 * np.pi), shapes[:, 6:]
+
+
+def full_frequencies_hz(points, elements, section) -> np.ndarray:
+    return full_modes(points, elements, section)[0]
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +80,23 @@ def test_cbar_beam_gives_its_frequencies(beam):
     assert f[0] == pytest.approx(bending[0], rel=EULER_BERNOULLI_RTOL)
     assert f[1] == pytest.approx(bending[1], rel=EULER_BERNOULLI_RTOL)
     assert [n.name for n in result.sid.nodes] == ["GRID1", f"GRID{ELEMENTS + 1}"]
+
+
+def test_cbar_beam_drawn_as_tubes_that_follow_its_rotations(beam):
+    """The OBJ surface of a beam model: a tube of 6-sided rings around each element end whose
+    vertices move as u_node + theta_node x (x - x_node) of the full model's own mode shapes."""
+    result, points, elements = beam
+    s = result.sid.surface
+    assert len(s.triangles) == 2 * 6 * len(elements) and len(s.points) == 2 * 6 * len(elements)
+    _, shapes = full_modes(points, elements, SECTION)
+    node = s.node_ids - 1                                          # grids 1..n in point order
+    rho = s.points - points[node]
+    for k in range(2):                                             # the two first bending modes
+        u, theta = shapes[6 * node[:, None] + np.arange(3), k], shapes[6 * node[:, None] + 3 + np.arange(3), k]
+        expected = (u + np.cross(theta, rho)).ravel()
+        got = s.shapes[:, :, k].ravel()
+        mac = (expected @ got) ** 2 / ((expected @ expected) * (got @ got))
+        assert 1 - mac < TUBE_MAC_TOL
 
 
 def test_cbar_beam_mass_properties(beam):

@@ -209,6 +209,20 @@ def deck_elements(path) -> list[np.ndarray]:
     return blocks
 
 
+def deck_lines(path) -> np.ndarray:
+    """(ne, 2) node numbers of the two-node line elements (beams, rods: CBAR, B31, ...) of a deck, for
+    their tubes in the surface (sidprep.fe.matrices.tubes); none for other formats."""
+    path = Path(path)
+    if is_nastran(path):
+        m, ids = nastran_mesh(path)
+    elif path.suffix.lower() == ".inp" and any(t.startswith(("B", "T3D")) for t in abaqus_types(path)):
+        m = meshio_read(path, abaqus_lines(path))
+        ids = _node_ids(m, path)
+    else:
+        return np.zeros((0, 2), np.int64)
+    return np.concatenate([np.zeros((0, 2), np.int64)] + [ids[b.data] for b in m.cells if b.type == "line"])
+
+
 def _element_table(lines: list[str], per: int, path) -> np.ndarray:
     """(ne, per) node numbers of the data lines of one *ELEMENT block (element number first)."""
     values = np.array([v for v in ",".join(lines).replace("\n", ",").split(",") if v.strip()], dtype=np.int64)

@@ -98,10 +98,11 @@ def embedded(fe: FEMatrices, full: FullModel, path) -> tuple[sp.csr_matrix, sp.c
     return (P @ fe.K @ P.T).tocsr(), (P @ fe.M @ P.T).tocsr(), np.sort(target[keep])
 
 
-def model_constraints(full: FullModel, deck, path, length_to_m: float = 1.0, extra_bodies=()):
+def model_constraints(full: FullModel, deck, path, length_to_m: float = 1.0, extra_bodies=(), followers=()):
     """(dependent model DOFs (nd,), rigid bodies as (ref row, rot row, node rows), Constraints or
-    None) of the deck's equations and rigid bodies on the model DOFs, and of ``extra_bodies`` (rigid
-    bodies in rows, after the deck's); ``path``: the deck.  An equation's coefficients on rotations
+    None) of the deck's equations and rigid bodies on the model DOFs, of ``extra_bodies`` (rigid
+    bodies in rows, after the deck's) and of ``followers`` (massless nodes that follow a node
+    rigidly, same layout: equations only); ``path``: the deck.  An equation's coefficients on rotations
     carry a length (translation per radian): times ``length_to_m`` in SI."""
     equations, bodies = [], []
     for e in deck.equations:
@@ -129,6 +130,8 @@ def model_constraints(full: FullModel, deck, path, length_to_m: float = 1.0, ext
     for ref, rot, rows in extra_bodies:
         equations += rigid_equations(full.mesh.points, rows, ref, rot)
         bodies.append((ref, rot, rows))
+    for ref, rot, rows in followers:
+        equations += rigid_equations(full.mesh.points, rows, ref, rot)
     if not equations:
         return np.zeros(0, np.int64), bodies, None
     constraints = constraint_map(equations, len(full.keys), path, lambda d: describe_dof(full, d))

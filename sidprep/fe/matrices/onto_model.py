@@ -18,7 +18,8 @@ through the model's node numbers (``FEMesh.node_ids``, kept in the SID).  What i
   components 123).  A rotational DOF the FE code wrote without any stiffness (e.g. a shell's
   drilling DOF) is connected to nothing: it gets a decoupled unit stiffness, which changes no other
   DOF.  Models with rotation nodes need at least one interface (the free-frame supports are
-  chosen among the translations of interface masters);
+  chosen among the translations of interface masters); beams between them are drawn as tubes
+  whose vertices follow the nodes (sidprep.fe.matrices.tubes);
 * the mass is that of solid nodes, S^T (Ms (x) E3) S = M (any solid element's consistent or lumped
   mass, point masses; a rigid body's mass folded onto its reference and rotation nodes is unfolded
   onto its nodes): the SID invariants are computed from Ms (sid-spec 4.2).
@@ -42,12 +43,14 @@ from sidprep.errors import InputError
 from sidprep.fe.linalg import rigid_body_modes
 from sidprep.fe.matrices import read_matrices
 from sidprep.fe.matrices.constraints import solid_mass
+from sidprep.fe.matrices.deck import deck_lines
 from sidprep.fe.matrices.deck_constraints import DeckConstraints, deck_constraints
 from sidprep.fe.matrices.model_dofs import (away_from, clamp_of, clamped_nodes, embedded, full_model, glued_surface,
     model_constraints)
 from sidprep.fe.matrices.numbers import indefinite_entries
 from sidprep.fe.plausibility import check_imported_units
 from sidprep.fe.matrices.rotary import inertia_nodes
+from sidprep.fe.matrices.tubes import beam_tubes
 
 #: K_ij^2 > K_ii K_jj (1 + this) for a stored entry: K is indefinite
 MINOR_RTOL = 1e-9
@@ -101,7 +104,9 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     K, M = in_si(K, M, full.rotational, units)
     own_rotations = [int(full.dof(rb.rot, rb.rot_dof)) // 3 for rb in deck.rigid_bodies]
     full, K, M, inertia = inertia_nodes(full, K, M, own_rotations, path)
-    dependent, bodies, constraints = model_constraints(full, deck, mesh.source, units.length_to_m, inertia)
+    lines = deck_lines(mesh.source) if mesh.source and Path(mesh.source).is_file() else np.zeros((0, 2), np.int64)
+    full, K, M, followers, tubes = beam_tubes(full, K, M, lines)
+    dependent, bodies, constraints = model_constraints(full, deck, mesh.source, units.length_to_m, inertia, followers)
     clamped, clamp_name, clamp_kind = clamp_of(clamped_nodes(full, deck, present, dependent, path), full, deck,
                                                bodies, mesh.source)
     held = np.concatenate([clamped] + [rows for ref, _, rows in bodies if ref in clamped])
@@ -117,7 +122,8 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
                          "export needs its supports in MODEL: *BOUNDARY / SPC), with the same nodes and --units "
                          "as MODEL")
     Ms = solid_mass(M, constraints, full.mesh.points, bodies, path)
-    mesh_out = replace(full.mesh, ties=constraints, surface=glued_surface(full.mesh, deck, constraints))
+    surface = glued_surface(full.mesh, deck, constraints)
+    mesh_out = replace(full.mesh, ties=constraints, surface=surface if surface is None else np.vstack([surface, tubes]))
     names = {rb.name: (int(full.row_of(rb.ref)), int(full.dof(rb.rot, rb.rot_dof)) // 3) for rb in deck.rigid_bodies}
     notes = constraint_notes(deck, clamped, clamp_name, path)
     return ImportedModel(K, sp.kron(Ms, sp.identity(3), format="csr"), Ms, fe.eigenvalues, fe.fmt, ratio, mesh_out,
