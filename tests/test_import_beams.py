@@ -10,6 +10,7 @@ Shape, 1979, table 8-1); mass, centre of mass and inertia with the sums over the
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -216,3 +217,66 @@ def test_s4_shell_deck_surface_and_clamped_edge(tmp_path):
     with pytest.raises(InputError, match="element type S4: no stress recovery for it"):
         reduce(tmp_path / "plate.inp", ReduceOptions(matrices=str(tmp_path / "plate_STIF1.mtx"), interfaces=("X0",),
                                                      stress="surface"))
+
+
+#: the stiffened bar vs its full model's own eigenvalues: Craig-Bampton truncation with two RBE3 end
+#: faces and 6 modes (measured 1.5e-4 - 6.3e-4; the certified bounds of sidprep's own full-model
+#: check hold the reference eigenvalues)
+MIXED_RTOL = 1e-3
+#: the reference eigenvalues inside those bounds, up to the round-off of the dense solve
+BOUNDS_RTOL = 1e-9
+
+
+@needs_ccx
+def test_solid_bar_with_cbar_stiffener(tmp_path):
+    """A Nastran deck of CHEXA (a 0.5 x 0.05 x 0.05 m steel bar, K and M written by ccx) and CBAR
+    elements along one edge (the frame elements' K and lumped M on the edge grids' six DOFs, without
+    torsion: the solid nodes would leave the stiffener's twist free), in one punch: the SID has the full model's frequencies, the box's and the stiffener's mass properties,
+    and a surface of the bar's outer faces and the stiffener's tube."""
+    from hex_decks import MATRICES, bdf, hex_bar, material, write_punch
+
+    from sidprep.fe.matrices import read_matrices
+    from sidprep.fe.matrices.record import FEMatrices
+
+    lengths, divisions = np.array([0.5, 0.05, 0.05]), (10, 1, 1)
+    lines, ids, xyz = hex_bar(lengths, divisions)
+    (tmp_path / "bar.inp").write_text("\n".join(lines + material() + MATRICES) + "\n")
+    run_ccx(tmp_path / "bar.inp")
+    solid = read_matrices(tmp_path / "bar.sti")
+    edge = np.array([ids[i, 0, 0] for i in range(divisions[0] + 1)])
+    section = rectangle(0.01, 0.01) | {"J": 0.0, "Ip": 0.0}      # torsion on solid nodes: a free chain (mechanism)
+    Kb, Mb = frame_model(np.array([xyz[n] for n in edge]), np.column_stack([np.arange(10), np.arange(1, 11)]), section)
+    keys = np.union1d(8 * solid.dofs[:, 0] + solid.dofs[:, 1], 8 * np.repeat(edge, 6) + np.tile(np.arange(1, 7), 11))
+    Ps = sp.csr_matrix((np.ones(len(solid.dofs)), (np.searchsorted(keys, 8 * solid.dofs[:, 0] + solid.dofs[:, 1]),
+                                                   np.arange(len(solid.dofs)))), shape=(len(keys), len(solid.dofs)))
+    beam_keys = 8 * np.repeat(edge, 6) + np.tile(np.arange(1, 7), 11)
+    Pb = sp.csr_matrix((np.ones(66), (np.searchsorted(keys, beam_keys), np.arange(66))), shape=(len(keys), 66))
+    K, M = (Ps @ A @ Ps.T + Pb @ B @ Pb.T for A, B in ((solid.K, Kb), (solid.M, Mb)))
+    write_punch(tmp_path / "mixed.pch", FEMatrices(K.tocsr(), M.tocsr(), np.column_stack([keys // 8, keys % 8]), "", ""))
+    bdf(tmp_path / "mixed.bdf", xyz, lines, [f"CBAR,{900 + k},2,{a},{b},0.,0.,1." for k, (a, b) in
+                                            enumerate(zip(edge[:-1], edge[1:]))])
+    ends = tuple({"name": name, "type": "plane", "point": [x, 0.0, 0.0], "normal": [1.0, 0.0, 0.0], "tol": 1e-9,
+                  "kind": "rbe3"} for name, x in (("END_A", 0.0), ("END_B", lengths[0])))   # no stiffening
+
+    options = ReduceOptions(matrices=str(tmp_path / "mixed.pch"), interfaces=ends, modes=6)
+    result = reduce(tmp_path / "mixed.bdf", options)
+    assert result.passed
+    live = K.diagonal() != 0                                      # the stiffener's rx: connected to nothing
+    Kd, Md = K[live][:, live].toarray(), M[live][:, live].toarray()
+    m = np.diag(Md) > 0
+    Kc = Kd[np.ix_(m, m)] - Kd[np.ix_(m, ~m)] @ np.linalg.solve(Kd[np.ix_(~m, ~m)], Kd[np.ix_(~m, m)])
+    full = np.sqrt(np.clip(sl.eigh(Kc, Md[np.ix_(m, m)], eigvals_only=True), 0, None))[6:10] / (2 * np.pi)
+    np.testing.assert_allclose(result.sid.frequencies_hz[:4], full, rtol=MIXED_RTOL)
+    bounds = np.array(result.checks["frequencies_full_hz_bounds"])[:4]     # sidprep's full-model check
+    assert ((bounds[:, 0] <= full * (1 + BOUNDS_RTOL)) & (full <= bounds[:, 1] * (1 + BOUNDS_RTOL))).all()
+    box = RHO * np.prod(lengths)
+    h = lengths[0] / divisions[0]
+    mb = np.full(11, RHO * section["A"] * h)
+    mb[[0, -1]] /= 2
+    x = np.array([xyz[n] for n in edge])
+    assert result.sid.mass == pytest.approx(box + mb.sum(), rel=INVARIANT_RTOL)
+    np.testing.assert_allclose(np.ravel(result.sid.mdCM.M0), box * lengths / 2 + mb @ x, rtol=INVARIANT_RTOL)
+    s = result.sid.surface
+    assert len(s.triangles) == 2 * (2 * 2 * divisions[0] + 2) + 2 * 6 * divisions[0]     # bar faces + tube
+    with pytest.raises(InputError, match=f"a rotation of node {edge[0]} has no stiffness"):
+        reduce(tmp_path / "mixed.bdf", replace(options, interfaces=(f"GRID{edge[0]}",)))

@@ -30,7 +30,7 @@ from sidprep.fe.material import material_from_options, unit_system
 from sidprep.fe.matrices.deck import read_model
 from sidprep.fe.matrices.deck_sections import deck_stress
 from sidprep.fe.matrices.onto_model import imported_checks, imported_model
-from sidprep.reduction.grid_interfaces import six_dof_interface
+from sidprep.reduction.grid_interfaces import six_dof_interface, with_rotations
 from sidprep.fe.mesh import FEMesh, read_mesh
 from sidprep.fe.topology import connected_parts
 from sidprep.fe.plausibility import unit_warnings
@@ -119,14 +119,15 @@ INTERFACE_KEYS = ("name", "kind", "master_point", "node_set")
 LENGTH_KEYS = ("master_point", "point", "center", "radius", "tol")
 
 
-def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
+def interface_from_spec(mesh, spec, length_to_m: float = 1.0, rows=None):
     """An Interface from "NAME[:rbe2|rbe3]" (a node set) or a job-file table {name, kind,
     master_point, node_set | type = plane|cylinder|sphere + its parameters and tol}; lengths of
-    the table are in the job's unit system (``length_to_m`` converts them to the mesh's metres)."""
+    the table are in the job's unit system (``length_to_m`` converts them to the mesh's metres);
+    ``rows``: the node rows a patch may hold (sidprep.reduction.interfaces.make_interface)."""
 
     if isinstance(spec, str):
         name, kind = parse_interface(spec)
-        return make_interface(mesh, name, kind=kind)
+        return make_interface(mesh, name, kind=kind, rows=rows)
     spec = {k: (np.asarray(v, dtype=float) * length_to_m if k in LENGTH_KEYS else v) for k, v in dict(spec).items()}
     valid = set(INTERFACE_KEYS) | {"type"} | {k for _, keys in SELECTORS.values() for k in keys}
     unknown = sorted(set(spec) - valid)
@@ -135,7 +136,7 @@ def interface_from_spec(mesh, spec, length_to_m: float = 1.0):
                          f"unknown key(s) {', '.join(unknown) or '-'}; valid: {', '.join(sorted(valid))}")
     selection = {k: v for k, v in spec.items() if k not in INTERFACE_KEYS} or spec.get("node_set")
     return make_interface(mesh, spec["name"], selection=selection, kind=spec.get("kind", "rbe2"),
-                          master_point=spec.get("master_point"))
+                          master_point=spec.get("master_point"), rows=rows)
 
 
 def imported_interfaces(imported, specs, o: ReduceOptions, length_to_m: float):
@@ -168,7 +169,8 @@ def imported_interfaces(imported, specs, o: ReduceOptions, length_to_m: float):
             out.append(Interface(parse_interface(spec)[0], np.array([ref, rot]), mesh.points[ref].copy(), "node"))
         elif o.interfaces or name is None or not dependent.intersection(
                 mesh.node_sets.get(parse_interface(spec)[0], np.zeros(0, np.int64)).tolist()):
-            out.append(six_dof_interface(mesh, spec, imported.rotation_of) or interface_from_spec(mesh, spec, length_to_m))
+            out.append(six_dof_interface(mesh, spec, imported.rotation_of, imported.unconnected) or with_rotations(
+                interface_from_spec(mesh, spec, length_to_m, imported.rotation_of > -2), imported.rotation_of))
     return out, o
 
 

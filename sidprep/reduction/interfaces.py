@@ -171,16 +171,19 @@ def linear_surface_triangles(mesh) -> np.ndarray:
                            ((v0, m01, m02), (m01, v1, m12), (m02, m12, v2), (m01, m12, m02))])
 
 
-def make_interface(mesh, name: str, selection=None, kind: str = "rbe2", master_point=None) -> Interface:
+def make_interface(mesh, name: str, selection=None, kind: str = "rbe2", master_point=None, rows=None) -> Interface:
     """Build an Interface from a node set (default: the set called ``name``) or a geometric selection.
 
     The master sits at ``master_point`` or, by default, at the area-weighted centroid of the patch.
+    ``rows`` (n,) bool: the node rows a patch may hold (an imported model's own nodes, not its
+    rotation or auxiliary nodes at the same places); None: all.
     Raises InputError when the patch cannot carry 6 DOF (< 3 nodes, collinear).
     """
     kind = kind.lower()
     if kind not in KINDS:
         raise InputError(f"interface '{name}': kind {kind!r} is unknown; valid: {', '.join(KINDS)}")
     nodes = np.unique(select_patch(mesh, name if selection is None else selection))
+    nodes = nodes if rows is None else nodes[rows[nodes]]
     area = tributary_areas(mesh, nodes) if len(nodes) else np.zeros(0)
     weights = area if area.sum() > 0 else np.ones(len(nodes))
     check_patch(name, mesh.points[nodes], weights)

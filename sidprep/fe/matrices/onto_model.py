@@ -70,7 +70,8 @@ class ImportedModel:
     removed (supports), an interface ``clamp_name`` of ``clamp_kind`` "rbe2" (solid nodes) or "node"
     (a rigid body's reference and rotation nodes) carries the frame there; ``rigid_bodies``: {node-set name: (reference row, rotation row)},
     ``notes``: what was recovered, one line each; ``rotation_of``: (n,) the rotation-node row of each
-    6-DOF node's translation row, -1 elsewhere."""
+    6-DOF node's translation row, -1 on the other nodes, -2 on rotation and auxiliary rows; ``unconnected``: the rotational DOFs written without
+    any stiffness (given a decoupled unit stiffness)."""
 
     K: sp.csr_matrix
     M: sp.csr_matrix
@@ -85,6 +86,7 @@ class ImportedModel:
     rigid_bodies: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     rotation_of: np.ndarray | None = None
+    unconnected: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
 
 def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
@@ -112,6 +114,8 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     held = np.concatenate([clamped] + [rows for ref, _, rows in bodies if ref in clamped])
     rows = away_from(held, full, present, mesh.source) if len(clamped) else None
     ratio = rigid_energy_ratio(K[present][:, present], rigid_motions(full.mesh.points, full.rotational)[present], rows)
+    unconnected = np.zeros(0, np.int64) if not full.rotational.any() else np.setdiff1d(
+        np.flatnonzero((K.diagonal() == 0) & np.repeat(full.rotational, 3)), dependent)
     K, present = decoupled_rotations(K, full.rotational, present, dependent, path)
     check_stiffness(K[present][:, present], path)
     check_mass(M[present][:, present], path)
@@ -127,15 +131,16 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
     names = {rb.name: (int(full.row_of(rb.ref)), int(full.dof(rb.rot, rb.rot_dof)) // 3) for rb in deck.rigid_bodies}
     notes = constraint_notes(deck, clamped, clamp_name, path)
     return ImportedModel(K, sp.kron(Ms, sp.identity(3), format="csr"), Ms, fe.eigenvalues, fe.fmt, ratio, mesh_out,
-                         clamped, clamp_name, clamp_kind, names, notes, rotation_nodes(full))
+                         clamped, clamp_name, clamp_kind, names, notes, rotation_nodes(full), unconnected)
 
 
 def rotation_nodes(full) -> np.ndarray:
     """(n,) row of the rotation node of each node row that has one (a 6-DOF node's translations),
-    -1 elsewhere (rotation, rigid-body and auxiliary nodes included)."""
+    -1 on the other nodes of the model, -2 on the rows that are no node of their own (rotation,
+    auxiliary inertia and tube nodes at the places of nodes)."""
     rows = np.flatnonzero(~full.rotational & (full.keys[0::3] >= 0))
     r = full.dof(full.mesh.node_ids[rows], 4)
-    out = np.full(full.mesh.n_nodes, -1, np.int64)
+    out = np.full(full.mesh.n_nodes, -2, np.int64)
     out[rows] = np.where(r >= 0, r // 3, -1)
     return out
 
