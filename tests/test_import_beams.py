@@ -8,6 +8,7 @@ exactly) and with Euler-Bernoulli's free-free beam ((beta_n L)^2 / (2 pi L^2) sq
 beta_1 L = 4.730040745, beta_2 L = 7.853204624; Blevins, Formulas for Natural Frequency and Mode
 Shape, 1979, table 8-1); mass, centre of mass and inertia with the sums over the lumped masses."""
 
+import itertools
 import subprocess
 import sys
 from dataclasses import replace
@@ -254,7 +255,7 @@ def test_solid_bar_with_cbar_stiffener(tmp_path):
     K, M = (Ps @ A @ Ps.T + Pb @ B @ Pb.T for A, B in ((solid.K, Kb), (solid.M, Mb)))
     write_punch(tmp_path / "mixed.pch", FEMatrices(K.tocsr(), M.tocsr(), np.column_stack([keys // 8, keys % 8]), "", ""))
     bdf(tmp_path / "mixed.bdf", xyz, lines, [f"CBAR,{900 + k},2,{a},{b},0.,0.,1." for k, (a, b) in
-                                            enumerate(zip(edge[:-1], edge[1:]))])
+                                            enumerate(itertools.pairwise(edge))])
     ends = tuple({"name": name, "type": "plane", "point": [x, 0.0, 0.0], "normal": [1.0, 0.0, 0.0], "tol": 1e-9,
                   "kind": "rbe3"} for name, x in (("END_A", 0.0), ("END_B", lengths[0])))   # no stiffening
 
@@ -280,3 +281,12 @@ def test_solid_bar_with_cbar_stiffener(tmp_path):
     assert len(s.triangles) == 2 * (2 * 2 * divisions[0] + 2) + 2 * 6 * divisions[0]     # bar faces + tube
     with pytest.raises(InputError, match=f"a rotation of node {edge[0]} has no stiffness"):
         reduce(tmp_path / "mixed.bdf", replace(options, interfaces=(f"GRID{edge[0]}",)))
+
+
+def test_beam_deck_in_the_wrong_units_is_refused(tmp_path):
+    """No element volume in a beam model: its MAT1 card (E, rho) tells the unit system."""
+    points, elements = beam_points(4)
+    bdf, pch = write_beam_export(tmp_path, "si", points, elements, SECTION)
+    done = cli(bdf, "--matrices", pch, "--interface", "GRID1", "--units", "mm-t-s", "-o", tmp_path / "u.sid.h5")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "run with --units si" in done.stderr and not (tmp_path / "u.sid.h5").exists()

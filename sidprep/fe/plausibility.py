@@ -11,11 +11,14 @@ of sidprep's unit systems puts 1e6 - 1e12 away from any solid.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.material import UNIT_SYSTEMS, Material, UnitSystem
 from sidprep.fe.matrices.deck_sections import deck_materials
+from sidprep.fe.matrices.nastran_deck import is_nastran, nastran_materials
 from sidprep.fe.topology import cell_volumes
 
 #: largest bounding-box edge (m) of a machine part; beyond it the mesh was probably drawn in mm
@@ -129,11 +132,15 @@ def check_model_units(source: str, units: UnitSystem, mass: float, volume: float
 
 def check_imported_units(mesh, M_file, units: UnitSystem, path) -> None:
     """:func:`check_model_units` for K and M imported onto ``mesh`` (FEMesh in metres; an ``.inp``
-    MODEL also gives its materials' E and rho): M_file (3n', 3n') the mass in the file's unit."""
+    MODEL also gives its materials' E and rho, a Nastran deck those of its MAT1 cards; shell and
+    beam models have no element volume, so only these are checked): M_file (3n', 3n') the mass in
+    the file's unit."""
     n = 3 * mesh.n_nodes
     mass = float(M_file[:n, :n].sum()) / 3.0
     volume = float(np.abs(cell_volumes(mesh.points, mesh.cells)).sum()) / units.length_to_m ** 3 if len(mesh.cells) else 0.0
     length = float(np.ptp(mesh.points, axis=0).max()) / units.length_to_m
     materials = deck_materials(mesh.source).values() if str(mesh.source).lower().endswith(".inp") else ()
-    check_model_units(f"{path} with MODEL {mesh.source}", units, mass, volume, length,
-                      [m.E for m in materials if m.E is not None], [m.rho for m in materials if m.rho is not None])
+    moduli, densities = [m.E for m in materials if m.E is not None], [m.rho for m in materials if m.rho is not None]
+    if is_nastran(mesh.source) and Path(mesh.source).is_file():
+        moduli, densities = nastran_materials(mesh.source)
+    check_model_units(f"{path} with MODEL {mesh.source}", units, mass, volume, length, moduli, densities)

@@ -101,6 +101,21 @@ def nastran_mesh(path) -> tuple[meshio.Mesh, np.ndarray]:
     return meshio.Mesh(points, cells), ids
 
 
+def nastran_materials(path) -> tuple[list[float], list[float]]:
+    """(Young's moduli, densities) of the deck's MAT1 cards (MID, E, G, NU, RHO, ...), blanks left
+    out, in the deck's units: what the unit check compares (sidprep.fe.plausibility)."""
+    moduli, densities = [], []
+    for card in cards(path, bulk_only=True):
+        if card[0].rstrip("*").upper() != "MAT1":
+            continue
+        try:
+            moduli += [nastran_real(card[2])] if len(card) > 2 and card[2].strip() else []
+            densities += [nastran_real(card[5])] if len(card) > 5 and card[5].strip() else []
+        except ValueError:
+            raise InputError(f"{path}: MAT1 {card[1]} has a field that is not a number; fix the deck") from None
+    return moduli, densities
+
+
 def grid_position(card, path) -> np.ndarray:
     """(3,) position of a GRID card in the basic system; InputError for a local input (CP) or
     displacement (CD) coordinate system."""
