@@ -290,3 +290,19 @@ def test_beam_deck_in_the_wrong_units_is_refused(tmp_path):
     done = cli(bdf, "--matrices", pch, "--interface", "GRID1", "--units", "mm-t-s", "-o", tmp_path / "u.sid.h5")
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert "run with --units si" in done.stderr and not (tmp_path / "u.sid.h5").exists()
+
+
+def test_boundary_faces_of_a_solid_deck_are_no_shells(tmp_path):
+    """Plane elements of a solid deck (a face group as gmsh exports it, CPS4) only name a node set:
+    the surface is the bar's outer faces, not shells drawn on both sides."""
+    from hex_decks import hex_bar
+
+    from sidprep.fe.matrices.deck import read_model
+
+    lines, ids, _ = hex_bar(np.array([0.2, 0.02, 0.02]), (4, 1, 1))
+    face = [ids[0, j, k] for j, k in ((0, 0), (1, 0), (1, 1), (0, 1))]
+    (tmp_path / "bar.inp").write_text("\n".join(lines + ["*ELEMENT, TYPE=CPS4, ELSET=FACE",
+                                                         "100, " + ", ".join(map(str, face))]) + "\n")
+    model = read_model(tmp_path / "bar.inp")
+    assert len(model.surface) == 2 * (4 * 4 + 2)                 # 18 outer quadrilaterals
+    assert sorted(model.node_ids[model.node_sets["FACE"]]) == sorted(face)

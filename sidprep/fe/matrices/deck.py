@@ -64,10 +64,20 @@ def read_model(path, *, size=None, order: int = 2) -> FEMesh:
         return read_mesh(path)                             # a tetrahedral deck: read once, as a sidprep mesh
     m, ids = nastran_mesh(path) if is_nastran(path) else (
         meshio_read(path, abaqus_lines(path) if path.suffix.lower() == ".inp" else None), None)
-    types = {b.type for b in m.cells if b.type in FAMILY or b.type in STRUCTURAL}
+    structural = has_structural_elements(path)
+    types = {b.type for b in m.cells if b.type in FAMILY or structural and b.type in STRUCTURAL}
     if types and types <= {"tetra", "tetra10"}:
         return read_mesh(path)
-    return element_model(m, path, ids)
+    return element_model(m, path, ids, structural)
+
+
+def has_structural_elements(path) -> bool:
+    """Whether the deck's triangles, quadrilaterals and lines are shells and beams: every one of a
+    Nastran deck (CTRIA3, CQUAD4, CBAR, ...), those of an Abaqus / CalculiX deck with shell or beam
+    types (S4, B31, ...); in other formats and other decks they are boundary faces or edges (plane
+    elements, gmsh's physical groups) and only name node sets."""
+    path = Path(path)
+    return is_nastran(path) or path.suffix.lower() == ".inp" and bool(abaqus_types(path) & set(STRUCTURAL_NODES))
 
 
 def several_node_blocks(path) -> FEMesh:
@@ -95,11 +105,13 @@ def abaqus_types_of(line: str) -> set[str]:
     return {kind.rstrip("RHIM") if kind.rstrip("RHIM") in ELEMENT_NODES else kind}
 
 
-def element_model(m, path, node_ids=None) -> FEMesh:
+def element_model(m, path, node_ids=None, structural: bool = False) -> FEMesh:
     """The FEMesh of a meshio mesh of solid, shell and beam elements of any type (module docstring);
-    ``node_ids``: the FE code's node numbers of ``m.points`` (None: read from the deck)."""
+    ``node_ids``: the FE code's node numbers of ``m.points`` (None: read from the deck);
+    ``structural``: its triangles, quadrilaterals and lines are shells and beams
+    (:func:`has_structural_elements`), else only sets of nodes."""
     blocks = [b for b in m.cells if b.type in FAMILY]
-    others = [b for b in m.cells if b.type in STRUCTURAL]
+    others = [b for b in m.cells if structural and b.type in STRUCTURAL]
     if not blocks and not any(STRUCTURAL[b.type] != "vertex" for b in others):
         raise InputError(f"{path}: no solid, shell or beam elements (tetrahedra, hexahedra, wedges, pyramids, "
                          "triangles, quadrilaterals, lines); give the deck with the model's elements")
@@ -194,7 +206,8 @@ def deck_elements(path) -> list[np.ndarray]:
     if path.suffix.lower() != ".inp":
         m, ids = nastran_mesh(path) if is_nastran(path) else (meshio_read(path), None)
         ids = _node_ids(m, path) if ids is None else ids
-        return [ids[b.data] for b in m.cells if b.type in FAMILY or STRUCTURAL.get(b.type, "vertex") != "vertex"]
+        lines = is_nastran(path)                           # other formats: no shells or beams
+        return [ids[b.data] for b in m.cells if b.type in FAMILY or lines and STRUCTURAL.get(b.type, "vertex") != "vertex"]
     blocks, numbers, per = [], [], 0
     for line in abaqus_lines(path) + ["*END\n"]:
         if line.startswith("**"):
