@@ -18,14 +18,14 @@ cdef class PlanarWork:
 
 
 cpdef PlanarWork planar_work(Py_ssize_t no, Py_ssize_t nd)
-cdef void out_of_plane_system(Evaluation e, const double[::1] ud, const double[::1] lam_full,
-                              const int64_t[::1] planar_rows, const int64_t[::1] dropped, const int64_t[::1] fixed,
-                              double[:, ::1] a, double[::1] load) noexcept nogil
+cpdef void out_of_plane_system(Evaluation e, const double[::1] ud, const double[::1] lam_full,
+                               const int64_t[::1] planar_rows, const int64_t[::1] dropped, const int64_t[::1] fixed,
+                               double[:, ::1] a, double[::1] load) noexcept nogil
 cpdef Py_ssize_t independent_equations(const double[:, ::1] a, int64_t[::1] rows) noexcept
-cdef void minimum_norm_solution(const double[:, ::1] a, const double[::1] load, const int64_t[::1] rows,
-                                double[:, ::1] g, double[::1] z, double[::1] x) noexcept nogil
-cdef bint solves(const double[:, ::1] a, const double[::1] x, const double[::1] load) noexcept nogil
-cdef void lstsq(const double[:, ::1] a, const double[::1] load, double[::1] x) noexcept nogil
-cdef void out_of_plane_reactions(Evaluation e, const double[::1] ud, double[::1] lam_full,
-                                 const int64_t[::1] planar_rows, const int64_t[::1] dropped,
-                                 const int64_t[::1] fixed, PlanarWork w) noexcept nogil
+cpdef void minimum_norm_solution(const double[:, ::1] a, const double[::1] load, const int64_t[::1] rows,
+                                 double[:, ::1] g, double[::1] z, double[::1] x) noexcept nogil
+cpdef bint solves(const double[:, ::1] a, const double[::1] x, const double[::1] load) noexcept nogil
+cpdef void lstsq(const double[:, ::1] a, const double[::1] load, double[::1] x) noexcept nogil
+cpdef void out_of_plane_reactions(Evaluation e, const double[::1] ud, double[::1] lam_full,
+                                  const int64_t[::1] planar_rows, const int64_t[::1] dropped,
+                                  const int64_t[::1] fixed, PlanarWork w) noexcept nogil
