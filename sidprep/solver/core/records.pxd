@@ -40,6 +40,7 @@ cdef class MarkerKinematics:
     cdef readonly double[:, :, ::1] AM                      # (nmk, 3, 3)
     cdef readonly double[:, :, ::1] JT, JR, JTF, JRF        # (nmk, 3, w_max); JTF is JT unless load-stiffened
     cdef readonly bint stiffened                            # JTF, JRF are arrays of their own
+    cdef readonly double[:, ::1] work                       # (w_max + 24, w_max) scratch of the kernels that write kin
 
 
 cdef class Evaluation:
