@@ -51,16 +51,6 @@ cdef int C_RECOVER = RECOVER_STEPS
 cdef double C_CONTACT_STEPS = CONTACT_STEPS, C_TAIL = CROSSING_TAIL, C_REST = CONTACT_REST_SPEED
 
 
-def genalpha_parameters(double rho_inf):
-    """(alpha_m, alpha_f, gamma, beta) of Chung & Hulbert (1993) for spectral radius rho_inf."""
-    if not 0.0 <= rho_inf <= 1.0:
-        raise ValueError(f"rho_inf must be in [0, 1], got {rho_inf}")
-    am = (2 * rho_inf - 1) / (rho_inf + 1)
-    af = rho_inf / (rho_inf + 1)
-    gamma = 0.5 + af - am
-    return am, af, gamma, 0.25 * (gamma + 0.5) ** 2
-
-
 cdef class GaState:
     """The state of the method (genalpha.pxd); ``GaState(R, A, Q, u, ud, a, lam)`` takes the
     arrays themselves (C-contiguous float64), ``GaState.zeros(L, m)`` makes one of zeros."""
