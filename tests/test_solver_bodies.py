@@ -10,7 +10,7 @@ import pytest
 
 from sidprep.sid.model import sid_invariants
 from sidprep.solver.model.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
-from sidprep.solver.equations.constraints import marker_kinematics
+from sidprep.solver.core.constraints import marker_kinematics
 from sidprep.solver.compile.layout import body_matrices
 from sidprep.solver.equations.rotations import exp_so3, skew
 
