@@ -4,6 +4,7 @@ rows (sidprep/solver/core/effects.pyx) against their numba originals
 two-link example and the absolute-nodal test scenes at random states, whole RK4 runs sample by
 sample, elastic_rows on the example bodies' terms."""
 
+import functools
 import math
 from pathlib import Path
 
@@ -131,3 +132,71 @@ def test_whole_rk4_runs_equal_numba(name):
     ts, Ys, ts2, Ys2 = (np.concatenate(c) for c in zip(*chunks))
     assert len(ts) == len(ts2) > 10 and np.array_equal(ts, ts2)
     assert relative(Ys2, Ys) < RUN_RTOL
+
+
+#: the example scenes whose flexible bodies' SID files are bundled
+EFFECT_SCENES = ("beam_buckling", "beam_slider_crank", "flexible_pendulum", "helicopter_rotor")
+
+
+def flexible_bodies(example):
+    from sidprep.solver.model.bodies import FlexibleBody
+    from sidprep.solver.scene import load_scene
+
+    system = load_scene(ROOT / "examples" / example / "scene.toml").system
+    return system, [b for b in system.bodies if isinstance(b, FlexibleBody)]
+
+
+@functools.cache
+def numba_elastic_rows():
+    """The numba kernel effects.py had before the core (its reference here), compiled on first use."""
+    import numba
+
+    from sidprep.solver.equations.body import body_equations
+
+    @numba.njit
+    def elastic_rows(pack, w, gk, ud, modes):
+        F, off, flags, mass = pack
+        nq, n = modes.shape
+        out = np.zeros((w.shape[0], 1 + 2 * n, nq))
+        zero = np.zeros(nq)
+        for s in range(w.shape[0]):
+            m, h = body_equations(F, off, flags, mass, zero, zero, w[s], gk[s])
+            out[s, 0] = (m @ ud[s] - h)[6:]
+            for j in range(n):
+                mode = modes[:, j].copy()
+                m, h = body_equations(F, off, flags, mass, mode, zero, w[s], gk[s])
+                out[s, 1 + j] = (m @ ud[s] - h)[6:] - out[s, 0]
+                m, h = body_equations(F, off, flags, mass, zero, mode, w[s], gk[s])
+                out[s, 1 + n + j] = (m @ ud[s] - h)[6:] - out[s, 0]
+        return out
+
+    return elastic_rows
+
+
+@pytest.mark.parametrize("example", EFFECT_SCENES)
+def test_elastic_rows_equal_numba_on_the_example_bodies(example):
+    from sidprep.solver.core.effects import elastic_rows
+    from sidprep.solver.effects import assembled, choose_effects, free_modes, packed, probe_states
+    from sidprep.solver.model.effects import EFFECTS
+
+    system, bodies = flexible_bodies(example)
+    assert bodies
+    rng = np.random.default_rng(4)
+    for body in bodies:
+        chosen = choose_effects(system, body, "auto")[0]
+        avail = body.available()
+        terms = packed(body, chosen)[1]
+        modes = np.ascontiguousarray(free_modes(terms.Ke, terms.Me)[1])
+        nq = modes.shape[0]
+        w, a, wdot, g = probe_states()
+        probes = (w, g, np.concatenate([a, wdot, np.zeros((len(w), nq))], axis=1), modes)
+        states = (rng.normal(size=(3, 3)), rng.normal(size=(3, 3)), rng.normal(size=(3, 6 + nq)),
+                  rng.normal(size=(nq, 2)))
+        sets = [chosen, assembled({e for e in EFFECTS if avail[e]}, avail)]
+        sets += [assembled(chosen | {e}, avail) for e in EFFECTS if avail[e] and e not in chosen]
+        for effects in sets:
+            pack = packed(body, effects)[0]
+            for args in (probes, states):
+                want = numba_elastic_rows()(pack, *args)
+                got = elastic_rows(pack, *args)
+                assert got.shape == want.shape and relative(got, want) < KERNEL_RTOL, (body.name, sorted(effects))
