@@ -14,7 +14,6 @@ from Cython.Build import cythonize
 from scipy.spatial.transform import Rotation
 from setuptools import Distribution, Extension
 
-from sidprep.solver.compile import layout as layout_module
 from sidprep.solver.core import constraints as core_constraints
 from sidprep.solver.core import forces as core_forces
 from sidprep.solver.core import records
@@ -182,13 +181,13 @@ def test_add_joint_load_random(probe):
 
 
 def test_constants_are_numbas_and_the_layouts():
-    """The kinds the layout writes and the tables' widths are the numba modules' and layout.py's."""
+    """The kinds are the numba modules'; the tables' widths those of the layouts build_layout makes."""
     for name in ("NO_COORDINATE", "ANGLE", "SLIDE"):
         assert getattr(core_constraints, name) == getattr(numba_constraints, name)
     for name in ("FE_FORCE", "FE_TORQUE", "FE_SPRING", "FE_JOINT_FORCE", "FE_FRICTION", "FE_MOVING_MASS"):
         assert getattr(core_forces, name) == getattr(numba_forces, name)
-    assert (core_forces.FE_INT_COLUMNS, core_forces.FE_PAR_COLUMNS) == (layout_module.FE_INT_COLUMNS,
-                                                                        layout_module.FE_PAR_COLUMNS)
+    L = scene_run(SCENES[0]).L
+    assert (L.fe_int.shape[1], L.fe_par.shape[1]) == (core_forces.FE_INT_COLUMNS, core_forces.FE_PAR_COLUMNS)
 
 
 @functools.cache
