@@ -229,15 +229,14 @@ def test_scene_markers_and_joints(probe, name):
             phi, psi = L.shapes[o:o + 3 * nq].reshape(3, nq), L.shapes[o + 3 * nq:o + 6 * nq].reshape(3, nq)
             p, m, d = np.empty(3), np.empty((3, 3)), np.empty(3)
             numba_constraints.marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], phi, psi, p, m, d)
-            got = probe.marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], np.hstack([phi, np.zeros((3, 1))]),
-                                    np.hstack([psi, np.zeros((3, 1))]))
+            wide_phi, wide_psi = np.hstack([phi, np.zeros((3, 1))]), np.hstack([psi, np.zeros((3, 1))])
+            got = probe.marker_pose(R[b], A[b], q, L.mk_pos[k], L.mk_rot[k], wide_phi, wide_psi)
             assert close(got[0], p) and close(got[1], m) and close(got[2], d)
             assert close(got[0], kin.P[k]) and close(got[1], kin.AM[k])
             jt, jr = np.zeros(kin.JT[k].shape), np.zeros(kin.JR[k].shape)
-            probe.marker_jacobians(A[b], d, np.hstack([phi, np.zeros((3, 1))]), np.hstack([psi, np.zeros((3, 1))]),
-                                   nq, jt, jr)
+            probe.marker_jacobians(A[b], d, wide_phi, wide_psi, nq, jt, jr)
             assert close(jt, kin.JT[k]) and close(jr, kin.JR[k])
-            for which, (o0, jac, force) in enumerate([(L.mk_k0[k, 0], jt, kin.JTF[k]), (L.mk_k0[k, 1], jr, kin.JRF[k])]):
+            for o0, jac, force in [(L.mk_k0[k, 0], jt, kin.JTF[k]), (L.mk_k0[k, 1], jr, kin.JRF[k])]:
                 if o0 >= 0:
                     out = np.zeros_like(jac)
                     probe.stiffened_jacobian(jac, A[b], q, L.shapes[o0:o0 + 3 * nq * nq].reshape(3, nq, nq), out)
