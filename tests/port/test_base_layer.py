@@ -14,7 +14,7 @@ from port_probe import ROOT, close, compile_probe
 from scipy.interpolate import CubicSpline, PPoly
 from scipy.spatial.transform import Rotation
 
-from sidprep.solver.compile.layout import pack_terms
+from sidprep.solver.compile.layout import compiled_layout, pack_terms
 from sidprep.solver.core import body as core_body
 from sidprep.solver.core import curves as core_curves
 from sidprep.solver.core import records
@@ -149,8 +149,13 @@ def test_python_rotations():
 def test_records_as_the_numba_workspaces(name):
     """layout_record views the layout's own arrays; evaluation_arrays has the shapes of numba's
     and shares B_F, JTF, JRF with B, JT, JR exactly when no marker is load-stiffened."""
-    arrays = scene_run(name).L
+    run = scene_run(name)
+    arrays = run.L
     L = records.layout_record(arrays)
+    assert records.layout_record(L) is L
+    built = compiled_layout(run.system, run.terms, run.stiffened)
+    for field, a in built.arrays._asdict().items():
+        assert np.array_equal(a, getattr(arrays, field), equal_nan=True) and np.array_equal(getattr(built, field), a, equal_nan=True)
     for field, a in arrays._asdict().items():
         assert getattr(L.arrays, field) is a
         assert np.shares_memory(np.asarray(getattr(L, field)), a) or a.size == 0
@@ -280,6 +285,8 @@ def check_body(probe, terms, rng, scale):
         m, h = np.full((6 + nq + 1, 6 + nq + 2), np.nan), np.full(6 + nq + 1, np.nan)
         probe.body_equations(F, off, flags, mass, q, qd, w, gk, m, h)
         assert close(m[:6 + nq, :6 + nq], want_m) and close(h[:6 + nq], want_h)
+        got_m, got_h = core_body.body_matrices(F, off, flags, mass, q, qd, w, gk)
+        assert close(got_m, want_m) and close(got_h, want_h)
         assert np.isnan(m[:, 6 + nq:]).all() and np.isnan(m[6 + nq:]).all() and np.isnan(h[6 + nq:]).all()
         for got, want in zip(probe.inertia_terms(F, off, flags, q, 5), numba_body.inertia_terms(F, off, flags, nq, q)):
             assert close(got, want)

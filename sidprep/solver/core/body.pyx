@@ -17,6 +17,8 @@ The body's SID arrays live in one flat float array F at the offsets ``off`` (see
 compile/layout.py, ``pack_terms``); absent terms have offset -1 and a zero flag.
 """
 
+import numpy as np
+
 from sidprep.solver.core.rotations cimport cross3, dot3, matvec3, tmatvec3
 
 
@@ -280,3 +282,19 @@ cdef (double, double) body_potentials(const double* F, const int64_t* off, const
                     for a in range(3):
                         grav -= 0.5 * q[k] * ct1[j * 3 * nq + 3 * k + a] * gk[a] * q[j]
     return strain, grav
+
+
+def body_matrices(const double[::1] F, const int64_t[::1] off, const int64_t[::1] flags, double mass,
+                  const double[::1] q, const double[::1] qd, const double[::1] w, const double[::1] gk):
+    """(M_K (6+nq, 6+nq), h_K (6+nq,)) of body_equations, for Python: the packed terms (F, off,
+    flags) of compile/layout.py pack_terms, the mass (kg), q, qd (nq,), w (3,) rad/s and the
+    gravity gk (3,) m/s^2 in K."""
+    cdef Py_ssize_t nq = q.shape[0]
+    if qd.shape[0] != nq or w.shape[0] != 3 or gk.shape[0] != 3 or off.shape[0] != N_TERMS or flags.shape[0] != N_FLAGS:
+        raise ValueError(f"body_matrices: q, qd must be (nq,), w and gk (3,), off ({N_TERMS},), flags ({N_FLAGS},)")
+    m, h = np.empty((6 + nq, 6 + nq)), np.empty(6 + nq)
+    cdef double[:, ::1] m_ = m
+    cdef double[::1] h_ = h
+    body_equations(&F[0], &off[0], &flags[0], mass, nq, &q[0] if nq else NULL, &qd[0] if nq else NULL, &w[0], &gk[0],
+                   &m_[0, 0], 6 + nq, &h_[0])
+    return m, h

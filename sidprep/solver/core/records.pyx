@@ -22,7 +22,10 @@ cdef class Layout:
 
 def layout_record(arrays) -> Layout:
     """The Layout record of compile/layout.py's Layout namedtuple ``arrays`` (its arrays made
-    C-contiguous int64 / float64 where they are not; ``arrays`` holds the ones the record views)."""
+    C-contiguous int64 / float64 where they are not; ``arrays`` holds the ones the record views);
+    a Layout record itself is returned as it is."""
+    if isinstance(arrays, Layout):
+        return arrays
     arrays = arrays._replace(**{name: np.ascontiguousarray(a, dtype=np.int64 if name in INTEGER_FIELDS else float)
                                 for name, a in arrays._asdict().items()})
     cdef Layout L = Layout.__new__(Layout)
