@@ -18,7 +18,7 @@ from sidprep.errors import InputError
 from sidprep.sid.checks import physical_problems
 from sidprep.sid.io import read_sid
 from sidprep.sid.model import ge_tensor, gr_tensor, inertia_matrix
-from sidprep.solver.equations.rotations import as_rotation
+from sidprep.solver.core.rotations import as_rotation
 from sidprep.solver.model.effects import MASS_MATRIX_EFFECTS
 
 #: relative size below which a split-off part of a SID member counts as round-off (zero)
