@@ -84,6 +84,8 @@ def test_rotation_maps_random(probe):
         assert close(probe.rotation_kernel("se3_jacobian_solve", theta, v), want)
         assert close(probe.rotation_kernel("se3_jacobian_solve", theta, v, alias=1), want)
         assert close(core_rotations.rotation_matrix(theta), numba_rotations.exp_so3(theta))
+        assert close(core_rotations.se3_jacobian_matrix(theta), numba_rotations.se3_jacobian(theta))
+        assert close(core_rotations.solve_se3_jacobian(theta, v), want)
 
 
 def test_vector_kernels_random(probe):

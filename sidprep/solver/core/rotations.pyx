@@ -76,6 +76,25 @@ def skew_matrix(a) -> np.ndarray:
     return out
 
 
+def se3_jacobian_matrix(theta) -> np.ndarray:
+    """V(theta) (3, 3) of the SE(3) exponential (se3_jacobian) of the rotation vector theta (3,), rad."""
+    cdef double[::1] t = np.ascontiguousarray(theta, dtype=float).reshape(3)
+    out = np.empty((3, 3))
+    cdef double[:, ::1] o = out
+    se3_jacobian(&t[0], &o[0, 0])
+    return out
+
+
+def solve_se3_jacobian(theta, v) -> np.ndarray:
+    """V(theta)^-1 v (3,) in closed form (se3_jacobian_solve); theta, v (3,)."""
+    cdef double[::1] t = np.ascontiguousarray(theta, dtype=float).reshape(3)
+    cdef double[::1] x = np.ascontiguousarray(v, dtype=float).reshape(3)
+    out = np.empty(3)
+    cdef double[::1] o = out
+    se3_jacobian_solve(&t[0], &x[0], &o[0])
+    return out
+
+
 def matrix_to_quaternion(rot) -> np.ndarray:
     """Unit quaternion [e0, e1, e2, e3] (e0 >= 0) of a rotation matrix (3, 3) (Shepperd's method)."""
     rot = np.asarray(rot, dtype=float)
