@@ -154,7 +154,11 @@ def test_records_as_the_numba_workspaces(name):
     run = scene_run(name)
     arrays = run.L
     L = records.layout_record(arrays)
-    assert records.layout_record(L) is L
+    assert records.layout_record(L) is L and L.arrays is arrays
+    odd = arrays._replace(qoff=arrays.qoff.astype(np.int32), mk_pos=np.asfortranarray(arrays.mk_pos))
+    converted = records.layout_record(odd)
+    assert converted.arrays.qoff.dtype == np.int64 and converted.arrays.mk_pos.flags.c_contiguous
+    assert np.array_equal(np.asarray(converted.qoff), arrays.qoff) and np.array_equal(converted.mk_pos, arrays.mk_pos)
     built = compiled_layout(run.system, run.terms, run.stiffened)
     for field, a in built.arrays._asdict().items():
         assert np.array_equal(a, getattr(arrays, field), equal_nan=True) and np.array_equal(getattr(built, field), a, equal_nan=True)

@@ -26,8 +26,10 @@ def layout_record(arrays) -> Layout:
     a Layout record itself is returned as it is."""
     if isinstance(arrays, Layout):
         return arrays
-    arrays = arrays._replace(**{name: np.ascontiguousarray(a, dtype=np.int64 if name in INTEGER_FIELDS else float)
-                                for name, a in arrays._asdict().items()})
+    typed = {name: np.ascontiguousarray(a, dtype=np.int64 if name in INTEGER_FIELDS else float)
+             for name, a in arrays._asdict().items()}
+    if any(a is not getattr(arrays, name) for name, a in typed.items()):
+        arrays = arrays._replace(**typed)
     cdef Layout L = Layout.__new__(Layout)
     L.arrays = arrays
     L.qoff, L.uoff, L.gravity = arrays.qoff, arrays.uoff, arrays.gravity
