@@ -72,6 +72,7 @@ LAYERS = (
 #: layer and the ones before it only.  The compiled formulas know no description; the descriptions
 #: use their rotations (each formula once)
 SOLVER_LAYERS = (
+    Layer("core", ("sidprep/solver/core/",)),
     Layer("equations", ("sidprep/solver/equations/",)),
     Layer("model", ("sidprep/solver/model/",)),
     Layer("compile", ("sidprep/solver/compile/",)),
