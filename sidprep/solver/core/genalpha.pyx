@@ -413,7 +413,8 @@ def ga_loop(GaRun run, GaState x, double t_end, Py_ssize_t capacity):
             trial.ud[:] = xc.ud
             trial.lam[:] = xc.lam
         if have_d and D_h != h:  # the stiffness part scales with h^2; a poor fit is caught by the monitor
-            scale = (h / D_h) ** 2
+            scale = h / D_h
+            scale = scale * scale  # (h / D_h)^2 as a product (pow may differ from it in the last bit)
             for i in range(nf):
                 for j in range(nf):
                     D[i, j] = D[i, j] * scale

@@ -51,13 +51,16 @@ from collections import namedtuple
 
 import numpy as np
 
+from sidprep.solver.core import genalpha as core
+from sidprep.solver.core.outputs import PostConstants as CorePostConstants
+from sidprep.solver.core.records import layout_record
 from sidprep.solver.equations.assemble import (constraint_power, evaluate_into, evaluation_arrays, has_moving_masses,
                                                markers_into, moving_masses)
 from sidprep.solver.equations.forces import has_stops, stop_states
 from sidprep.solver.equations.rotations import jit, put
 from sidprep.solver.integrators.base import (APPROACH_REACH, CHUNK, FINISHED, LARGE_DEFORMATION, MAX_STEPS,
                                              NEWTON_FAILED, RUNNING, Samples, Stepper, advance_pose, constraint_rows,
-                                             expand, first_samples, lu_factor, lu_solve, new_status, sample_buffers,
+                                             expand, first_samples, lu_factor, lu_solve, sample_buffers,
                                              store_sample)
 from sidprep.solver.integrators.outputs import sample_outputs
 from sidprep.solver.integrators.runge_kutta import hermite
@@ -509,49 +512,56 @@ def ga_loop(L, c, ws, x, t, t_end, h, next_index, refs, stats, capacity, post): 
     return x, t, h, next_index, samples, sample_outputs(post.L, post.L0, samples, post.c)
 
 
+def core_post(post):
+    """The PostSetup ``post`` with the core's records: its layouts as Layout records (one record
+    when L0 is L) and its PostConstants as the core's."""
+    L = layout_record(post.L)
+    L0 = L if post.L0 is post.L else layout_record(post.L0)
+    c = post.c if isinstance(post.c, CorePostConstants) else CorePostConstants(*post.c)
+    return post._replace(L=L, L0=L0, c=c)
+
+
 class GeneralizedAlpha(Stepper):
-    """The generalised-alpha stepper (module doc)."""
+    """The generalised-alpha stepper (module doc) on the compiled loop (core/genalpha.pyx ga_loop)."""
 
     name = "genalpha"
 
     def __init__(self, problem, state, settings):
         super().__init__(problem, state, settings)
         am, af, gamma, beta = genalpha_parameters(settings.rho_inf)
-        prm = np.array([am, af, gamma, beta, beta * (1 - af) / (1 - am)])
-        self.constants = GaConstants(prm, body_frame_free(problem.free, problem.L.uoff), problem.kept, problem.weights, float(problem.length),
-                                     settings.deformation_limit * problem.sizes, float(settings.newton_tol),
-                                     float(settings.tolerance or 0.0), float(settings.atol), float(settings.h),
-                                     float(settings.output_dt or 0.0))
-        self.a = np.full(state.u.size, np.nan)  # in the coordinates of se3.py: ga_loop starts it at ud
-        self.h = settings.h
-        self.next_index = 1
-        self.workspace = ga_workspace(problem.L, self.constants)
-        self.status_record = new_status(settings.max_steps)
+        L = layout_record(problem.L)
+        constants = core.GaConstants((am, af, gamma, beta, beta * (1 - af) / (1 - am)),
+                                     body_frame_free(problem.free, np.asarray(L.uoff)), problem.kept, problem.weights,
+                                     float(problem.length), settings.deformation_limit * problem.sizes,
+                                     float(settings.newton_tol), float(settings.tolerance or 0.0),
+                                     float(settings.atol), float(settings.h), float(settings.output_dt or 0.0))
+        self.loop = core.GaRun(L, constants, problem.refs, settings.max_steps, core_post(problem.post), settings.h)
+        self.loop.t = state.t
+        # the loop's state (its own arrays; a in the coordinates of se3.py: ga_loop starts it at ud)
+        self.x = core.GaState(*(np.array(v, dtype=float) for v in (state.R, state.A, state.Q, state.u, state.ud)),
+                              np.full(state.u.size, np.nan), np.array(state.lam, dtype=float))
         self.outputs = []
 
     def advance(self, t_stop: float) -> Samples:
-        p, s, st = self.problem, self.state, self.settings
-        x = GaState(s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam)
-        x, s.t, self.h, self.next_index, buf, out = ga_loop(p.L, self.constants, self.workspace, x, s.t, t_stop,
-                                                            self.h, self.next_index, p.refs, self.status_record, CHUNK,
-                                                            p.post)
+        p, s, st, loop = self.problem, self.state, self.settings, self.loop
+        samples, out = core.ga_loop(loop, self.x, t_stop, CHUNK)
         self.outputs.append(out)
-        s.R, s.A, s.Q, s.u, s.ud, self.a, s.lam = x
-        record = self.status_record[0]
-        code = int(record["code"])
-        if code == MAX_STEPS:
+        s.t = loop.t
+        s.R, s.A, s.Q, s.u, s.ud, _, s.lam = (v.copy() for v in self.x.arrays())
+        record = loop.status
+        if record.code == MAX_STEPS:
             self.status, self.message = "failed", (f"max_steps = {st.max_steps} reached at t = {s.t:.6g} s; raise "
                                                    "max_steps or the step size h")
-        elif code == LARGE_DEFORMATION:
-            body, deflection = int(record["body"]), float(record["deflection"])
-            self.status, self.large_deformation = "failed", (body, deflection, s.t + self.h)
-            self.message = (f"body {body} left its small-deformation range at t = {s.t + self.h:.6g} s "
+        elif record.code == LARGE_DEFORMATION:
+            body, deflection = int(record.body), float(record.deflection)
+            self.status, self.large_deformation = "failed", (body, deflection, s.t + loop.h)
+            self.message = (f"body {body} left its small-deformation range at t = {s.t + loop.h:.6g} s "
                             f"(deflection {deflection:.3g} m)")
-        elif code == NEWTON_FAILED:
+        elif record.code == NEWTON_FAILED:
             self.status, self.message = "failed", (f"Newton did not converge at t = {s.t:.6g} s even with tiny steps; "
                                                    "check the scene (joint axes, loads, units) or raise newton_tol")
-        elif code == FINISHED and s.t >= p.t_end - 1e-12 * max(1.0, p.t_end):
+        elif record.code == FINISHED and s.t >= p.t_end - 1e-12 * max(1.0, p.t_end):
             self.status = "finished"
         for key in ("steps", "rejected", "newton_iterations", "jacobians", "h_min", "h_max"):
-            self.stats[key] = float(record[key]) if key.startswith("h_") else int(record[key])
-        return Samples(*buf)
+            self.stats[key] = float(getattr(record, key)) if key.startswith("h_") else int(getattr(record, key))
+        return Samples(*samples)
