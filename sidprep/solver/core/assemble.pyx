@@ -61,10 +61,13 @@ cdef void add_rows(double[:, ::1] B, Py_ssize_t r, Py_ssize_t col, const double*
                    const double* jr, Py_ssize_t ld, Py_ssize_t which, Py_ssize_t w) noexcept nogil:
     """B[r, col:col+w] += cT JT + cR JR for marker ``which`` (0: marker 1, 1: marker 2) of the row
     coefficients c (4, 3); jt, jr (3, w) with rows ld apart."""
+    cdef double* row = &B[r, col]
+    cdef double ct, cr
     cdef Py_ssize_t a, k
     for a in range(3):
+        ct, cr = c[6 * which + a], c[6 * which + 3 + a]
         for k in range(w):
-            B[r, col + k] += c[6 * which + a] * jt[a * ld + k] + c[6 * which + 3 + a] * jr[a * ld + k]
+            row[k] += ct * jt[a * ld + k] + cr * jr[a * ld + k]
 
 
 cdef void shape_combination(const double* phi, const double* q, Py_ssize_t nq, const double* base,
@@ -329,9 +332,9 @@ cpdef bint load_stiffened(const int64_t[:, ::1] mk_k0) noexcept nogil:
     return False
 
 
-cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, Py_ssize_t b, const double* r, const double* a,
-                      const double* q, Py_ssize_t nq, double t, double* work) noexcept nogil:
-    """Path marker k (on body b at r, a, q) at time t: its P, AM, VC, WC and Jacobians (zero off
+cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, const double* r, const double* a, const double* q,
+                      Py_ssize_t nq, double t, double* work) noexcept nogil:
+    """Path marker k (on a body at r, a, q) at time t: its P, AM, VC, WC and Jacobians (zero off
     its path: it carries no load there) written into kin; work: 18 nq doubles."""
     cdef Py_ssize_t first = L.mk_path[k, 0], partner = L.mk_path[k, 2], ld = kin.JT.shape[2]
     cdef double s, s_dot = 0.0
@@ -360,7 +363,7 @@ cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, Py_ssize_t b
 cpdef void markers_into(Layout L, MarkerKinematics kin, const double[:, ::1] R, const double[:, :, ::1] A,
                         const double[::1] Q, const double[::1] u, double t) noexcept nogil:
     """Kinematics at time t (s; path markers move) of the markers with L.mk_active (nmk,) != 0
-    (those that joints and forces use; every marker in the layout of ``every_marker``), written
+    (those that joints and forces use; every marker of ``Layout.with_every_marker()``), written
     into the MarkerKinematics kin (records.marker_kinematics(L); zero for the other markers):
     P (nmk, 3), AM (nmk, 3, 3), VEL, OMG (nmk, 3) inertial velocities of the material point (the
     body's motion), the Jacobians JT, JR and the load Jacobians JTF, JRF (nmk, 3, w_max),
@@ -399,7 +402,7 @@ cpdef void markers_into(Layout L, MarkerKinematics kin, const double[:, ::1] R, 
         nq = L.qoff[b + 1] - L.qoff[b]
         q = at(Q, L.qoff[b])
         if L.mk_path[k, 0] >= 0:  # moving along a path: its point, frame and shapes at s(t)
-            path_marker(L, kin, k, b, &R[b, 0], &A[b, 0, 0], q, nq, t, work)
+            path_marker(L, kin, k, &R[b, 0], &A[b, 0, 0], q, nq, t, work)
         else:
             o = L.mk_shape[k]
             marker_pose(&R[b, 0], &A[b, 0, 0], q, nq, &L.mk_pos[k, 0], &L.mk_rot[k, 0, 0], at(L.shapes, o),
