@@ -134,7 +134,7 @@ def rk4_loop(double t, y_start, double t_end, double h, double out_dt, Py_ssize_
     cdef Py_ssize_t ny = len(y_start), ns0 = len(first.t), k, i
     cdef double[::1] y = np.array(y_start, dtype=float), y_old = np.zeros(ny), y_k = np.zeros(ny)
     cdef double[::1] k1 = np.zeros(ny), k2 = np.zeros(ny), k3 = np.zeros(ny), k4 = np.zeros(ny)
-    cdef double[::1] slope_old = np.zeros(ny), stage = np.zeros(ny), swap
+    cdef double[::1] slope_old = np.zeros(ny), stage = np.zeros(ny)
     cdef const double[::1] ft = first.t
     cdef const double[:, :, ::1] fR = first.R
     cdef const double[:, :, :, ::1] fA = first.A
@@ -159,8 +159,8 @@ def rk4_loop(double t, y_start, double t_end, double h, double out_dt, Py_ssize_
         index1_rhs(t + half, stage, p, k3)
         rk4_stage(y, step, k3, stage)
         index1_rhs(t + step, stage, p, k4)
-        swap, y_old, y = y_old, y, swap  # y_old, slope_old: the step's start and its slope
-        swap, slope_old, k1 = slope_old, k1, swap
+        y_old, y = y, y_old  # y_old, slope_old: the step's start and its slope (buffers swapped)
+        slope_old, k1 = k1, slope_old
         t_old = t
         rk4_combine(y_old, step, slope_old, k2, k3, k4, y)
         if not all_finite(y):
