@@ -18,7 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import evaluate_into, evaluation_arrays, every_marker
+from sidprep.solver.core import steps as core_steps
+from sidprep.solver.core.records import Layout, layout_record
+from sidprep.solver.equations.assemble import evaluate_into, evaluation_arrays
 from sidprep.solver.equations.forces import FE_FRICTION
 from sidprep.solver.equations.aot import NumbaValue
 from sidprep.solver.equations.rotations import add, exp_so3, jit, matvec, put, put2, se3_jacobian
@@ -48,8 +50,10 @@ SampleBuffers = namedtuple("SampleBuffers", ["t", "R", "A", "Q", "u", "ud", "lam
 STATUS = np.dtype([("steps", np.int64), ("rejected", np.int64), ("newton_iterations", np.int64),
                    ("jacobians", np.int64), ("h_min", np.float64), ("h_max", np.float64), ("code", np.int64),
                    ("max_steps", np.int64), ("body", np.int64), ("deflection", np.float64)])
-#: status codes of the compiled loops
-RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, LARGE_DEFORMATION = 0, 1, 2, 3, 4
+#: status codes of the compiled loops (core steps.pxd)
+RUNNING, FINISHED, MAX_STEPS, NEWTON_FAILED, LARGE_DEFORMATION = (core_steps.RUNNING, core_steps.FINISHED,
+                                                                  core_steps.MAX_STEPS, core_steps.NEWTON_FAILED,
+                                                                  core_steps.LARGE_DEFORMATION)
 
 
 def new_status(max_steps: int) -> np.ndarray:
@@ -401,21 +405,53 @@ def state_equations(L, R, A, Q, u, t, lam, refs, free, kept, solve):  # pragma: 
 
 #: the empty row and coordinate lists of an evaluation without the index-1 solve
 NO_INDICES = np.zeros(0, np.int64)
+#: a state's MarkerKinematics and Evaluation (core records) as numpy arrays, for callers in Python
+MarkerArrays = namedtuple("MarkerArrays", ["P", "AM", "VEL", "OMG", "JT", "JR", "JTF", "JRF", "VC", "WC"])
+EvaluationArrays = namedtuple("EvaluationArrays", ["M", "f", "g", "B", "BF", "bt", "C", "coords", "loads", "flows",
+                                                   "kin", "crows", "convective"])
 
 
-def evaluate(L, R, A, Q, u, t, lam, refs):
-    """The Evaluation (assemble.evaluate_into) at a state in a fresh workspace, for callers in
-    Python (start, planar check, linearisation); compiled code passes its per-run workspace to
-    evaluate_into."""
-    return state_equations(L, R, A, Q, u, float(t), lam, refs, NO_INDICES, NO_INDICES, False)[0]
+def core_layout(L) -> Layout:
+    """The compiled core's Layout record of L (compile/layout.py's Layout namedtuple, or a record)."""
+    return L if isinstance(L, Layout) else layout_record(L)
+
+
+def contiguous(*arrays) -> list[np.ndarray]:
+    """The arrays as C-contiguous float64 (the core's kernels take them so; no copy when they are)."""
+    return [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
+
+
+def evaluation_values(W) -> EvaluationArrays:
+    """The core Evaluation W as numpy arrays (views of its memory; B_F is B unless load-stiffened)."""
+    kin = MarkerArrays(*(np.asarray(getattr(W.kin, name)) for name in MarkerArrays._fields))
+    return EvaluationArrays(*(kin if name == "kin" else np.asarray(getattr(W, name)) for name in EvaluationArrays._fields))
+
+
+def evaluate(L, R, A, Q, u, t, lam, refs) -> EvaluationArrays:
+    """The Evaluation (core assemble.evaluate_into) at a state in a fresh workspace, as numpy
+    arrays, for callers in Python (start, planar check, linearisation); compiled code passes its
+    per-run workspace to evaluate_into."""
+    R, A, Q, u, lam, refs = contiguous(R, A, Q, u, lam, refs)
+    W = core_steps.state_equations(core_layout(L), R, A, Q, u, float(t), lam, refs, NO_INDICES, NO_INDICES, False)[0]
+    return evaluation_values(W)
+
+
+def moved_pose(L, R, A, Q, dx, body_frame=False):
+    """New (R, A, Q): the pose moved by the increment dx (n,) (core steps.advance_pose), for
+    callers in Python."""
+    R, A, Q, dx = contiguous(R, A, Q, dx)
+    R2, A2, Q2 = np.empty_like(R), np.empty_like(A), np.empty_like(Q)
+    core_steps.advance_pose(core_layout(L), R, A, Q, dx, body_frame, R2, A2, Q2)
+    return R2, A2, Q2
 
 
 def constraint_rows(L) -> int:
     """m_all: the constraint rows of the layout L, every joint's then every driver's."""
-    return int(L.joint_off[-1] + L.drv_joint.shape[0])
+    return int(L.joint_off[L.joint_off.shape[0] - 1] + L.drv_joint.shape[0])
 
 
-def marker_kinematics(L, R, A, Q):
-    """Every marker's MarkerKinematics (assemble.markers_into) at the pose (R, A, Q), at rest at t = 0."""
-    return evaluate(every_marker(L), R, A, Q, np.zeros(int(L.uoff[-1])), 0.0, np.zeros(constraint_rows(L)),
-                    np.zeros(L.joint_off.shape[0] - 1)).kin
+def marker_kinematics(L, R, A, Q) -> MarkerArrays:
+    """Every marker's MarkerKinematics (core assemble.markers_into) at the pose (R, A, Q), at rest at t = 0."""
+    L = core_layout(L)
+    return evaluate(L.with_every_marker(), R, A, Q, np.zeros(int(L.uoff[L.uoff.shape[0] - 1])),
+                    0.0, np.zeros(constraint_rows(L)), np.zeros(L.joint_mk.shape[0])).kin
