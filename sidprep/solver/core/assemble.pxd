@@ -5,7 +5,6 @@ from libc.stdint cimport int64_t
 from sidprep.solver.core.records cimport Evaluation, Layout, MarkerKinematics
 
 
-cpdef bint load_stiffened(const int64_t[:, ::1] mk_k0) noexcept nogil
 cpdef bint has_moving_masses(Layout L) noexcept nogil
 cpdef void markers_into(Layout L, MarkerKinematics kin, const double[:, ::1] R, const double[:, :, ::1] A,
                         const double[::1] Q, const double[::1] u, double t) noexcept nogil

@@ -322,16 +322,6 @@ cdef void path_convection(Layout L, Py_ssize_t first, const double* r, const dou
     wc[2] = scale * (0.5 * (w[3] - w[1]))
 
 
-cpdef bint load_stiffened(const int64_t[:, ::1] mk_k0) noexcept nogil:
-    """Whether a marker is load-stiffened (K0F / K0M; mk_k0 (nmk, 2) of the layout): B_F, JTF,
-    JRF differ from B, JT, JR only then."""
-    cdef Py_ssize_t k
-    for k in range(mk_k0.shape[0]):
-        if mk_k0[k, 0] >= 0 or mk_k0[k, 1] >= 0:
-            return True
-    return False
-
-
 cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, const double* r, const double* a, const double* q,
                       Py_ssize_t nq, double t, double* work) noexcept nogil:
     """Path marker k (on a body at r, a, q) at time t: its P, AM, VC, WC and Jacobians (zero off

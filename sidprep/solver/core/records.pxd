@@ -56,3 +56,6 @@ cdef class Evaluation:
     cdef readonly MarkerKinematics kin
     cdef readonly double[:, :, ::1] crows                   # (nj, 4, 3)
     cdef readonly double[::1] convective                    # (nj,)
+
+
+cpdef bint load_stiffened(const int64_t[:, ::1] mk_k0) noexcept nogil

@@ -53,12 +53,12 @@ cdef Py_ssize_t widest_body(Layout L):
     return wmax
 
 
-cdef bint any_load_stiffened(Layout L):
-    """Whether a marker of L is load-stiffened (its K0F or K0M stored): only then do B_F, JTF, JRF
-    differ from B, JT, JR."""
+cpdef bint load_stiffened(const int64_t[:, ::1] mk_k0) noexcept nogil:
+    """Whether a marker is load-stiffened (K0F / K0M; mk_k0 (nmk, 2) of the layout): only then do
+    B_F, JTF, JRF differ from B, JT, JR."""
     cdef Py_ssize_t k
-    for k in range(L.mk_k0.shape[0]):
-        if L.mk_k0[k, 0] >= 0 or L.mk_k0[k, 1] >= 0:
+    for k in range(mk_k0.shape[0]):
+        if mk_k0[k, 0] >= 0 or mk_k0[k, 1] >= 0:
             return True
     return False
 
@@ -77,7 +77,7 @@ def marker_kinematics(Layout L) -> MarkerKinematics:
     w_max = max 6 + nq, and ``work`` (w_max + WORK_EXTRA_ROWS, w_max) is the kernels' scratch."""
     cdef Py_ssize_t nmk = L.mk_body.shape[0], wmax = widest_body(L)
     cdef MarkerKinematics kin = MarkerKinematics.__new__(MarkerKinematics)
-    kin.stiffened = any_load_stiffened(L)
+    kin.stiffened = load_stiffened(L.mk_k0)
     kin.P, kin.VEL, kin.OMG = np.zeros((nmk, 3)), np.zeros((nmk, 3)), np.zeros((nmk, 3))
     kin.VC, kin.WC = np.zeros((nmk, 3)), np.zeros((nmk, 3))
     kin.AM = np.zeros((nmk, 3, 3))
