@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sidprep.solver import SolverSettings
 from sidprep.solver.absolute_nodal.scene import is_absolute_nodal_scene
 from sidprep.solver.core import assemble as core
 from sidprep.solver.core.records import evaluation_arrays, layout_record, load_stiffened, marker_kinematics
 from sidprep.solver.equations import assemble as numba_kernels
 from sidprep.solver.equations.rotations import exp_so3
-from sidprep.solver import SolverSettings
 from sidprep.solver.run import Run
 from sidprep.solver.scene import load_scene
 from sidprep.tables import read_toml_text
@@ -61,7 +61,8 @@ def sliding_on_a_beam():
     friction on its deformed axis (OnPath: the projection of the mass onto the path) and a
     moving mass driven along the axis by a table."""
     from sidprep.reduction.beam import beam_options_from_table, beam_sid
-    from sidprep.solver import Fixed, FlexibleBody, JointFriction, MovingMass, OnPath, RigidBody, System, TabulatedMotion
+    from sidprep.solver import (Fixed, FlexibleBody, JointFriction, MovingMass, OnPath, RigidBody, System,
+                                TabulatedMotion)
 
     sid = beam_sid(beam_options_from_table({"length": 15.0, "section": "rectangle:0.1,0.1", "E": 2.1e11, "nu": 0.3,
                                             "rho": 7850.0, "bc": "pinned-pinned", "modes": "xz:1-4",
