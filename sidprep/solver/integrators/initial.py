@@ -102,16 +102,15 @@ def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, length):
     on their subset independent at the placed pose, provided the dropped redundant rows then miss
     by less than REDUNDANT_MISMATCH ``length`` (m, the system length; e.g. the pins of a rigid
     loop micrometres out of plane); otherwise InputError naming the worst joint."""
-    L = core_layout(L)
+    constraints_at = PoseConstraints(L, t, refs)
     try:
-        return damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names)
+        return damped_gauss_newton(constraints_at, R, A, Q, kept, weights, names)
     except InputError as failure:
-        constraints_at = PoseConstraints(L, t, refs)
         independent = kept[independent_rows(constraints_at(R, A, Q)[1][kept])]
         if independent.size == kept.size:
             raise
         try:
-            R2, A2, Q2 = damped_gauss_newton(L, R, A, Q, t, refs, independent, weights, names)
+            R2, A2, Q2 = damped_gauss_newton(constraints_at, R, A, Q, independent, weights, names)
         except InputError:
             raise failure from None
         if np.max(np.abs(constraints_at(R2, A2, Q2)[0][kept])) >= REDUNDANT_MISMATCH * length:
@@ -119,12 +118,13 @@ def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, length):
         return R2, A2, Q2
 
 
-def damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=True):
-    """(R, A, Q) with g = 0 on the ``kept`` rows: Levenberg-Marquardt over the rigid-body
-    coordinates, then over all (module doc); InputError naming the worst joint."""
+def damped_gauss_newton(constraints_at, R, A, Q, kept, weights, names, rigid_only=True):
+    """(R, A, Q) with g = 0 on the ``kept`` rows (constraints_at: the PoseConstraints of the
+    layout): Levenberg-Marquardt over the rigid-body coordinates, then over all (module doc);
+    InputError naming the worst joint."""
+    L = constraints_at.L
     cols = rigid_columns(L) if rigid_only else np.ones(int(L.uoff[-1]), bool)
     scale = 1.0 / weights[cols]
-    constraints_at = PoseConstraints(L, t, refs)
     g, B = constraints_at(R, A, Q)
     res = np.linalg.norm(g[kept])
     mu = 1e-12
@@ -151,7 +151,7 @@ def damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=Tr
         R, A, Q, g, B, res = R2, A2, Q2, g2, B2, res2
         mu = max(mu / 10.0, 1e-12)
     if rigid_only:
-        return damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=False)
+        return damped_gauss_newton(constraints_at, R, A, Q, kept, weights, names, rigid_only=False)
     worst = int(kept[np.argmax(np.abs(g[kept]))])
     raise InputError(f"joint '{names[worst]}': the initial positions cannot satisfy it (residual "
                      f"{np.max(np.abs(g[kept])):.3g} m or rad); place its markers so that they coincide and their "
