@@ -12,7 +12,8 @@ markers (sid-spec 5.2).
 
 Nothing here allocates: the path markers' mode shapes and a body's shifted coordinates live in
 the scratch ``work`` of the MarkerKinematics (records.pxd), 3-vectors and frames in C arrays.
-Row-major (3, nq) shape blocks there are ``lds = nq`` apart.
+Row-major (3, nq) shape blocks there are ``lds = nq`` apart.  A body's pose (r, A, q) travels as
+a BodyPose of pointers.
 """
 
 from libc.math cimport INFINITY, sqrt
@@ -34,6 +35,13 @@ cdef double PATH_TANGENT_STEP = 1e-6
 cdef Py_ssize_t PROJECTION_ITERATIONS = 3
 
 
+cdef struct BodyPose:
+    const double* r     # (3,) origin, m (inertial)
+    const double* a     # (3, 3) frame A, row-major
+    const double* q     # (nq,) modal coordinates
+    Py_ssize_t nq
+
+
 cdef inline const double* at(const double[::1] v, Py_ssize_t o) noexcept nogil:
     """The address of v[o] (o may be the end of v, or anything when v is empty: a block of no elements)."""
     return &v[0] + o if v.shape[0] > 0 else NULL
@@ -42,6 +50,14 @@ cdef inline const double* at(const double[::1] v, Py_ssize_t o) noexcept nogil:
 cdef inline double* scratch(MarkerKinematics kin) noexcept nogil:
     """The kernels' scratch: kin.work as one flat array of doubles (none without bodies)."""
     return &kin.work[0, 0] if kin.work.shape[0] * kin.work.shape[1] > 0 else NULL
+
+
+cdef inline BodyPose body_pose(Layout L, Py_ssize_t b, const double[:, ::1] R, const double[:, :, ::1] A,
+                               const double[::1] Q) noexcept nogil:
+    """Body b's pose (r, A, q) in the state (R, A, Q)."""
+    cdef BodyPose body
+    body.r, body.a, body.q, body.nq = &R[b, 0], &A[b, 0, 0], at(Q, L.qoff[b]), L.qoff[b + 1] - L.qoff[b]
+    return body
 
 
 cdef void stiffen(double* out, const double* jac, const double* A, const double* q, Py_ssize_t nq,
@@ -82,29 +98,28 @@ cdef void shape_combination(const double* phi, const double* q, Py_ssize_t nq, c
         out[a] = base[a] + acc
 
 
-cdef void path_point(Layout L, Py_ssize_t first, const double* r, const double* a, const double* q, Py_ssize_t nq,
-                     double s, double* work, double* out) noexcept nogil:
-    """out (3,): inertial position of the point at arc length s of a path of a body at (r, a, q);
+cdef void path_point(Layout L, Py_ssize_t first, BodyPose body, double s, double* work, double* out) noexcept nogil:
+    """out (3,): inertial position of the point at arc length s of a path of a body at (r, A, q);
     work: 9 nq scratch doubles."""
+    cdef Py_ssize_t nq = body.nq
     cdef double point[3]
     cdef double dpoint[3]
     cdef double x[3]
     path_shapes(L, first, nq, s, point, work, work + 3 * nq, dpoint, work + 6 * nq)
-    shape_combination(work, q, nq, point, x)
-    matvec3(a, x, out)
-    out[0] += r[0]
-    out[1] += r[1]
-    out[2] += r[2]
+    shape_combination(work, body.q, nq, point, x)
+    matvec3(body.a, x, out)
+    out[0] += body.r[0]
+    out[1] += body.r[1]
+    out[2] += body.r[2]
 
 
-cdef double projected_arc(Layout L, Py_ssize_t first, const double* r, const double* a, const double* q,
-                          Py_ssize_t nq, const double* target, double* work) noexcept nogil:
-    """Arc length s (m) of the point of a path (of a body at r, a, q) nearest to ``target`` (3,):
+cdef double projected_arc(Layout L, Py_ssize_t first, BodyPose body, const double* target, double* work) noexcept nogil:
+    """Arc length s (m) of the point of a path (of a body at r, A, q) nearest to ``target`` (3,):
     the undeformed sample nearest to it in the body frame, then Newton on
     tau(s) . (target - point(s)) = 0 on the deformed path; work: 9 nq scratch doubles."""
     cdef const int64_t[:, ::1] meta = L.curve_meta
     cdef const double[::1] curve_x = L.curve_x, curve_c = L.curve_c
-    cdef Py_ssize_t x0 = meta[first, 0], nx = meta[first, 1], i, comp, it
+    cdef Py_ssize_t x0 = meta[first, 0], nx = meta[first, 1], i, comp, _
     cdef double local[3]
     cdef double diff[3]
     cdef double point[3]
@@ -113,8 +128,8 @@ cdef double projected_arc(Layout L, Py_ssize_t first, const double* r, const dou
     cdef double tangent[3]
     cdef double best = INFINITY, s = curve_x[x0], d2, e, h = PATH_TANGENT_STEP
     for comp in range(3):
-        diff[comp] = target[comp] - r[comp]
-    tmatvec3(a, diff, local)
+        diff[comp] = target[comp] - body.r[comp]
+    tmatvec3(body.a, diff, local)
     for i in range(nx - 1):  # the sample points are the cubic pieces' constant terms
         d2 = 0.0
         for comp in range(3):
@@ -122,10 +137,10 @@ cdef double projected_arc(Layout L, Py_ssize_t first, const double* r, const dou
             d2 += e * e
         if d2 < best:
             best, s = d2, curve_x[x0 + i]
-    for it in range(PROJECTION_ITERATIONS):
-        path_point(L, first, r, a, q, nq, s, work, point)
-        path_point(L, first, r, a, q, nq, s + h, work, plus)
-        path_point(L, first, r, a, q, nq, s - h, work, minus)
+    for _ in range(PROJECTION_ITERATIONS):
+        path_point(L, first, body, s, work, point)
+        path_point(L, first, body, s + h, work, plus)
+        path_point(L, first, body, s - h, work, minus)
         for comp in range(3):
             tangent[comp] = (plus[comp] - minus[comp]) / (2.0 * h)
             diff[comp] = target[comp] - point[comp]
@@ -139,45 +154,44 @@ cdef double motion_arc(Layout L, Py_ssize_t k, double t) noexcept nogil:
     return motion_state(<int64_t>L.mk_motion[k, 0], &L.mk_motion[k, 1], curve, t)[0]
 
 
-cdef void path_position(Layout L, Py_ssize_t k, const double* r, const double* a, const double* q,
-                        const double* ub, Py_ssize_t nq, double t, double tau, double* work,
+cdef void path_position(Layout L, Py_ssize_t k, BodyPose body, const double* ub, double t, double tau, double* work,
                         double* out) noexcept nogil:
     """out (3,): inertial position of path marker k's point after ``tau`` s along the motion of
-    its body (at r, a, q) at constant velocities ub = [v_O, omega, qd] and of its arc length
+    its body (at r, A, q) at constant velocities ub = [v_O, omega, qd] and of its arc length
     s(t + tau); work: 10 nq scratch doubles."""
     cdef double s = motion_arc(L, k, t + tau)
     cdef double r1[3]
     cdef double theta[3]
     cdef double turn[9]
     cdef double a1[9]
-    cdef double* q1 = work + 9 * nq
+    cdef double* q1 = work + 9 * body.nq
+    cdef BodyPose moved = body
     cdef Py_ssize_t i
     for i in range(3):
-        r1[i] = r[i] + tau * ub[i]
+        r1[i] = body.r[i] + tau * ub[i]
         theta[i] = tau * ub[3 + i]
     exp_so3(theta, turn)
-    matmul3(a, turn, a1)
-    for i in range(nq):
-        q1[i] = q[i] + tau * ub[6 + i]
-    path_point(L, L.mk_path[k, 0], r1, a1, q1, nq, s, work, out)
+    matmul3(body.a, turn, a1)
+    for i in range(body.nq):
+        q1[i] = body.q[i] + tau * ub[6 + i]
+    moved.r, moved.a, moved.q = r1, a1, q1
+    path_point(L, L.mk_path[k, 0], moved, s, work, out)
 
 
-cdef void path_acceleration(Layout L, Py_ssize_t k, const double[:, ::1] R, const double[:, :, ::1] A,
-                            const double[::1] Q, const double[::1] u, double t, double* work,
+cdef void path_acceleration(Layout L, Py_ssize_t k, BodyPose body, const double* ub, double t, double* work,
                             double* out) noexcept nogil:
-    """out (3,): acceleration of path marker k's point at zero accelerations of its body (the
-    convective part: s_ddot, s_dot^2, 2 s_dot Phi' qd, rotation), by the second central
-    difference of its position along the motion (step PATH_GAMMA_STEP s); work: 10 nq doubles."""
-    cdef Py_ssize_t b = L.mk_body[k], nq = L.qoff[b + 1] - L.qoff[b], i
-    cdef const double* q = at(Q, L.qoff[b])
-    cdef const double* ub = at(u, L.uoff[b])
+    """out (3,): acceleration of path marker k's point at zero accelerations of its body (at
+    r, A, q with velocities ub; the convective part: s_ddot, s_dot^2, 2 s_dot Phi' qd, rotation),
+    by the second central difference of its position along the motion (step PATH_GAMMA_STEP s);
+    work: 10 nq doubles."""
     cdef double e = PATH_GAMMA_STEP
     cdef double plus[3]
     cdef double mid[3]
     cdef double minus[3]
-    path_position(L, k, &R[b, 0], &A[b, 0, 0], q, ub, nq, t, e, work, plus)
-    path_position(L, k, &R[b, 0], &A[b, 0, 0], q, ub, nq, t, 0.0, work, mid)
-    path_position(L, k, &R[b, 0], &A[b, 0, 0], q, ub, nq, t, -e, work, minus)
+    cdef Py_ssize_t i
+    path_position(L, k, body, ub, t, e, work, plus)
+    path_position(L, k, body, ub, t, 0.0, work, mid)
+    path_position(L, k, body, ub, t, -e, work, minus)
     for i in range(3):
         out[i] = (plus[i] - 2.0 * mid[i] + minus[i]) / (e * e)
 
@@ -220,7 +234,7 @@ cpdef (double, double, double) moving_masses(Layout L, MarkerKinematics kin, con
             continue
         v_rel = &kin.VC[k, 0]
         w = L.uoff[b + 1] - L.uoff[b]
-        path_acceleration(L, k, R, A, Q, u, t, work, pa)
+        path_acceleration(L, k, body_pose(L, b, R, A, Q), at(u, L.uoff[b]), t, work, pa)
         for a in range(3):
             acc = 0.0
             for j in range(w):
@@ -239,11 +253,10 @@ cdef double row_rate(const double* c, const double* v1, const double* w1, const 
     return dot3(c, v1) + dot3(c + 3, w1) + dot3(c + 6, v2) + dot3(c + 9, w2)
 
 
-cdef bint path_pose(Layout L, Py_ssize_t first, const double* r, const double* a, const double* q, Py_ssize_t nq,
-                    double s, const double* rotation, bint extend, double* work, double* p, double* rot,
-                    double* point) noexcept nogil:
+cdef bint path_pose(Layout L, Py_ssize_t first, BodyPose body, double s, const double* rotation, bint extend,
+                    double* work, double* p, double* rot, double* point) noexcept nogil:
     """Position p (3,) and frame A_m (3, 3) (inertial) of a marker at arc length s on a path of
-    a body at (r, a, q), the path's undeformed point x(s) (3,, K), its Phi, Psi (3, nq) there
+    a body at (r, A, q), the path's undeformed point x(s) (3,, K), its Phi, Psi (3, nq) there
     (in work[0:3 nq], work[3 nq:6 nq]; work: 9 nq doubles) and whether s is on the path (beyond
     the ends Phi = Psi = 0: the marker rides the straight extension rigidly; ``extend``: the end
     pieces' shapes go on, for derivatives at the ends): p = r + A (x(s) + Phi q); the frame is
@@ -251,6 +264,10 @@ cdef bint path_pose(Layout L, Py_ssize_t first, const double* r, const double* a
     (the smallest rotation) and about t by the twist t0 . (Psi q):
 
         A_m = A exp(t0.(Psi q) t~) align(t0, t) R_m."""
+    cdef const double* r = body.r
+    cdef const double* a = body.a
+    cdef const double* q = body.q
+    cdef Py_ssize_t nq = body.nq
     cdef double dpoint[3]
     cdef double t0[3]
     cdef double t1[3]
@@ -291,9 +308,8 @@ cdef bint path_pose(Layout L, Py_ssize_t first, const double* r, const double* a
     return on
 
 
-cdef void path_convection(Layout L, Py_ssize_t first, const double* r, const double* a, const double* q,
-                          Py_ssize_t nq, double s, double s_dot, const double* rotation, const double* frame,
-                          bint on, double* work, double* vc, double* wc) noexcept nogil:
+cdef void path_convection(Layout L, Py_ssize_t first, BodyPose body, double s, double s_dot, const double* rotation,
+                          const double* frame, bint on, double* work, double* vc, double* wc) noexcept nogil:
     """Velocity vc (3,) and angular velocity wc (3,) (inertial) of a path marker at arc length s
     moving at s_dot (m/s) over its body held still, frame (3, 3) its A_m there: s_dot dp/ds and
     s_dot vee(dA_m/ds A_m^T) (path_pose; central differences, step PATH_TANGENT_STEP m; at the
@@ -306,8 +322,8 @@ cdef void path_convection(Layout L, Py_ssize_t first, const double* r, const dou
     cdef double a_minus[9]
     cdef double w[9]
     cdef Py_ssize_t i, j, k
-    path_pose(L, first, r, a, q, nq, s + h, rotation, on, work, p_plus, a_plus, point)
-    path_pose(L, first, r, a, q, nq, s - h, rotation, on, work, p_minus, a_minus, point)
+    path_pose(L, first, body, s + h, rotation, on, work, p_plus, a_plus, point)
+    path_pose(L, first, body, s - h, rotation, on, work, p_minus, a_minus, point)
     for i in range(9):
         a_plus[i] -= a_minus[i]
     for i in range(3):  # w = (A_m(s + h) - A_m(s - h)) frame^T
@@ -322,11 +338,11 @@ cdef void path_convection(Layout L, Py_ssize_t first, const double* r, const dou
     wc[2] = scale * (0.5 * (w[3] - w[1]))
 
 
-cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, const double* r, const double* a, const double* q,
-                      Py_ssize_t nq, double t, double* work) noexcept nogil:
-    """Path marker k (on a body at r, a, q) at time t: its P, AM, VC, WC and Jacobians (zero off
+cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, BodyPose body, double t,
+                      double* work) noexcept nogil:
+    """Path marker k (on a body at r, A, q) at time t: its P, AM, VC, WC and Jacobians (zero off
     its path: it carries no load there) written into kin; work: 18 nq doubles."""
-    cdef Py_ssize_t first = L.mk_path[k, 0], partner = L.mk_path[k, 2], ld = kin.JT.shape[2]
+    cdef Py_ssize_t first = L.mk_path[k, 0], partner = L.mk_path[k, 2], ld = kin.JT.shape[2], nq = body.nq
     cdef double s, s_dot = 0.0
     cdef double point[3]
     cdef double p_path[3]
@@ -336,18 +352,19 @@ cdef void path_marker(Layout L, MarkerKinematics kin, Py_ssize_t k, const double
     cdef (double, double, double) motion
     cdef bint on
     if partner >= 0:
-        s = projected_arc(L, first, r, a, q, nq, &kin.P[partner, 0], work)
+        s = projected_arc(L, first, body, &kin.P[partner, 0], work)
     else:
         curve = motion_curve(L, L.mk_path[k, 1])
         motion = motion_state(<int64_t>L.mk_motion[k, 0], &L.mk_motion[k, 1], curve, t)
         s, s_dot = motion[0], motion[1]
-    on = path_pose(L, first, r, a, q, nq, s, &L.mk_rot[k, 0, 0], False, work, &kin.P[k, 0], &kin.AM[k, 0, 0], point)
+    on = path_pose(L, first, body, s, &L.mk_rot[k, 0, 0], False, work, &kin.P[k, 0], &kin.AM[k, 0, 0], point)
     if partner < 0:
-        path_convection(L, first, r, a, q, nq, s, s_dot, &L.mk_rot[k, 0, 0], &kin.AM[k, 0, 0], on, work + 9 * nq,
+        path_convection(L, first, body, s, s_dot, &L.mk_rot[k, 0, 0], &kin.AM[k, 0, 0], on, work + 9 * nq,
                         &kin.VC[k, 0], &kin.WC[k, 0])
     if on:
-        marker_pose(r, a, q, nq, point, &L.mk_rot[k, 0, 0], work, work + 3 * nq, nq, p_path, rot_path, d)
-        marker_jacobians(a, d, work, work + 3 * nq, nq, nq, &kin.JT[k, 0, 0], &kin.JR[k, 0, 0], ld)
+        marker_pose(body.r, body.a, body.q, nq, point, &L.mk_rot[k, 0, 0], work, work + 3 * nq, nq, p_path,
+                    rot_path, d)
+        marker_jacobians(body.a, d, work, work + 3 * nq, nq, nq, &kin.JT[k, 0, 0], &kin.JR[k, 0, 0], ld)
 
 
 cpdef void markers_into(Layout L, MarkerKinematics kin, const double[:, ::1] R, const double[:, :, ::1] A,
@@ -392,7 +409,7 @@ cpdef void markers_into(Layout L, MarkerKinematics kin, const double[:, ::1] R, 
         nq = L.qoff[b + 1] - L.qoff[b]
         q = at(Q, L.qoff[b])
         if L.mk_path[k, 0] >= 0:  # moving along a path: its point, frame and shapes at s(t)
-            path_marker(L, kin, k, &R[b, 0], &A[b, 0, 0], q, nq, t, work)
+            path_marker(L, kin, k, body_pose(L, b, R, A, Q), t, work)
         else:
             o = L.mk_shape[k]
             marker_pose(&R[b, 0], &A[b, 0, 0], q, nq, &L.mk_pos[k, 0], &L.mk_rot[k, 0, 0], at(L.shapes, o),
@@ -457,7 +474,7 @@ cdef void moving_mass_terms(Layout L, MarkerKinematics kin, const double[:, ::1]
                     for a in range(3):
                         acc += JT[k, a, r] * JT[k, a, c]
                     M[s0 + r, s0 + c] += mass * acc
-            path_acceleration(L, k, R, A, Q, u, t, scratch(kin), pa)
+            path_acceleration(L, k, body_pose(L, b, R, A, Q), at(u, L.uoff[b]), t, scratch(kin), pa)
             for a in range(3):
                 loads[k, a] += mass * (L.gravity[a] - pa[a])
 
