@@ -10,7 +10,7 @@ sidprep/solver/integrators/genalpha.py's module doc:
     M ud_{n+1} - f + B_F^T lambda = 0,   g(x_{n+1}, t_{n+1}) / (h^2 beta') = 0
 """
 
-from libc.math cimport INFINITY, NAN, fabs, isfinite, pow, sqrt
+from libc.math cimport INFINITY, fabs, isfinite, sqrt
 from libc.float cimport DBL_EPSILON
 from libc.stdint cimport int64_t
 
