@@ -1,8 +1,9 @@
-"""The compiled system equations (sidprep.solver.core.assemble) against the numba kernels of
-sidprep.solver.equations.assemble: every Evaluation field, the marker kinematics, the energies,
-the drives' constraint power and the moving masses, at random states of the layouts of every
-floating-frame example scene and of a system with what no scene has (a mass sliding on a path,
-friction on it, a tabulated path motion): the run's layout and the one with every marker active."""
+"""The compiled system equations (sidprep.solver.core.assemble and its path kernels, core.paths)
+against the numba kernels of sidprep.solver.equations.assemble: every Evaluation field, the marker
+kinematics, the energies, the drives' constraint power and the moving masses, at random states of
+the layouts of every floating-frame example scene and of a system with what no scene has (a mass
+sliding on a path, friction on it, a tabulated path motion): the run's layout and the one with
+every marker active."""
 
 import shutil
 import subprocess
