@@ -8,7 +8,6 @@ import pytest
 from sidprep.solver.core import explicit as core_explicit
 from sidprep.solver.core import outputs as core_outputs
 from sidprep.solver.core import planar as core_planar
-from sidprep.solver.core.outputs import PostConstants as CorePostConstants
 from sidprep.solver.core.records import layout_record
 from sidprep.solver.equations import assemble as numba_assemble
 from sidprep.solver.integrators import explicit as numba_explicit
@@ -96,9 +95,12 @@ def started_run(name, reduced):
     return run, run.consistent_start()
 
 
-def core_post(post):
-    """The core's PostSetup of a numba PostSetup."""
-    return PostSetup(layout_record(post.L), layout_record(post.L0), CorePostConstants(*post.c))
+def numba_post(post):
+    """The numba kernels' PostSetup of the core's (postprocess.post_setup): namedtuples of arrays."""
+    c = post.c
+    c = numba_outputs.PostConstants(*(np.asarray(getattr(c, f)) for f in numba_outputs.PostConstants._fields[:-1]),
+                                    int(c.stiffening))
+    return PostSetup(post.L.arrays, post.L0.arrays, c)
 
 
 def random_samples(run, state, rng, count):
@@ -127,9 +129,9 @@ def test_sample_outputs_match_numba(name, reduced):
     run, state = started_run(name, reduced)
     post = post_setup(run)
     s = random_samples(run, state, np.random.default_rng(5), SAMPLES)
-    ref = numba_outputs.sample_outputs(post.L, post.L0, s, post.c)
-    cp = core_post(post)
-    out = core_outputs.sample_outputs(cp.L, cp.L0, s, cp.c)
+    L, L0, c = numba_post(post)
+    ref = numba_outputs.sample_outputs(L, L0, s, c)
+    out = core_outputs.sample_outputs(post.L, post.L0, s, post.c)
     for field in SampledOutputs._fields:
         assert relative_difference(getattr(out, field), getattr(ref, field)) <= KERNEL_RTOL, field
 
@@ -161,11 +163,11 @@ class Kernels:
         if core:
             self.params = core_explicit.rhs_params(layout_record(run.L), run.free, run.kept, self.refs, baumgarte,
                                                    state.lam)
-            self.post = core_post(post)
+            self.post = post
         else:
             self.params = (run.L, run.free, run.kept, self.refs, baumgarte, state.lam.copy(),
                            numba_assemble.evaluation_arrays(run.L))
-            self.post = post
+            self.post = numba_post(post)
 
     def rhs(self, t, y):
         if not self.core:

@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.assemble import constraint_power, evaluate_into, evaluation_arrays, moving_masses
-from sidprep.solver.equations.rotations import jit, matrix_to_quaternion, put, put2, quaternion_rate, quaternion_to_matrix
+from sidprep.solver.core import explicit as core
+from sidprep.solver.core.records import layout_record
+from sidprep.solver.core.rotations import matrix_to_quaternion
+from sidprep.solver.equations.assemble import constraint_power, evaluate_into, moving_masses
+from sidprep.solver.equations.rotations import jit, put, put2, quaternion_rate, quaternion_to_matrix
 from sidprep.solver.integrators.base import (CHUNK, SampleBuffers, Samples, Stepper, expand, first_samples,
                                              has_friction, index1_accelerations, sample_buffers, store_sample)
 from sidprep.solver.integrators.outputs import sample_outputs
@@ -41,7 +44,8 @@ def unpack(L, y):  # pragma: no cover - compiled
 
 
 def pack(L, R, A, Q, u, work) -> np.ndarray:
-    """The explicit state y of positions, velocities and work integrals (module doc)."""
+    """The explicit state y of positions, velocities and work integrals (module doc); L a layout
+    (record or namedtuple)."""
     parts = []
     for i in range(len(R)):
         parts += [R[i], matrix_to_quaternion(A[i]), Q[L.qoff[i]:L.qoff[i + 1]]]
@@ -159,16 +163,30 @@ def non_finite_message(t: float, h: float) -> str:
 
 
 class ExplicitStepper(Stepper):
-    """Shared set-up of the explicit steppers: the state vector and the rhs parameters."""
+    """Shared set-up of the explicit steppers: the state vector, the compiled right-hand side's
+    parameters (core.explicit.RhsParams: the run's workspaces) and its samples."""
 
     def __init__(self, problem, state, settings):
         super().__init__(problem, state, settings)
-        L = problem.L
-        self.y = pack(L, state.R, state.A, state.Q, state.u, np.zeros(3))
-        self.params = (L, problem.free, problem.kept, problem.refs, float(settings.baumgarte), state.lam.copy(),
-                       evaluation_arrays(L))
+        self.L = layout_record(problem.L)
+        self.y = pack(self.L, state.R, state.A, state.Q, state.u, np.zeros(3))
+        self.params = core.rhs_params(self.L, problem.free, problem.kept, problem.refs, float(settings.baumgarte),
+                                      state.lam)
         self.next_out = settings.output_dt or 0.0
         self.next_index = 1
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """dy/dt (core.explicit.index1_rhs) of the explicit state y at t (s)."""
+        ydot = np.empty(y.shape[0])
+        core.index1_rhs(t, np.ascontiguousarray(y, dtype=float), self.params, ydot)
+        return ydot
+
+    def sample(self, t: float, y: np.ndarray) -> tuple:
+        """(R, A, Q, u, ud, lam, work) at the accepted state y at t (s) (core.explicit.sample); the
+        run's angle references follow it."""
+        p = self.params
+        core.sample(t, np.ascontiguousarray(y, dtype=float), p)
+        return tuple(np.array(a) for a in (p.R, p.A, p.Q, p.u, p.ud, p.lam)) + (y[-3:].copy(),)
 
     def _set_state(self, t, sample_):
         R, A, Q, u, ud, lam, _ = sample_
@@ -176,7 +194,7 @@ class ExplicitStepper(Stepper):
 
 
 class RungeKutta4(ExplicitStepper):
-    """Classic RK4 at the fixed step h (compiled loop)."""
+    """Classic RK4 at the fixed step h (compiled loop: core.explicit.rk4_loop)."""
 
     name = "rk4"
 
@@ -195,9 +213,9 @@ class RungeKutta4(ExplicitStepper):
     def advance(self, t_stop: float) -> Samples:
         st = self.settings
         steps = np.array([self.stats["steps"], st.max_steps], dtype=np.int64)
-        t, self.y, self.next_index, buf, out = rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
-                                                        self.next_index, self.params, CHUNK, steps, self.first_rows(),
-                                                        self.problem.post)
+        t, self.y, self.next_index, buf, out = core.rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
+                                                             self.next_index, self.params, CHUNK, steps,
+                                                             self.first_rows(), self.problem.post)
         self.outputs.append(out)
         arrays = tuple(buf)
         self.stats["steps"] = int(steps[0])
