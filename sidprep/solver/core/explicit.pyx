@@ -26,7 +26,7 @@ from sidprep.solver.core.records import evaluation_arrays
 
 
 cdef class RhsParams:
-    pass
+    """What the right-hand side of a run needs, and its scratch (explicit.pxd; made by rhs_params)."""
 
 
 cpdef RhsParams rhs_params(Layout L, const int64_t[::1] free, const int64_t[::1] kept, double[::1] refs,
@@ -179,7 +179,7 @@ def rk4_loop(double t, y_start, double t_end, double h, double out_dt, Py_ssize_
             sample(t_k, y_k, p)
             store_state(buf, ns, t_k, p, y_k)
             ns, next_index, stored = ns + 1, next_index + 1, t_k >= t - at
-        sample(t, y, p)  # else only to keep the angle references current between samples
+        sample(t, y, p)  # the state at t: a sample when stored below, else it keeps the angle references current
         if out_dt <= 0.0 or (final and not stored):
             store_state(buf, ns, t, p, y)
             ns += 1

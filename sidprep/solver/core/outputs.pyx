@@ -56,7 +56,7 @@ cdef class PostConstants:
 
 
 cdef class Outputs:
-    pass
+    """The SampledOutputs of one stretch as typed views (outputs.pxd; made by empty_outputs)."""
 
 
 cpdef Outputs empty_outputs(Py_ssize_t nt, Py_ssize_t nmk, Py_ssize_t nc):

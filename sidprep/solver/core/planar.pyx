@@ -26,6 +26,8 @@ cdef double EPS = np.finfo(np.float64).eps
 
 
 cdef class PlanarWork:
+    """Scratch of the out-of-plane reactions of no equations in nd reactions (planar.pxd)."""
+
     def __init__(self, Py_ssize_t no, Py_ssize_t nd):
         self.a = np.zeros((no, nd))
         self.load = np.zeros(no)
