@@ -11,18 +11,25 @@ marker and joint.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from sidprep.solver.effects import build_report, estimate_changes
 from sidprep.solver.core.outputs import PostConstants, sample_outputs
 from sidprep.solver.core.records import layout_record
-from sidprep.solver.integrators.base import SampleBuffers
-from sidprep.solver.integrators.outputs import PostSetup
+from sidprep.solver.core.steps import SampleArrays
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 from sidprep.solver.energy import work_integral
 from sidprep.solver.stiffening_work import base_layout
 
 ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
+
+#: what a compiled loop needs to compute the outputs of its samples: the run's layout with every
+#: marker active L, the reference layout of the stiffening work L0 (stiffening_work.base_layout
+#: with every marker active; L when no stiffening effect is on), both core Layout records, and the
+#: core PostConstants c
+PostSetup = namedtuple("PostSetup", ["L", "L0", "c"])
 
 
 def joint_marker_names(constraint) -> tuple[str, str]:
@@ -68,7 +75,7 @@ def postprocess(run, s, setup, out=None) -> Result:
     system, L = run.system, run.L
     c = setup.c
     if out is None:
-        samples = SampleBuffers(*(np.ascontiguousarray(getattr(s, f)) for f in SampleBuffers._fields))
+        samples = SampleArrays(*(np.ascontiguousarray(getattr(s, f)) for f in SampleArrays._fields))
         out = sample_outputs(setup.L, setup.L0, samples, c)
     bodies = {}
     for i, b in enumerate(system.bodies):

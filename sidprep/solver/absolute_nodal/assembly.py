@@ -159,12 +159,6 @@ def assemble(model: AbsoluteNodalModel) -> Assembly:
                     f0, fg, X0, V0, offset, drv)
 
 
-def kernel_params(asm: Assembly, alpha: float = BAUMGARTE_RATE) -> tuple:
-    """The tuple the numba rhs of absolute_nodal/kernels.py reads (see its ``accelerations``)."""
-    return (asm.X0.copy(), asm.free, asm.Minv, asm.f0, asm.beam_nodes, asm.beam_n, asm.beam_e, asm.beam_K,
-            asm.drv, float(alpha))
-
-
 def beam_system(asm: Assembly, alpha: float = BAUMGARTE_RATE) -> BeamSystem:
     """The compiled kernels' record of ``asm`` (sidprep/solver/core/absolute_nodal.pyx), drivers
     stabilised at the Baumgarte rate ``alpha`` (1/s)."""

@@ -79,6 +79,15 @@ cdef (double, double, double) motion_state(int64_t kind, const double* params,
     return start + w * (t - 0.5 * ramp), w, 0.0
 
 
+
+def motion_profile(int64_t kind, const double[::1] params, const double[::1] x, const double[:, ::1] c, double t):
+    """(value, rate, acceleration) of motion_state for Python (compile/path_range.py): kind, params
+    [start, speed, ramp_time] and the tabulated spline's breakpoints x (nx,) and coefficients
+    c (degree + 1, nx - 1) as scipy's PPoly holds them."""
+    if params.shape[0] < 3 or x.shape[0] < 2 or c.shape[1] != x.shape[0] - 1:
+        raise ValueError("motion_profile: params (3,), x (nx >= 2,), c (degree + 1, nx - 1)")
+    return motion_state(kind, &params[0], (&x[0], x.shape[0], &c[0, 0], c.shape[0]), t)
+
 cdef bint path_shapes(Layout L, Py_ssize_t first, Py_ssize_t nq, double s, double* point, double* phi, double* psi,
                       double* dpoint, double* dphi) noexcept nogil:
     """Point (3,), Phi (3, nq), Psi (3, nq) (row-major) of a path (layout.add_path: 3 + 6 nq cubic

@@ -1,13 +1,49 @@
-"""Lie-group generalised-alpha for the index-3 DAE (Arnold & Bruls 2007; Bruls, Cardona & Arnold
-2012), on SE(3) x R^nq per body (integrators/se3.py: body-frame translational velocities), compiled:
-the method's kernels and its stepping loop ``ga_loop``.  The method, its Newton iteration, the
-contact handling, the dense output and the error control are described in
-sidprep/solver/integrators/genalpha.py's module doc:
+"""Lie-group generalised-alpha for the index-3 DAE (Arnold & Bruls 2007; Bruls, Cardona &
+Arnold 2012), compiled: the method's kernels and its stepping loop ``ga_loop``.  On SE(3) x R^nq
+per body (se3.pyx: body-frame translational velocities, so that a
+uniform rotation about any fixed axis is integrated exactly; on R^3 x SO(3) a body whirling
+about a hinge away from its frame origin gained energy ~ h^2 Omega^3):
 
     x_{n+1} = x_n (+) h dx,  dx = u_n + h (1/2 - beta) a_n + h beta a_{n+1}
     u_{n+1} = u_n + h (1 - gamma) a_n + h gamma a_{n+1}
     (1 - alpha_m) a_{n+1} + alpha_m a_n = (1 - alpha_f) ud_{n+1} + alpha_f ud_n
     M ud_{n+1} - f + B_F^T lambda = 0,   g(x_{n+1}, t_{n+1}) / (h^2 beta') = 0
+
+(Chung-Hulbert parameters from rho_inf; beta' = beta (1 - alpha_f) / (1 - alpha_m) scales the
+constraint rows so that the iteration matrix is O(1)).  Unknowns ud_{n+1}, lambda; modified
+Newton: the iteration matrix [M + D, B_F^T; B, 0] is factorised once per step at the
+predictor (M, B exact there) and re-used over the step's iterations; D = h gamma' C_t +
+h^2 beta' K_t (finite differences) is re-used over steps until convergence slows.  Converged
+when the position correction is below newton_tol L and the constraint residual before it
+below newton_tol L (the correction shrinks it further); the state is then not evaluated once
+more: the power flows and joint angles of the step come from the last evaluation, within the
+Newton tolerance.  Constraints hold at position level to the Newton tolerance (no drift).
+
+Contacts (bump stops, forces.pyx stop_states; docs/solver.md "Contacts"): a step whose end engages or
+releases a stop that its start did not is repeated, shortened by the secant of the penetration,
+until the kink lies in its last CROSSING_TAIL: the step goes to the contact, not across it; a
+step from an open stop is bounded by APPROACH_REACH times the time to close the gap at the
+current rate; while a stop is engaged, the normal rate may change by at most 2 V / CONTACT_STEPS
+per step (V the largest normal speed of the contact, at least CONTACT_REST_SPEED L / h), so that
+the impact takes at least CONTACT_STEPS steps whatever the nominal step.
+
+Output (output_dt given): every sample sits at exactly k output_dt, interpolated inside the step
+that contains it (``dense_state``): the pose is x_n (+) delta(theta) with the cubic Hermite
+increment delta(0) = 0, delta'(0) = h u_n, delta(1) = h dx, delta'(1) = h u_{n+1} (exact for q;
+for the rotations and the body-frame translations the end slope is u_{n+1}, right to O(h^2)), the
+velocities the cubic Hermite of u with the slopes h ud, the accelerations, multipliers and work
+integrals linear: within the method's second order, and the step is never cut to land on an
+output time.
+
+Error control (rtol given): the local error of the step against the third-order Taylor
+expansion written with the true accelerations ud (not the alpha-lagged a),
+
+    e_x = h^2 [(1/2 - beta) a_n + beta a_{n+1} - ud_n / 3 - ud_{n+1} / 6]
+    e_u = h   [(1 - gamma) a_n + gamma a_{n+1} - (ud_n + ud_{n+1}) / 2]
+
+measured in lengths (e_x and h e_u, weighted to metres), RMS against atol + rtol L.  For
+Newmark (a = ud) e_x reduces to the classic h^2 (beta - 1/6) (ud_{n+1} - ud_n); with alpha
+damping it also sees the lag of a behind ud, which the classic estimate misses.
 """
 
 from libc.math cimport INFINITY, fabs, isfinite, sqrt

@@ -3,7 +3,7 @@
 Coordinates of one body (sid-spec 5.1): position r_O (inertial), rotation matrix A (body K ->
 inertial), modal coordinates q.  Velocities u = [v_O (inertial components), omega (K
 components), qd].  The equations of motion of a body are written once, compiled, in
-``sidprep/solver/equations/body.py``; this module only describes a body: ``BodyTerms`` holds the SID
+``sidprep/solver/core/body.pyx``; this module only describes a body: ``BodyTerms`` holds the SID
 arrays of the switched-on effects (sid-spec 5.4, 5.5).
 """
 
