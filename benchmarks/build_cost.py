@@ -5,8 +5,8 @@ with ``--before PATH``, another checkout (e.g. the previous main), the two alter
 pairs share the machine's load.
 
 1. ``pip install --no-deps CHECKOUT`` into a fresh venv that sees the current environment's
-   packages (``--system-site-packages``: the dependencies are there), pip's isolated build
-   environment included (setuptools and Cython installed into it from pip's index);
+   packages (a ``.pth`` file naming its site-packages: the dependencies are there), pip's isolated
+   build environment included (setuptools, Cython and scipy installed into it from pip's index);
 2. the first ``sidprep simulate`` of a bundled example from that install, with an empty user cache
    (``XDG_CACHE_HOME`` and ``NUMBA_CACHE_DIR`` in a new temporary folder);
 3. with ``--editable``: ``pip install --no-deps -e`` of a fresh clone, then its first simulate.
@@ -25,6 +25,7 @@ import os
 import resource
 import subprocess
 import sys
+import sysconfig
 import tempfile
 from pathlib import Path
 
@@ -57,8 +58,11 @@ def install_and_run(checkout: Path, scene: str, editable: bool) -> tuple[float, 
     with tempfile.TemporaryDirectory(prefix="sidprep-build-") as tmp:
         tmp = Path(tmp)
         clone = fresh_clone(checkout, tmp / "src")
-        subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(tmp / "venv")], check=True)
+        subprocess.run([sys.executable, "-m", "venv", str(tmp / "venv")], check=True)
         python = str(tmp / "venv" / "bin" / "python")
+        site = subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                              check=True, capture_output=True, text=True).stdout.strip()
+        (Path(site) / "dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
         install = [python, "-m", "pip", "install", "-q", "--no-deps", *(["-e"] if editable else []), str(clone)]
         env = {**os.environ, "XDG_CACHE_HOME": str(tmp / "cache"), "NUMBA_CACHE_DIR": str(tmp / "cache" / "numba")}
         env.pop("PYTHONPATH", None)
