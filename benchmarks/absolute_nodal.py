@@ -42,7 +42,7 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=7)
     args = p.parse_args(argv)
     path = ROOT / "examples" / "two_link_manipulator" / "scene.toml"
-    model = load_absolute_nodal_scene(read_toml(path)[0], path).model
+    model = load_absolute_nodal_scene(read_toml(path), path).model
     print(f"two-link manipulator, RK4, {T_END:g} s simulated, median of {args.repeat} (machine shared, loaded)")
     print("| elements/link | DOF | step [s] | steps | CPU [s] | CPU per simulated s | target <= 0.1 |")
     print("|---|---|---|---|---|---|---|")
