@@ -1,37 +1,32 @@
-"""The build: the compiled modules of the package (Cython, one ``.pyx`` per concept beside the Python
-module that uses it) are C extensions that setuptools compiles as scipy and scikit-learn build
+"""The build: the compiled modules of the package (Cython, one ``.pyx`` per concept: the FE side's beside
+the Python module that uses it, the solver's core in sidprep/solver/core/) are C extensions that setuptools compiles as scipy and scikit-learn build
 theirs (docs/architecture.md, "The compiled code"); they need a C compiler and Python's headers.
 ``pip install .`` and ``pip install -e .`` both build them (an editable install into the source tree).
-
-The install also compiles the solver's numba kernels into the package (docs/performance.md, "First
-run"): the JIT kernels of numba's cache, and the kernels called from Python ahead of time into one
-extension module (sidprep/solver/equations/aot.py; else the JIT kernels serve alone).  ``SIDPREP_PREBUILD=0``
-skips that step (the kernels then compile on first use), ``SIDPREP_AOT=0`` only the numba extension;
-editable installs always skip it.
 
 Everything else about the package is in pyproject.toml.
 """
 
-import glob
 import os
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
-from setuptools.command.build_py import build_py
 
-#: the Cython modules, each compiled from the .pyx file of its dotted name
-CYTHON_MODULES = ["sidprep.fe.matrices.scanner", "sidprep.fe.matrices.triangles"]
+#: the Cython modules: every .pyx file of the package, each compiled under its dotted name
+CYTHON_MODULES = sorted(".".join(p.with_suffix("").parts) for p in Path("sidprep").rglob("*.pyx"))
 #: the typed-memoryview machinery Cython generates, compiled once into this module and imported by
 #: each of the above (Cython's shared utility module) instead of ~20k lines of C in every one
 CYTHON_SHARED = "sidprep._cython_shared"
 #: gcc/clang flags after Python's own (its -O3 -g): -O2 as scipy and scikit-learn build, no debug
 #: symbols; no -march: the wheel runs on any machine of its platform tag (x86-64 baseline)
 COMPILE_ARGS = ["-O2", "-g0"]
+#: Cython's directives: no index checks or negative indices in the compiled code (the tests run it
+#: with them too: SIDPREP_CYTHON_CHECKS=1), C division (no ZeroDivisionError checks)
+DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "initializedcheck": False,
+              "cdivision": True}
+#: ... with SIDPREP_CYTHON_CHECKS=1: every index checked (an IndexError instead of a wrong read)
+CHECKED = {"boundscheck": True, "initializedcheck": True}
 
 
 def extensions() -> list[Extension]:
@@ -40,8 +35,8 @@ def extensions() -> list[Extension]:
     flags = COMPILE_ARGS if os.name == "posix" else []
     modules = [Extension(CYTHON_SHARED, [], extra_compile_args=flags)]
     modules += [Extension(name, [name.replace(".", "/") + ".pyx"], extra_compile_args=flags) for name in CYTHON_MODULES]
-    return cythonize(modules, compiler_directives={"language_level": 3}, shared_utility_qualified_name=CYTHON_SHARED,
-                     quiet=True)
+    directives = {**DIRECTIVES, **(CHECKED if os.environ.get("SIDPREP_CYTHON_CHECKS") == "1" else {})}
+    return cythonize(modules, compiler_directives=directives, shared_utility_qualified_name=CYTHON_SHARED, quiet=True)
 
 
 class BuildExtensionsIntoSourceToo(build_ext):
@@ -50,40 +45,15 @@ class BuildExtensionsIntoSourceToo(build_ext):
     ``pip install .``, as CI runs the suite, or ``python -m sidprep.cli.main`` there), and that
     finds its compiled modules too."""
 
+    def finalize_options(self):
+        super().finalize_options()
+        if self.parallel is None:  # the modules compile on every core (pip passes no -j)
+            self.parallel = True
+
     def run(self):
         super().run()
         if not self.inplace:
             self.copy_extensions_to_source()
 
 
-def prebuild_enabled() -> bool:
-    """Whether the install compiles the kernels (SIDPREP_PREBUILD=0 skips it)."""
-    return os.environ.get("SIDPREP_PREBUILD", "1") != "0"
-
-
-class BuildWithKernels(build_py):
-    """build_py, then a few steps of every bundled example scene with every method, compiled
-    into build_lib/sidprep/solver/_kernels (sidprep.solver.prebuild): numba's cache and the
-    entry-kernel extension, both under the kernel source's namespace."""
-
-    def run(self):
-        super().run()
-        if getattr(self, "editable_mode", False) or not prebuild_enabled():
-            return
-        lib = Path(self.build_lib).resolve()
-        kernels = lib / "sidprep" / "solver" / "_kernels"
-        shutil.rmtree(kernels, ignore_errors=True)  # an earlier build's kernels, of other sources
-        scenes = sorted(glob.glob("examples/*/scene*.toml"))
-        # the built package first, then this process's path: pip's isolated build environment
-        # (numpy, numba, scipy, h5py of [build-system] requires) reaches the child through it
-        path = os.pathsep.join([str(lib), *filter(None, [os.environ.get("PYTHONPATH")]), *sys.path])
-        env = {**os.environ, "PYTHONPATH": path, "NUMBA_CACHE_DIR": str(kernels)}
-        print(f"compiling the solver kernels on {len(scenes)} example scenes (SIDPREP_PREBUILD=0 skips) ...",
-              flush=True)
-        done = subprocess.run([sys.executable, "-m", "sidprep.solver.prebuild", *scenes], env=env)
-        if done.returncode:
-            print("warning: the solver kernels were not compiled at install; they compile on first use",
-                  file=sys.stderr)
-
-
-setup(cmdclass={"build_py": BuildWithKernels, "build_ext": BuildExtensionsIntoSourceToo}, ext_modules=extensions())
+setup(cmdclass={"build_ext": BuildExtensionsIntoSourceToo}, ext_modules=extensions())

@@ -4,7 +4,7 @@
 examples/two_link_manipulator/scene.toml (2 links x 4 elements, 16 DOF), classic RK4 at the
 paper's step 2.5e-4 s, 2 s simulated; also 8 and 16 elements per link at the steps their axial
 modes allow (RK4 stability).  CPU = process time of the compiled integration loop only
-(``stats["cpu_time"]``; compilation and the post-processing of the samples excluded), median
+(``stats["cpu_time"]``; set-up and the post-processing of the samples excluded), median
 of ``--repeat`` runs after a warm-up run.  Target: <= 0.1 CPU-s per simulated second;
 the paper took ~15 s for its run on a 100 MHz Pentium.
 
@@ -42,7 +42,7 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=7)
     args = p.parse_args(argv)
     path = ROOT / "examples" / "two_link_manipulator" / "scene.toml"
-    model = load_absolute_nodal_scene(read_toml(path)[0], path).model
+    model = load_absolute_nodal_scene(read_toml(path), path).model
     print(f"two-link manipulator, RK4, {T_END:g} s simulated, median of {args.repeat} (machine shared, loaded)")
     print("| elements/link | DOF | step [s] | steps | CPU [s] | CPU per simulated s | target <= 0.1 |")
     print("|---|---|---|---|---|---|---|")
@@ -50,7 +50,7 @@ def main(argv=None):
         m = replace(model, beams=tuple(replace(b, elements=ne) for b in model.beams))
         asm = assemble(m)
         settings = SolverSettings(method="rk4", h=h, output_dt=1 / 100.0)
-        integrate(asm, 10 * h, settings)                               # warm-up (compile)
+        integrate(asm, 10 * h, settings)                               # warm-up
         cpu = []
         for _ in range(args.repeat):
             _, _, c = integrate(asm, T_END, settings)

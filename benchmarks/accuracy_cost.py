@@ -280,7 +280,7 @@ def solve_study(repeat: int, quick: bool) -> list[dict]:
 
     with tempfile.TemporaryDirectory() as tmp:
         sid = read_sid(reduced_bar(Path(tmp)))
-    pendulum_run(sid, 1e-3)                               # numba cache load
+    pendulum_run(sid, 1e-3)                               # warm-up
     refs = {}
 
     def reference(effects):

@@ -49,7 +49,7 @@ def measure(scene_file: str, repeat: int) -> tuple[float, float, float]:
     """Median CPU s of the run, its post-processing and its effects estimates."""
     estimates, postprocess = Timed(post, "estimate_changes"), Timed(solver_run, "postprocess")
     rows = []
-    for k in range(repeat + 1):  # the first run loads the compiled kernels
+    for k in range(repeat + 1):  # the first run is a warm-up
         estimates.spent.clear()
         postprocess.spent.clear()
         scene = load_scene(ROOT / "examples" / scene_file)

@@ -7,24 +7,23 @@ reduced to ``--modes`` clamped eigenmodes by sidprep's FE side once, in this pro
 processes get it from files (sidprep a ``.sid.h5``, Exudyn the node positions, M, K, modes and
 eigenvalues as ``.npz``), build the pendulum (revolute about y, gravity, from rest) and integrate
 1 s with generalised-alpha (rho_inf 0.9) at ``--h``.  A child's cost is its whole life, from the
-interpreter's start to its exit: imports, the kernel cache loading (sidprep) or the C++ library
-(Exudyn), set-up, integration and, for sidprep, the post-processing of ``simulate``; measured as
+interpreter's start to its exit: imports (sidprep's compiled core, Exudyn's C++ library), set-up, integration and, for sidprep, the post-processing of ``simulate``; measured as
 the CPU time (user + system, every thread) the parent collects from the child.  sidprep runs twice:
 as a script of its Python API ("sidprep API", the same calls as ``simulate.py``, doing first what
 ``sidprep simulate`` does to its process: sidprep/cli/options.py ``process_setup``) and as its command
 on a scene file of the same pendulum ("sidprep simulate": parsing, the results file, the command's
 exit); the Exudyn child is a plain user script.  With ``--before`` another checkout's sidprep runs too,
 the children alternating so that they share the machine's load.  With ``--installed PYTHON``
-that interpreter's installed sidprep runs too (no checkout on its path: the install's compiled
-kernels, ahead-of-time ones included, are what is measured).
+that interpreter's installed sidprep runs too (no checkout on its path: the extension modules the
+install built are what is measured).
 
     python benchmarks/fresh_process.py --exudyn-python /tmp/venv-exu/bin/python
     python benchmarks/fresh_process.py --exudyn-python /tmp/venv-exu/bin/python --installed /tmp/venv/bin/python
     python benchmarks/fresh_process.py --exudyn-python /tmp/venv-exu/bin/python --before /work/main --repeat 7
 
 (``python -m venv --system-site-packages /tmp/venv-exu && /tmp/venv-exu/bin/pip install
-exudyn==1.13.6``: Exudyn in a throw-away environment beside the project's packages.)  One child
-per checkout first fills the kernel cache (not counted); the load average is printed.
+exudyn==1.13.6``: Exudyn in a throw-away environment beside the project's packages.)  One warm-up
+child per solver first brings the files into the page cache (not counted); the load average is printed.
 """
 
 from __future__ import annotations
@@ -157,7 +156,7 @@ def main() -> None:
             runs["sidprep API (installed)"] = ([args.installed, *api[1:]], None)
             runs["sidprep simulate (installed)"] = ([args.installed, *cli[1:]], None)
         runs["Exudyn"] = ([args.exudyn_python, "-c", EXUDYN_CHILD, str(BENCHMARKS), str(npz), repr(args.h)], ROOT)
-        for argv, source in runs.values():  # warm-up: kernel caches filled, files in the page cache
+        for argv, source in runs.values():  # warm-up: files in the page cache
             child_cost(argv, source, folder)
         rows = {name: [] for name in runs}
         loads = [os.getloadavg()[0]]

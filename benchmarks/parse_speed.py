@@ -5,7 +5,7 @@ own ASCII matrix files, optionally against another checkout.
 The tet10 bar of benchmarks/scale.py (1.0 x 0.05 x 0.08 m, h for the DOF target) is written as a
 CalculiX deck and run once by ``ccx`` with ``*FREQUENCY, SOLVER=MATRIXSTORAGE``: bar.sti and bar.mas,
 one ``row column value`` per line.  Each timed run is a fresh process that scans both files once to
-warm up (numba's compile into a throw-away cache, the page cache) and then once timed: bytes per
+warm up (the page cache) and then once timed: bytes per
 second of wall time and of the process's CPU time (the steadier figure on a shared machine).  With
 ``--before CHECKOUT`` that checkout's scanner runs too, the children alternating so that they share
 the machine's load; medians and the 1-minute load average at each run (/proc/loadavg).
@@ -72,7 +72,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dof", type=int, default=30_000)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--before", type=Path, help="another checkout (its scanner built or JIT-compiled) to compare")
+    ap.add_argument("--before", type=Path, help="another checkout (its scanner built) to compare")
     args = ap.parse_args()
     if shutil.which("ccx") is None:
         sys.exit("ccx not found: apt-get install calculix-ccx")
@@ -85,8 +85,7 @@ def main() -> None:
         for _ in range(args.repeat):
             for name, checkout in checkouts.items():
                 out = subprocess.run([sys.executable, "-c", CHILD, str(checkout), *map(str, files)], check=True,
-                                     capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(checkout),
-                                                                              NUMBA_CACHE_DIR=str(Path(tmp) / "numba")))
+                                     capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(checkout)))
                 speeds[name].append([float(x) for x in out.stdout.split()[-2:]])
                 loads.append(load())
     print(f"| scanner | files MB | MB/s wall | MB/s CPU (median of {args.repeat}) | CPU runs | load (1 min) |")

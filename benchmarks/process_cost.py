@@ -57,13 +57,18 @@ except ImportError:
 from sidprep.solver.scene import load_scene, simulate
 import sidprep.solver.run as run_module
 t_import = time.process_time() - t0
-try:  # the samples' outputs computed inside the compiled loops (the fourth pass on)
-    from sidprep.solver.integrators.outputs import sample_outputs
+try:  # the compiled core (Cython): the loops compute their samples' outputs
+    from sidprep.solver.core.outputs import sample_outputs
+    from sidprep.solver.core.steps import SampleArrays as SampleBuffers
     inside = True
-except ImportError:  # before: post-processing called them from Python
-    from sidprep.solver.postprocess import sample_outputs
-    inside = False
-from sidprep.solver.integrators.base import SampleBuffers
+except ImportError:  # numba kernels
+    try:  # the samples' outputs computed inside the compiled loops
+        from sidprep.solver.integrators.outputs import sample_outputs
+        inside = True
+    except ImportError:  # before: post-processing called them from Python
+        from sidprep.solver.postprocess import sample_outputs
+        inside = False
+    from sidprep.solver.integrators.base import SampleBuffers
 import numpy as np
 captured = []
 postprocess = run_module.postprocess

@@ -11,22 +11,18 @@
    3.9 Hz, crank at constant speed, gravity, Coulomb friction, 10 s): whole-run CPU s and the
    solution error (max over slider position and modal coordinates, relative to each signal's
    peak) against a run at h = 0.25 ms, for fixed steps and for error-controlled steps.
-4. First-run compilation: wall time of a pendulum simulation in a fresh process with an empty
-   numba cache (NUMBA_CACHE_DIR in a temporary folder), and with the cache filled.
 
-CPU = process time, median of ``--repeat`` runs after a warm-up run.
+CPU = process time, median of ``--repeat`` runs after a warm-up run.  The cost of building the
+compiled core (install) and of a first run is ``benchmarks/build_cost.py``.
 
-    python benchmarks/solver_core.py             # all four (~6 min with the compilation part)
-    python benchmarks/solver_core.py --skip-compile --repeat 1
+    python benchmarks/solver_core.py             # all three
+    python benchmarks/solver_core.py --repeat 1
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -126,42 +122,13 @@ def slider_crank(repeat: int) -> None:
               f"<= {SLIDER_CRANK_TARGET} s at <= {SLIDER_CRANK_ERROR:g} |")
 
 
-COMPILE_SCRIPT = """
-import time
-t0 = time.time()
-import numpy as np
-from sidprep.solver import System, RigidBody, Revolute, simulate
-from sidprep.solver.run import simulate
-s = System(gravity=(0, 0, -9.81))
-b = s.add(RigidBody(1.0, (0.5, 0, 0), [1e-3, 1e-3, 1e-3], name="rod"))
-s.add(Revolute(s.ground.marker(rotation=(np.pi / 2, 0, 0)), b.marker(rotation=(np.pi / 2, 0, 0))))
-simulate(s, 0.1, h=1e-3)
-print(time.time() - t0)
-"""
-
-
-def compilation() -> None:
-    print("\n### First run: compilation of the solver kernels (pendulum, 0.1 s)\n")
-    print("| numba cache | wall s |")
-    print("|---|---|")
-    with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        for label in ("empty (first run after install)", "filled"):
-            out = subprocess.run([sys.executable, "-c", COMPILE_SCRIPT], env=env, capture_output=True, text=True,
-                                 check=True)
-            print(f"| {label} | {float(out.stdout.split()[-1]):.1f} |")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--skip-compile", action="store_true")
     args = parser.parse_args()
     pendulum(args.repeat)
     engine(args.repeat)
     slider_crank(args.repeat)
-    if not args.skip_compile:
-        compilation()
 
 
 if __name__ == "__main__":

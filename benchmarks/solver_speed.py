@@ -15,7 +15,7 @@ Errors against a reference run of the same solver (h = H_REF, Newton tolerance 1
   with the tip deflection = elastic displacement of the tip node, Phi_tip q (body frame).
 
 CPU = ``stats["cpu_integration"]`` (process time of the time integration only) per simulated
-second, median of ``--repeat`` runs, after a warm-up run (numba cache load).  The last column
+second, median of ``--repeat`` runs, after a warm-up run.  The last column
 flags runs meeting both targets (ANGLE_TARGET_DEG, TIP_TARGET).
 
     python benchmarks/solver_speed.py            # full table (~1 min)
@@ -113,7 +113,7 @@ def main(argv=None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         sid = read_sid(reduced_bar(Path(tmp)))
-    run(sid, 1e-3)  # compile / warm the numba cache
+    run(sid, 1e-3)  # warm-up
     ref = run(sid, H_REF, newton_tol=1e-12, planar=False)[:2]
     steps = (1e-3, 2e-3, 5e-3) if args.quick else STEPS
     repeat = 1 if args.quick else args.repeat

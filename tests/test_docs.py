@@ -29,7 +29,7 @@ BLOCK_TIMEOUT_S = 300
 #: (.ci/run), so it is not run again from inside the suite
 SET_UP = ("pip install", "installs sidprep and runs the test suite: CI (.ci/run) does exactly this")
 #: what is copied into the temporary checkout (the files the docs use)
-#: (the code itself runs from this checkout, so numba's kernel cache is reused between blocks)
+#: (the code itself runs from this checkout, with its compiled modules)
 COPIED = ("data", "examples", "benchmarks", "docs", "README.md")
 
 

@@ -72,14 +72,14 @@ LAYERS = (
 #: layer and the ones before it only.  The compiled formulas know no description; the descriptions
 #: use their rotations (each formula once)
 SOLVER_LAYERS = (
-    Layer("equations", ("sidprep/solver/equations/",)),
+    Layer("core", ("sidprep/solver/core/",)),
     Layer("model", ("sidprep/solver/model/",)),
     Layer("compile", ("sidprep/solver/compile/",)),
     Layer("integrators", ("sidprep/solver/integrators/",)),
     Layer("results", ("sidprep/solver/effects.py", "sidprep/solver/energy.py", "sidprep/solver/results.py")),
     Layer("run", ("sidprep/solver/run.py", "sidprep/solver/postprocess.py", "sidprep/solver/linear.py", "sidprep/solver/stiffening_work.py")),
     Layer("scenes", ("sidprep/solver/scene_tables.py", "sidprep/solver/scene.py", "sidprep/solver/absolute_nodal/", "sidprep/solver/animation.py",
-                     "sidprep/solver/stress.py", "sidprep/solver/fatigue.py", "sidprep/solver/prebuild.py", "sidprep/solver/simulate_scene.py")),
+                     "sidprep/solver/stress.py", "sidprep/solver/fatigue.py", "sidprep/solver/simulate_scene.py")),
     Layer("studies", ("sidprep/solver/converge.py",)),
     Layer("solver api", ("sidprep/solver/__init__.py",)),
 )
@@ -88,7 +88,6 @@ SOLVER_LAYERS = (
 PACKAGE_METADATA = {"__version__"}
 #: modules that import by a name known only at run time, each with its reason
 RUNTIME_IMPORTS = {
-    "sidprep.solver.equations.aot": "unpickles a compiled kernel by the module name stored with it",
     "sidprep.lazy": "a package's module on first use, by the attribute name asked for (PEP 562 __getattr__)",
 }
 #: at most this many parameters (``self`` counts): a function that needs more takes a named structure
@@ -108,19 +107,6 @@ WIDE_FUNCTIONS = {
     "sidprep/solver/integrators/initial.py:quasi_static_elastic": (11, "the layout's state arrays of the consistent start"),
     "sidprep/solver/model/bodies.py:RigidBody.__init__": (10, "a rigid body's mass, centre, inertia and start state as keywords"),
     "sidprep/solver/model/bodies.py:FlexibleBody.__init__": (12, "a flexible body's SID, start state and effects as keywords"),
-    # compiled kernels: numba takes their arrays one by one (records would be jitclass / structref)
-    "sidprep/solver/absolute_nodal/kernels.py:rk4_loop": (9, "compiled kernel"),
-    "sidprep/solver/equations/assemble.py:path_pose": (10, "compiled kernel"),
-    "sidprep/solver/equations/assemble.py:path_convection": (12, "compiled kernel"),
-    "sidprep/solver/equations/assemble.py:evaluate_into": (9, "compiled kernel"),
-    "sidprep/solver/equations/constraints.py:marker_pose": (10, "compiled kernel"),
-    "sidprep/solver/equations/forces.py:force_elements": (9, "compiled kernel"),
-    "sidprep/solver/integrators/base.py:store_sample": (11, "compiled kernel"),
-    "sidprep/solver/integrators/base.py:constraint_convection": (9, "compiled kernel"),
-    "sidprep/solver/integrators/base.py:index1_accelerations": (12, "compiled kernel"),
-    "sidprep/solver/integrators/base.py:state_equations": (11, "compiled kernel"),
-    "sidprep/solver/integrators/explicit.py:rk4_loop": (11, "compiled kernel"),
-    "sidprep/solver/integrators/genalpha.py:ga_loop": (12, "compiled kernel"),
 }
 #: at most this many modules directly in sidprep/ (the rest live in the subpackages)
 MAX_FLAT_MODULES = 10
@@ -415,7 +401,7 @@ def test_the_documented_layers_are_the_tested_ones():
 def test_sid_package_needs_no_fe_library():
     """sidprep.sid is what the solver reads SID files with: no FE library may enter it (numpy, h5py
     and scipy, which the solver needs anyway, may)."""
-    heavy = ("skfem", "meshio", "gmsh", "pyamg", "sksparse_minimal", "numba")
+    heavy = ("skfem", "meshio", "gmsh", "pyamg", "sksparse_minimal")
     offenders = []
     for name, path in module_files().items():
         if name.startswith("sidprep.sid"):
@@ -446,7 +432,7 @@ def tree(tmp_path):
     """A copy of the sources and docs/architecture.md."""
     def other_files(folder, names):
         return [n for n in names if n == "__pycache__"
-                or not (n.endswith((".py", ".md")) or (Path(folder) / n).is_dir())]
+                or not (n.endswith((".py", ".pyx", ".md")) or (Path(folder) / n).is_dir())]
 
     for folder in (*INSTALLED_AS, "docs"):
         shutil.copytree(ROOT / folder, tmp_path / folder, ignore=other_files)
@@ -481,9 +467,8 @@ def test_a_module_of_no_layer_fails(tree):
 
 
 def test_the_compiled_formulas_importing_a_description_fails(tree):
-    append(tree / "sidprep" / "solver" / "equations" / "rotations.py", "from sidprep.solver.model.effects import EFFECTS\n")
-    assert solver_breaches(tree) == ["sidprep.solver.equations.rotations (equations) imports "
-                                     "sidprep.solver.model.effects (model)"]
+    append(tree / "sidprep" / "solver" / "core" / "rotations.pyx", "from sidprep.solver.model.effects import EFFECTS\n")
+    assert solver_breaches(tree) == ["sidprep.solver.core.rotations (core) imports sidprep.solver.model.effects (model)"]
 
 
 def test_the_solver_importing_its_own_api_fails(tree):

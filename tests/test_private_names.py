@@ -21,12 +21,6 @@ UNDERSCORE_API = {"_exit", "_fields", "_asdict", "_replace", "_make"}
 #: private names of other libraries still read, {(file, dotted name): why}; each one is a debt to pay
 #: off, not a licence: the fix is a public API that does the same
 KNOWN_PRIVATE = {
-    ("sidprep/solver/integrators/base.py", "numba.np.linalg._LAPACK"):
-        "numba's own binding of LAPACK dgetrf, the compiled LU of the kernels; numba has no public one",
-    ("sidprep/solver/equations/kernel_cache.py", "caching._UserProvidedCacheLocator"):
-        "numba's cache locator base class under its name before numba made it public (hasattr fallback)",
-    ("sidprep/solver/equations/kernel_cache.py", "caching._CacheImpl"):
-        "numba's cache implementation under its name before numba made it public (hasattr fallback)",
     ("sidprep/cli/main.py", "atexit._run_exitfuncs"):
         "the exit handlers run before os._exit skips the interpreter's teardown (docs/performance.md)",
 }

@@ -1,10 +1,9 @@
-"""Classic RK4 (sidprep/solver/integrators/runge_kutta.py) against closed-form solutions."""
+"""Classic RK4 (sidprep/solver/core/runge_kutta.pyx) against closed-form solutions."""
 
-import numba
 import numpy as np
 import pytest
 
-from sidprep.solver.integrators.runge_kutta import rk4_fixed, rk4_step
+from sidprep.solver.core.runge_kutta import rk4_fixed, rk4_step
 
 #: fourth order: the global error falls by 2^4 = 16 per halving of h, within 10 %
 ORDER_RATIO, ORDER_RATIO_TOL = 16.0, 0.10
@@ -12,20 +11,17 @@ ORDER_RATIO, ORDER_RATIO_TOL = 16.0, 0.10
 EXACT_TOL = 1e-12
 
 
-@numba.njit
 def _growth(t, y, params):
     """y' = a y cos(t): closed form y = y0 exp(a sin t)."""
     return params[0] * y * np.cos(t)
 
 
-@numba.njit
 def _cubic(t, y, params):
     """y' = 3 c3 t^2 + 2 c2 t + c1: closed form y = y0 + c3 t^3 + c2 t^2 + c1 t."""
     c1, c2, c3 = params
     return np.full(y.shape[0], 3.0 * c3 * t * t + 2.0 * c2 * t + c1)
 
 
-@numba.njit
 def _oscillator(t, y, params):
     """x'' = -w^2 x as a first-order system (x, v)."""
     w = params[0]
@@ -63,7 +59,6 @@ def test_exact_for_cubic_in_t():
     assert np.max(np.abs(Y - (exact[:, None] + np.array([0.5, 2.0])))) < EXACT_TOL
 
 
-@numba.njit
 def _linear(t, y, params):
     """y' = lam y."""
     return params[0] * y

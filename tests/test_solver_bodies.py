@@ -10,9 +10,9 @@ import pytest
 
 from sidprep.sid.model import sid_invariants
 from sidprep.solver.model.bodies import FlexibleBody, RigidBody, mode_pairs_from_kom_kr
-from sidprep.solver.equations.constraints import marker_kinematics
+from sidprep.solver.core.constraints import marker_kinematics
 from sidprep.solver.compile.layout import body_matrices
-from sidprep.solver.equations.rotations import exp_so3, skew
+from sidprep.solver.core.rotations import rotation_matrix, skew_matrix
 
 CARTOP = Path(__file__).resolve().parents[1] / ".." / "shared" / "reference" / "sid_fem" / "cartopPragV32.SID_FEM"
 
@@ -82,7 +82,7 @@ def test_node_marker_kinematics_match_nodal_motion():
     body = FlexibleBody(sid, name="b")
     mk = body.node_marker(1)
     rng = np.random.default_rng(3)
-    r, A, q = rng.normal(size=3), exp_so3(rng.normal(size=3)), rng.normal(size=sid.nq) * 0.1
+    r, A, q = rng.normal(size=3), rotation_matrix(rng.normal(size=3)), rng.normal(size=sid.nq) * 0.1
     u = rng.normal(size=6 + sid.nq)
     def kinematics(r, A, q):
         return marker_kinematics(r, A, q, mk.position, mk.rotation, mk.phi, mk.psi)
@@ -94,7 +94,7 @@ def test_node_marker_kinematics_match_nodal_motion():
     eps = 1e-6
 
     def pos(sign):
-        return kinematics(r + sign * eps * u[:3], A @ exp_so3(sign * eps * u[3:6]), q + sign * eps * u[6:])[0]
+        return kinematics(r + sign * eps * u[:3], A @ rotation_matrix(sign * eps * u[3:6]), q + sign * eps * u[6:])[0]
 
     assert np.allclose((pos(1) - pos(-1)) / (2 * eps), jt @ u, rtol=1e-8, atol=1e-9)
     assert np.allclose(jr @ u, A @ (u[3:6]), atol=1e-14)  # psi = 0 for these nodes
@@ -108,7 +108,7 @@ def test_rigid_body_inertia_about_origin():
     terms = body.terms(set(), gravity=False)
     assert np.allclose(terms.I0, expected, rtol=1e-15)
     mk = body_matrices(terms, np.zeros(0), np.zeros(0), np.zeros(3), np.zeros(3))[0]
-    assert np.allclose(mk[3:6, :3], m * skew(c))
+    assert np.allclose(mk[3:6, :3], m * skew_matrix(c))
 
 
 def test_effect_switches_drop_terms():

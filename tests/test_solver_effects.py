@@ -392,7 +392,7 @@ def test_left_out_terms_reproduce_the_body_equations():
     give the same modal force as the compiled body equations with and without each effect (so
     the elastic rows are affine in q, qd and linear in the 19 signals, as ``signals`` says)."""
     from sidprep.solver.effects import LeftOutTerms, free_modes, packed, signals
-    from sidprep.solver.equations.body import body_equations
+    from sidprep.solver.core.body import body_matrices
 
     rng = np.random.default_rng(3)
     a = rng.normal(size=(3, 4, 4))
@@ -410,7 +410,7 @@ def test_left_out_terms_reproduce_the_body_equations():
         f, k, c = left_out.coefficients(effect)
         eta, eta_dot = modes.T @ sid.Me.M0 @ q, modes.T @ sid.Me.M0 @ qd
         rebuilt = x @ f + np.einsum("i,ikj,j->k", x, k, eta) + np.einsum("i,ikj,j->k", x, c, eta_dot)
-        (m0, h0), (m1, h1) = (body_equations(*packed(body, e)[0], q, qd, w, g) for e in (chosen, chosen | {effect}))
+        (m0, h0), (m1, h1) = (body_matrices(*packed(body, e)[0], q, qd, w, g) for e in (chosen, chosen | {effect}))
         direct = modes.T @ ((m1 - m0) @ ud - (h1 - h0))[6:]
         assert np.max(np.abs(rebuilt - direct)) <= RECONSTRUCTION_RTOL * np.max(np.abs(direct)), effect
     assert left_out.coefficients("second_order_inertia") is None  # I2, Gr1: rigid-body rows only

@@ -7,7 +7,7 @@ from test_solver_bodies import bar_sid
 from sidprep.solver import (JOINT_TYPES, ConstantSpeed, Driver, FlexibleBody, JointFriction, PointForce, Prismatic,
                             Revolute, RigidBody, SmoothStart, SolverSettings, SpringDamper, System, Table, bump_stop)
 from sidprep.solver.integrators.base import evaluate
-from sidprep.solver.integrators.base import advance_pose
+from sidprep.solver.integrators.base import moved_pose
 from sidprep.solver.integrators.initial import assemble_positions
 from sidprep.solver.run import Run
 from sidprep.solver.run import simulate
@@ -37,7 +37,7 @@ def rows_and_dg_dt(s, rng, frozen=slice(0, 0), t=0.5, eps=1e-6):
     out = evaluate(run.L, R, A, Q, u, t, lam, run.refs)
 
     def g(sign):
-        pose = advance_pose(run.L, R, A, Q, sign * eps * u)
+        pose = moved_pose(run.L, R, A, Q, sign * eps * u)
         return evaluate(run.L, *pose, u, t + sign * eps, lam, run.refs)[2]
 
     return (g(1) - g(-1)) / (2 * eps), out[3] @ u + out[5], out[5]

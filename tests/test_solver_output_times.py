@@ -90,12 +90,12 @@ def test_the_dense_outputs_se3_increment_inverts_v_in_closed_form():
     """The dense output's translation increment V(theta)^-1 A0^T (R1 - R0) (se3.body_increment) in
     closed form: V applied to it (rotations.se3_jacobian, the forward formula) gives v back, for
     angles from 1e-9 rad over the series threshold to 3.1 rad."""
-    from sidprep.solver.equations.rotations import SE3_SMALL_ANGLE, se3_jacobian, se3_jacobian_solve
+    from sidprep.solver.core.rotations import SE3_SMALL_ANGLE, se3_jacobian_matrix, solve_se3_jacobian
 
     rng = np.random.default_rng(7)
     for angle in (1e-9, 1e-6, 0.999 * SE3_SMALL_ANGLE, 1.001 * SE3_SMALL_ANGLE, 1e-3, 0.1, 1.0, 2.0, 3.1):
         for _ in range(5):
             theta, v = rng.standard_normal(3), rng.standard_normal(3)
             theta *= angle / np.linalg.norm(theta)
-            back = se3_jacobian(theta) @ se3_jacobian_solve(theta, v)
+            back = se3_jacobian_matrix(theta) @ solve_se3_jacobian(theta, v)
             assert np.max(np.abs(back - v)) <= SE3_INVERSE_RTOL * np.max(np.abs(v)), angle

@@ -22,7 +22,7 @@ from sidprep.fe.linalg import clamp_dofs, eigen_modes, factorize, node_dofs, rig
 from sidprep.fe.material import Material, material_from_options
 from sidprep.fe.mesh import FEMesh, read_mesh
 from sidprep.fe.topology import surface_node_indices
-from sidprep.solver.integrators.base import lu_factor, lu_solve
+from sidprep.solver.core.steps import lu_factor, lu_solve
 from sidprep.solver.integrators.settings import METHODS
 from sidprep.solver.run import simulate
 
@@ -1008,10 +1008,13 @@ def test_a_singular_system_gives_nan_not_an_internal_error():
     """rk4 on the flexible engine at its 0.2 ms step reached an exactly singular KKT matrix and
     ended in an internal ZeroDivisionError; a zero pivot now gives NaN, which the steppers'
     non-finite checks report with the cause and the fix."""
-    a = np.array([[1.0, 2.0], [2.0, 4.0]])
-    lu, piv = lu_factor(a)
-    assert np.isnan(lu_solve(lu, piv, np.array([1.0, 1.0]))).any()
+    def solve(a, b):  # the core factors in place into (lu, piv) and solves into x
+        lu, piv, x = np.array(a, dtype=float), np.zeros(len(a), np.int32), np.zeros(len(a))
+        lu_factor(lu, piv)
+        lu_solve(lu, piv, np.asarray(b, dtype=float), x)
+        return x
+
+    assert np.isnan(solve([[1.0, 2.0], [2.0, 4.0]], [1.0, 1.0])).any()
     regular = np.array([[4.0, 1.0], [2.0, 3.0]])
-    lu, piv = lu_factor(regular)
-    np.testing.assert_allclose(lu_solve(lu, piv, np.array([1.0, 2.0])), np.linalg.solve(regular, [1.0, 2.0]),
+    np.testing.assert_allclose(solve(regular, [1.0, 2.0]), np.linalg.solve(regular, [1.0, 2.0]),
                                rtol=1e-14)

@@ -128,8 +128,9 @@ class ShutdownSignals:
 def command() -> None:
     """The ``sidprep`` command: ``main`` as a process of its own, ended without Python's teardown
     of its modules once the atexit handlers have run and stdout and stderr are flushed: that
-    teardown (the cyclic garbage collector over numba's type registries, LLVM's modules freed one
-    by one) cost 0.2-0.35 CPU-s after a simulation (docs/performance.md, "Fixed cost per process").
+    teardown (the ~840 modules a simulation loads, numpy, scipy and h5py among them, freed one by
+    one) costs 0.14-0.16 CPU-s after a simulation of examples/flexible_pendulum or
+    examples/beam_slider_crank (medians of 5 whole processes, 0.75 and 0.92 CPU-s with it skipped).
     While another thread still runs (a pool, a Dask client), the process ends the ordinary way.
     A signal after the command returned ends the process with its own code (ShutdownSignals)."""
     code = main(own_process=True)

@@ -27,11 +27,11 @@ DASK_CONNECT_S = 10
 SCATTER_BYTES = 2**20
 
 
-#: every thread pool of a worker process at one thread, set before numpy, MKL, OpenBLAS or numba
-#: load (a limit set after the import does not reach OpenMP / numba): with N jobs on N cores more
-#: threads only contend (1.58x -> 1.77x over one by one on 2 cores)
+#: every thread pool of a worker process at one thread, set before numpy, MKL or OpenBLAS load (a
+#: limit set after the import does not reach OpenMP): with N jobs on N cores more threads only
+#: contend (1.58x -> 1.77x over one by one on 2 cores)
 SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-                     "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
+                     "VECLIB_MAXIMUM_THREADS": "1"}
 
 
 class Executor(Protocol):

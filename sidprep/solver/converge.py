@@ -43,7 +43,8 @@ RHO_ALTERNATIVE = 0.6
 #: observed orders outside [P_MIN, P_MAX] are not asymptotic: the reference is then the finest run
 #: itself, and its own error is taken as the whole last difference (no extrapolation)
 P_MIN, P_MAX = 0.5, 8.0
-#: a warm-up run of this many steps loads the compiled kernels in a process before its first timed run
+#: a warm-up run of this many steps before a process's first timed run of a method and effects: the
+#: first call's costs (the modules the run imports on first use) stay out of the run's CPU-s
 WARM_UP_STEPS = 5
 
 
@@ -83,7 +84,7 @@ class Setting:
 @dataclass(frozen=True)
 class Outcome:
     """What a run returns from its worker: the window's sample times (nt,), signal values
-    (n_signals, nt), CPU-s of the run (kernels already loaded), CPU-s of the process's warm-up
+    (n_signals, nt), CPU-s of the run (after the warm-up), CPU-s of the process's warm-up
     (0 when it was warm), the energy balance error (sidprep/solver/energy.py) and a failure (or None)."""
 
     t: np.ndarray
@@ -154,7 +155,7 @@ class ConvergeReport:
     """scene : file; signals; window (t0, t1) s; tol; reference : the ladder extrapolated;
     orders : {signal: observed order of the reference ladder}; runs; recommended (None: no run
     meets tol); effects_change : max relative change of the other effects choice (None: not run);
-    warm_up_cpu_s : CPU-s the processes spent loading kernels before their first run; wall_s;
+    warm_up_cpu_s : CPU-s the processes spent in warm-up runs before their first timed run; wall_s;
     load : the machine's load average (1, 5, 15 min) at the end: the CPU-s are this machine's."""
 
     scene: str
@@ -240,8 +241,8 @@ _WARM: set = set()
 def run_setting(path: str, sha256: str, setting: Setting, t_end: float, output_dt: float, signals: tuple,
                 window: tuple) -> Outcome:
     """One rung (a top-level function: the task a worker runs).  The first run of a method and
-    effects in a process is preceded by a warm-up of WARM_UP_STEPS steps that loads the compiled
-    kernels (numba's cache on disk, shared by all processes), so that cpu_s is the run's own."""
+    effects in a process is preceded by a warm-up of WARM_UP_STEPS steps (the first call's imports),
+    so that cpu_s is the run's own."""
     scene = _scene(path, sha256)
     kw = {"method": setting.method, "h": setting.h, "rtol": setting.rtol, "output_dt": output_dt,
           "effects": setting.effects, "progress": None,
@@ -268,9 +269,7 @@ def run_setting(path: str, sha256: str, setting: Setting, t_end: float, output_d
 
 
 def execute(tasks: list[tuple], pool=None, progress=None) -> list[Outcome]:
-    """run_setting(*task) for every task, on ``pool`` (submit / wait) or one by one here.  On a pool
-    the first task of each method and effects runs alone first: a kernel missing from numba's
-    cache is then compiled by one process, and every other process reads it from the cache."""
+    """run_setting(*task) for every task, on ``pool`` (submit / wait) or one by one here."""
     outcomes: list = [None] * len(tasks)
 
     def finished(k, outcome):
@@ -282,10 +281,7 @@ def execute(tasks: list[tuple], pool=None, progress=None) -> list[Outcome]:
         for k, task in enumerate(tasks):
             finished(k, run_setting(*task))
         return outcomes
-    firsts = list({(t[2].method, t[2].effects): k for k, t in reversed(list(enumerate(tasks)))}.values())
-    for k in sorted(firsts):
-        finished(k, pool.submit(run_setting, *tasks[k]).result())
-    futures = {pool.submit(run_setting, *task): k for k, task in enumerate(tasks) if outcomes[k] is None}
+    futures = {pool.submit(run_setting, *task): k for k, task in enumerate(tasks)}
     pending = set(futures)
     while pending:
         for f in pool.wait(pending):

@@ -17,8 +17,7 @@ import numpy as np
 import scipy.linalg
 
 from sidprep.solver.compile.layout import pack_terms
-from sidprep.solver.equations.body import body_equations
-from sidprep.solver.equations.rotations import jit
+from sidprep.solver.core.effects import elastic_rows
 from sidprep.solver.integrators.genalpha import genalpha_parameters
 from sidprep.solver.model.bodies import Ground
 from sidprep.solver.model.effects import DESCRIPTIONS, EFFECTS
@@ -213,31 +212,6 @@ def probe_states() -> tuple[np.ndarray, ...]:
     return w, a, wdot, g
 
 
-@jit
-def elastic_rows(pack, w, gk, ud, modes):  # pragma: no cover - compiled
-    """Elastic rows of M ud - h (sid-spec 5.2) of one body's packed terms at S states, at rest
-    (q = qd = 0) and their change with q or qd along each of the n columns of ``modes``:
-    (S, 1 + 2 n, nq).
-
-    pack : (F, off, flags, mass) of ``pack_terms`` plus the mass; w, gk (S, 3) angular velocity
-    (1/s) and gravity (m/s^2) in K; ud (S, 6 + nq) accelerations in K; modes (nq, n).
-    """
-    F, off, flags, mass = pack
-    nq, n = modes.shape
-    out = np.zeros((w.shape[0], 1 + 2 * n, nq))
-    zero = np.zeros(nq)
-    for s in range(w.shape[0]):
-        m, h = body_equations(F, off, flags, mass, zero, zero, w[s], gk[s])
-        out[s, 0] = (m @ ud[s] - h)[6:]
-        for j in range(n):
-            mode = modes[:, j].copy()
-            m, h = body_equations(F, off, flags, mass, mode, zero, w[s], gk[s])
-            out[s, 1 + j] = (m @ ud[s] - h)[6:] - out[s, 0]
-            m, h = body_equations(F, off, flags, mass, zero, mode, w[s], gk[s])
-            out[s, 1 + n + j] = (m @ ud[s] - h)[6:] - out[s, 0]
-    return out
-
-
 def signal_coefficients(rows, probe_signals, modes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The left-out modal force, stiffness and damping per signal, from the difference of
     ``elastic_rows`` with and without the effect at the probe states: force (19, nq) and, in
@@ -394,8 +368,6 @@ class LeftOutTerms:
     def __init__(self, body, chosen: set, modes: np.ndarray):
         w, a, wdot, g = probe_states()
         nq = modes.shape[0]
-        modes = np.ascontiguousarray(modes)  # C like the generic state's column: one compiled signature of
-        # elastic_rows, not two (scipy's eigh returns F order; each signature is 28 CPU-ms of kernel loading)
         self.body, self.chosen, self.modes, self.avail = body, set(chosen), modes, body.available()
         self.probes = (w, g, np.concatenate([a, wdot, np.zeros((N_SIGNALS, nq))], axis=1), modes)
         generic = np.random.default_rng(0).uniform(0.5, 1.5, 12 + 2 * nq)  # no cancellation (e.g. a = g)

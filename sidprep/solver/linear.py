@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from sidprep.solver.integrators.base import advance_pose, constraint_rows, evaluate
+from sidprep.solver.integrators.base import constraint_rows, evaluate, moved_pose
 from sidprep.solver.integrators.settings import SolverSettings
 from sidprep.solver.run import Run
 
@@ -60,8 +60,8 @@ def tangent_stiffness(L, R, A, Q, refs, weights, length) -> np.ndarray:
         e = FD_STEP * length / weights[j]
         dx = np.zeros(n)
         dx[j] = e
-        fp = evaluate(L, *advance_pose(L, R, A, Q, dx), zero_u, 0.0, lam, refs).f
-        fm = evaluate(L, *advance_pose(L, R, A, Q, -dx), zero_u, 0.0, lam, refs).f
+        fp = evaluate(L, *moved_pose(L, R, A, Q, dx), zero_u, 0.0, lam, refs).f
+        fm = evaluate(L, *moved_pose(L, R, A, Q, -dx), zero_u, 0.0, lam, refs).f
         K[:, j] = -(fp - fm) / (2 * e)
     return K
 

@@ -2,7 +2,7 @@
 coordinates, energies and the effects report.
 
 The outputs of every sample (SampledOutputs: marker positions, reactions, energies, ...) come
-from the compiled ``integrators.outputs.sample_outputs``: the compiled loops call it on their own
+from the compiled ``core.outputs.sample_outputs``: the compiled loops call it on their own
 samples (one compiled entry for the steps and their outputs); for a stepper driven from Python
 it is called here, all samples at once (from Python one call of ``evaluate`` costs ~150 us of
 dispatch against ~20 us inside compiled code).  ``postprocess`` hands the arrays out per body,
@@ -11,17 +11,25 @@ marker and joint.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from sidprep.solver.effects import build_report, estimate_changes
-from sidprep.solver.equations.assemble import every_marker
-from sidprep.solver.integrators.base import SampleBuffers
-from sidprep.solver.integrators.outputs import PostConstants, PostSetup, sample_outputs
+from sidprep.solver.core.outputs import PostConstants, sample_outputs
+from sidprep.solver.core.records import layout_record
+from sidprep.solver.core.steps import SampleArrays
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 from sidprep.solver.energy import work_integral
 from sidprep.solver.stiffening_work import base_layout
 
 ENERGY_KINDS = ("kinetic", "strain", "gravity", "spring", "dissipated", "external", "stiffening")
+
+#: what a compiled loop needs to compute the outputs of its samples: the run's layout with every
+#: marker active L, the reference layout of the stiffening work L0 (stiffening_work.base_layout
+#: with every marker active; L when no stiffening effect is on), both core Layout records, and the
+#: core PostConstants c
+PostSetup = namedtuple("PostSetup", ["L", "L0", "c"])
 
 
 def joint_marker_names(constraint) -> tuple[str, str]:
@@ -54,10 +62,11 @@ def post_constants(run, stiffening: bool) -> PostConstants:
 
 
 def post_setup(run) -> PostSetup:
-    """The PostSetup of ``run`` (solver.run.Run): its layouts with every marker active and its
-    PostConstants."""
+    """The PostSetup of ``run`` (solver.run.Run): its layouts with every marker active (core Layout
+    records) and its PostConstants."""
     L0 = base_layout(run)
-    return PostSetup(every_marker(run.L), every_marker(run.L if L0 is None else L0), post_constants(run, L0 is not None))
+    L = layout_record(run.L).with_every_marker()
+    return PostSetup(L, L if L0 is None else layout_record(L0).with_every_marker(), post_constants(run, L0 is not None))
 
 
 def postprocess(run, s, setup, out=None) -> Result:
@@ -66,7 +75,7 @@ def postprocess(run, s, setup, out=None) -> Result:
     system, L = run.system, run.L
     c = setup.c
     if out is None:
-        samples = SampleBuffers(*(np.ascontiguousarray(getattr(s, f)) for f in SampleBuffers._fields))
+        samples = SampleArrays(*(np.ascontiguousarray(getattr(s, f)) for f in SampleArrays._fields))
         out = sample_outputs(setup.L, setup.L0, samples, c)
     bodies = {}
     for i, b in enumerate(system.bodies):

@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
 import time
-from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -23,15 +21,14 @@ from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import left_path, path_marker_problems
 from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_beyond, balance_warning, energy_balance
-from sidprep.solver.equations.aot import compile_events
-from sidprep.solver.equations.forces import FE_SPRING
+from sidprep.solver.core.forces import FE_INT_KIND, FE_INT_MARKER1, FE_INT_MARKER2, FE_PAR_LENGTH, FE_SPRING
+from sidprep.solver.core.outputs import SampledOutputs
 from sidprep.solver.integrators.base import Problem, Samples, State, evaluate, marker_kinematics
 from sidprep.solver.integrators.adaptive import ScipyRungeKutta
 from sidprep.solver.integrators.explicit import RungeKutta4
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
 from sidprep.solver.integrators.initial import (POSITION_TOL, accelerations, assemble_positions, body_sizes,
     independent_rows, length_weights, project_velocities, quasi_static_elastic)
-from sidprep.solver.integrators.outputs import SampledOutputs
 from sidprep.solver.integrators.planar import planar_coordinates
 from sidprep.solver.integrators.settings import SolverSettings, check_run_size
 from sidprep.solver.model.bodies import RigidBody
@@ -112,37 +109,6 @@ def check_settings(settings, t_end: float) -> None:
                          "it; leave rtol out, or choose method = \"rk45\", \"dop853\" or \"genalpha\" (error control)")
 
 
-class CompileNotice:
-    """Says on stderr, while numba compiles, which solver kernel it compiles and how many it has
-    compiled (numba compiles a kernel on its first use after install, then reads it from the
-    kernel cache; nothing is printed then)."""
-
-    def __init__(self):
-        self.depth = 0
-        self.count = 0
-        self.started = 0.0
-
-    def on_start(self, ev):
-        self.count += 1
-        if self.depth == 0:
-            self.started = time.process_time()
-            print(f"sidprep: compiling solver kernel {ev.data['dispatcher'].py_func.__name__} "
-                  f"(kernel {self.count} of this process; cached afterwards) ...", file=sys.stderr, flush=True)
-        self.depth += 1
-
-    def on_end(self, ev):
-        self.depth -= 1
-        if self.depth == 0:
-            print(f"sidprep: ... {self.count} kernels compiled so far ({time.process_time() - self.started:.1f} CPU-s "
-                  "for this one)", file=sys.stderr, flush=True)
-
-    @contextmanager
-    def watching(self):
-        """Report the compilations of the block."""
-        with compile_events(self):
-            yield self
-
-
 class Run:
     """One simulation of ``system`` to ``t_end`` (s) with ``settings`` (SolverSettings)."""
 
@@ -181,11 +147,12 @@ class Run:
     def resolve_spring_lengths(self, R, A, Q) -> None:
         """Springs without a length take the marker distance at the assembled start (this
         run's layout; the System is not changed)."""
-        rows = np.flatnonzero((self.L.fe_int[:, 0] == FE_SPRING) & np.isnan(self.L.fe_par[:, 2]))
+        rows = np.flatnonzero((self.L.fe_int[:, FE_INT_KIND] == FE_SPRING) & np.isnan(self.L.fe_par[:, FE_PAR_LENGTH]))
         if rows.size:
             P = marker_kinematics(self.L, R, A, Q).P
             for r in rows:
-                self.L.fe_par[r, 2] = np.linalg.norm(P[self.L.fe_int[r, 2]] - P[self.L.fe_int[r, 1]])
+                marker1, marker2 = self.L.fe_int[r, FE_INT_MARKER1], self.L.fe_int[r, FE_INT_MARKER2]
+                self.L.fe_par[r, FE_PAR_LENGTH] = np.linalg.norm(P[marker2] - P[marker1])
 
     def consistent_start(self) -> State:
         """Assembly, redundant rows, planar reduction, velocities, accelerations at t = 0."""
@@ -297,27 +264,23 @@ class Run:
     def execute(self):
         """Integrate and return the Result (sidprep/solver/results.py)."""
         cpu0 = time.process_time()
-        notice = CompileNotice()
-        with notice.watching():
-            state = self.consistent_start()
-            problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
-                              body_sizes(self.system, self.terms), post_setup(self))
-            first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
-                            state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
-            stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
+        state = self.consistent_start()
+        problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
+                          body_sizes(self.system, self.terms), post_setup(self))
+        first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
+                        state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
+        stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
         cpu_setup = time.process_time() - cpu0
         chunks = [first] if stepper.outputs is None else []  # (a compiled loop records the start itself)
-        with notice.watching():
-            while stepper.status == "running":
-                chunks.append(stepper.advance(self.t_end))
-                if self.settings.progress:
-                    self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
+        while stepper.status == "running":
+            chunks.append(stepper.advance(self.t_end))
+            if self.settings.progress:
+                self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
         outputs = None if stepper.outputs is None else SampledOutputs(
             *(np.concatenate([getattr(o, f) for o in stepper.outputs]) for f in SampledOutputs._fields))
-        with notice.watching():
-            result = postprocess(self, samples, problem.post, outputs)
+        result = postprocess(self, samples, problem.post, outputs)
         dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
                    np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
         result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,

@@ -30,8 +30,8 @@ from sidprep.errors import InputError, SimulationFailed
 from sidprep.sid.io import read_sid
 from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel
 from sidprep.solver.absolute_nodal.scene import is_absolute_nodal_scene, load_absolute_nodal_scene
+from sidprep.solver.core.rotations import as_rotation
 from sidprep.solver.integrators.settings import SolverSettings
-from sidprep.solver.equations.rotations import as_rotation
 from sidprep.solver.model.bodies import FlexibleBody, RigidBody
 from sidprep.solver.model.effects import EFFECTS
 from sidprep.solver.model.forces import (JointForce, JointFriction, MovingMass, PointForce, PointTorque,

@@ -13,10 +13,10 @@ kinetic and potential energies) between the run's layout and the same layout wit
 stiffening effects and without second_order_inertia (I2 and Gr1 pair with the Kom part of the
 centrifugal stiffening: the exact model is conservative with all three, the first-order one
 with none); dM/dt u and dV/dt are central differences along the motion (step
-RATE_STEP s, integrators/outputs.py).  The other terms (loads, drives, damping, friction, springs, moving masses) are
+RATE_STEP s, core/outputs.pyx).  The other terms (loads, drives, damping, friction, springs, moving masses) are
 the same in both layouts and cancel; a term outside the stiffening effects that did not
 conserve energy would still show in the balance error.  P_s is computed at every output sample
-by the compiled post-processing (integrators/outputs.py: ``sample_outputs`` from ``model_power``,
+by the compiled post-processing (core/outputs.pyx: ``sample_outputs`` from ``model_power``,
 with the central differences at step RATE_STEP).
 
 The work W_s(t) = int_0^t P_s dt is integrated by the trapezoidal rule over the output samples;

@@ -15,13 +15,13 @@ inertial X-Y plane) of the nodes of two-node elements; beams joined by a revolut
 * M x'' + sum_J dV_J/dx = f (eq. 10), f = gravity + constant nodal forces; pinned nodes are
   removed; prescribed-angle drivers Phi = phi_J + theta_end - psi(t) = 0 at a support add
   Lagrange multipliers (the paper's remark after eq. 14) with Baumgarte stabilisation.
-* Classic RK4 (the stages of sidprep/solver/integrators/runge_kutta.py) with a compiled right-hand side,
+* Classic RK4 (the stages of sidprep/solver/core/runge_kutta.pyx) with a compiled right-hand side,
   driven under the stepper contract (run.py).
 
 Modules, in the order of the data: model (the description) -> assembly (nodes, constant
-matrices) -> kernels (compiled) -> run (the RK4 stepper) -> results (a ``solver.results.Result``:
-a body per beam, a marker per point, a revolute "joint" per support and shared point, energies);
-scene reads the scene tables.  Import the names from those modules: the package imports nothing,
+matrices) -> the compiled kernels (sidprep/solver/core/absolute_nodal.pyx) -> run (the RK4
+stepper) -> results (a ``solver.results.Result``: a body per beam, a marker per point, a
+revolute "joint" per support and shared point, energies); scene reads the scene tables.  Import the names from those modules: the package imports nothing,
 so that a scene of floating-frame bodies does not load this solver (28 CPU-ms of imports,
 docs/performance.md "Fixed cost per process").
 """

@@ -1,5 +1,5 @@
 """Numbered nodes and the constant matrices of an absolute-nodal model (Python, once per run):
-masses, element stiffnesses, loads, initial positions and velocities, the kernels' parameters."""
+masses, element stiffnesses, loads, initial positions and velocities, the compiled kernels' record."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel, check_model
+from sidprep.solver.core.absolute_nodal import BeamSystem
 
 #: Baumgarte stabilisation of the driver constraints, Phi'' + 2 a Phi' + a^2 Phi = 0 (1/s)
 BAUMGARTE_RATE = 20.0
@@ -158,10 +159,10 @@ def assemble(model: AbsoluteNodalModel) -> Assembly:
                     f0, fg, X0, V0, offset, drv)
 
 
-def kernel_params(asm: Assembly, alpha: float = BAUMGARTE_RATE) -> tuple:
-    """The tuple the compiled rhs reads (see ``accelerations``)."""
-    return (asm.X0.copy(), asm.free, asm.Minv, asm.f0, asm.beam_nodes, asm.beam_n, asm.beam_e, asm.beam_K,
-            asm.drv, float(alpha))
+def beam_system(asm: Assembly, alpha: float = BAUMGARTE_RATE) -> BeamSystem:
+    """The compiled kernels' record of ``asm`` (sidprep/solver/core/absolute_nodal.pyx), drivers
+    stabilised at the Baumgarte rate ``alpha`` (1/s)."""
+    return BeamSystem(asm, float(alpha))
 
 
 def initial_vector(asm: Assembly) -> np.ndarray:

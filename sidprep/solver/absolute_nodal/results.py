@@ -8,23 +8,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, initial_vector, kernel_params, unpack
-from sidprep.solver.absolute_nodal.kernels import (accelerations, beam_elastic, beam_kinematics, driver_angle, driver_value,
-                                                   wrapped_angle)
+from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, beam_system, initial_vector, unpack
 from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel
+from sidprep.solver.core.absolute_nodal import BeamSystem, driver_angle, wrapped_angle
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver.results import BodyHistory, JointHistory, Result
 
 
-def _samples(asm: Assembly, t: np.ndarray, Y: np.ndarray):
+def _samples(asm: Assembly, system: BeamSystem, t: np.ndarray, Y: np.ndarray):
     """Per sample: positions X, velocities V, accelerations A (nt, N, 2), multipliers (nt, nd), strain (nt,)."""
-    params = kernel_params(asm)
     X, V = unpack(asm, Y)
     A = np.zeros_like(X)
     lam = np.zeros((len(t), asm.drv.shape[0]))
     strain = np.zeros(len(t))
     for s in range(len(t)):
-        A[s], lam[s], strain[s] = accelerations(t[s], Y[s], params)
+        A[s], lam[s], strain[s] = system.accelerations(t[s], Y[s])
     return X, V, A, lam, strain
 
 
@@ -37,7 +35,8 @@ def initial_result(model: AbsoluteNodalModel):
 
 def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.ndarray, stats: dict):
     """Signals, energies and reactions of the sampled states Y (nt, 4 nf) at times t."""
-    X, V, A, lam, strain = _samples(asm, t, Y)
+    system = beam_system(asm)
+    X, V, A, lam, strain = _samples(asm, system, t, Y)
     nt = len(t)
     kinetic = 0.5 * np.einsum("sic,ij,sjc->s", V, asm.Ms, V)
     gravity = -np.einsum("sic,ic->s", X, asm.fg) + asm.gravity_offset
@@ -51,8 +50,8 @@ def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.n
               "total": kinetic + strain + gravity - external}
     bodies, phis, phids = {}, {}, {}
     for j, b in enumerate(model.beams):
-        nodes, n, e = asm.beam_nodes[j, :asm.beam_n[j]], asm.beam_n[j], asm.beam_e[j]
-        kin = [beam_kinematics(X[s], V[s], A[s], nodes, n, e) for s in range(nt)]
+        nodes = asm.beam_nodes[j, :asm.beam_n[j]]
+        kin = [system.beam_kinematics(X[s], V[s], A[s], j) for s in range(nt)]
         phi = np.unwrap([k[0] for k in kin])
         phid = np.array([k[1] for k in kin])
         phidd = np.array([k[2] for k in kin])
@@ -78,7 +77,7 @@ def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.n
     for j, b in enumerate(model.beams):                 # elastic forces on the supports
         for s in range(nt):
             Q = np.zeros_like(asm.X0)
-            beam_elastic(X[s], asm.beam_nodes[j, :asm.beam_n[j]], asm.beam_n[j], asm.beam_e[j], asm.beam_K[j], Q)
+            system.beam_elastic(X[s], j, Q)
             reaction[s] -= Q
     effort = {d.support: lam[:, r] for r, d in enumerate(model.drivers)}
     for sup in model.supports:
@@ -97,10 +96,9 @@ def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.n
     derr = np.zeros(nt)
     for r, d in enumerate(model.drivers):
         j = int(asm.drv[r, 0])
-        k = -1 if asm.drv[r, 1] > 0.5 else 0
-        nodes, n, e = asm.beam_nodes[j, :asm.beam_n[j]], asm.beam_n[j], asm.beam_e[j]
+        at_end = asm.drv[r, 1] > 0.5
         for s in range(nt):
-            val = driver_value(X[s], V[s], A[s], nodes, n, e, k == -1)[0]
+            val = system.driver_value(X[s], V[s], A[s], j, at_end)[0]
             derr[s] = max(derr[s], abs(wrapped_angle(val - driver_angle(t[s], *asm.drv[r, 2:])[0])))
     notes = ("absolute nodal beams: every effect of the formulation is included (no effect selection); "
              "force of beam-beam revolutes not computed (NaN)",)

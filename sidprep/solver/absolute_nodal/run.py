@@ -10,10 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, initial_vector, kernel_params
-from sidprep.solver.absolute_nodal.kernels import beam_elastic, rk4_loop
+from sidprep.solver.absolute_nodal.assembly import Assembly, assemble, beam_system, initial_vector
 from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel
 from sidprep.solver.absolute_nodal.results import beam_result
+from sidprep.solver.core.absolute_nodal import BeamSystem, RK4Progress, rk4_loop
 from sidprep.solver.integrators.base import CHUNK, Stepper
 from sidprep.solver.integrators.settings import SolverSettings, check_run_size
 
@@ -25,9 +25,9 @@ STIFFNESS_FD = 1e-7
 
 @dataclass
 class BeamProblem:
-    """What the stepper integrates: the kernels' parameters (assembly.kernel_params) and t_end (s)."""
+    """What the stepper integrates: the compiled kernels' record (assembly.beam_system) and t_end (s)."""
 
-    params: tuple
+    system: BeamSystem
     t_end: float
 
 
@@ -48,21 +48,20 @@ class BeamSamples:
 
 
 class BeamRK4(Stepper):
-    """Classic RK4 at the fixed step settings.h (kernels.rk4_loop), samples every output_dt."""
+    """Classic RK4 at the fixed step settings.h (core.absolute_nodal.rk4_loop), samples every output_dt."""
 
     name = "rk4"
 
     def __init__(self, problem: BeamProblem, state: BeamState, settings: SolverSettings):
         super().__init__(problem, state, settings)
-        self.next_out = settings.output_dt or 0.0
+        self.progress = RK4Progress(state.t, state.y, settings.output_dt or 0.0, 0)
 
     def advance(self, t_stop: float) -> BeamSamples:
-        st = self.settings
-        t, y, self.next_out, steps, ts, Ys = rk4_loop(self.state.t, self.state.y, t_stop, st.h, st.output_dt or 0.0,
-                                                      self.next_out, self.problem.params, CHUNK, self.stats["steps"])
-        self.state = BeamState(t, y)
-        self.stats.update(steps=int(steps), rhs_evaluations=4 * int(steps), h_min=st.h, h_max=st.h)
-        if t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
+        st, p = self.settings, self.progress
+        ts, Ys = rk4_loop(self.problem.system, p, t_stop, st.h, st.output_dt or 0.0, CHUNK)
+        self.state = BeamState(p.t, np.array(p.y))
+        self.stats.update(steps=int(p.steps), rhs_evaluations=4 * int(p.steps), h_min=st.h, h_max=st.h)
+        if p.t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
             self.status = "finished"
         return BeamSamples(ts, Ys)
 
@@ -75,11 +74,12 @@ def highest_frequency(asm: Assembly) -> float:
 
     free = [2 * i + c for i in asm.free for c in (0, 1)]
     scale = STIFFNESS_FD * max(float(np.max(asm.beam_e)), 1e-300)
+    system = beam_system(asm)
 
     def force(X):
         Q = np.zeros_like(X)
         for j in range(len(asm.beam_n)):
-            beam_elastic(X, asm.beam_nodes[j], asm.beam_n[j], asm.beam_e[j], asm.beam_K[j], Q)
+            system.beam_elastic(X, j, Q)
         return Q.ravel()[free]
 
     K = np.zeros((len(free), len(free)))
@@ -112,8 +112,7 @@ def integrate(asm: Assembly, t_end: float, settings: SolverSettings) -> tuple[np
                          f"beams ({omega:.4g} rad/s); use step <= {RK4_STABILITY / omega:.3g} s or fewer elements / "
                          "a smaller EA")
     y0 = initial_vector(asm)
-    problem = BeamProblem(kernel_params(asm), t_end)
-    rk4_loop(0.0, y0, 0.0, settings.h, 0.0, 0.0, problem.params, 1, 0)      # load the kernel outside the timing
+    problem = BeamProblem(beam_system(asm), t_end)
     cpu = time.process_time()
     stepper = BeamRK4(problem, BeamState(0.0, y0), settings)
     chunks = [BeamSamples(np.zeros(1), y0[None])]

@@ -1,5 +1,5 @@
 """The compiled layout of a System: every body, marker, joint, driver, curve and force element
-as flat arrays (a namedtuple numba can take), built once per run.
+as flat arrays (a namedtuple; the compiled core's Layout record views them), built once per run.
 
 Coordinates: body i has positions (R[i] (3,), A[i] (3, 3), Q[qoff[i]:qoff[i+1]]) and
 velocities u[uoff[i]:uoff[i+1]] = [v_O, omega, qd].  Constraint rows: the joints' rows in
@@ -12,20 +12,25 @@ from collections import namedtuple
 
 import numpy as np
 
-from sidprep.solver.equations.body import (CR0, CR1, CT0, CT1, DE, F_CORIOLIS, F_CR1, F_CT1, F_DAMPING, F_GRAVITY,
-                                           F_INERTIA, F_OE0, F_OE1, F_PRELOAD, F_SECOND, GE, GR0, I0, I1, KE, KS0,
-                                           KS1, MD0, MD1, ME, N_FLAGS, N_TERMS, OE0, OE1, P2, body_equations)
-from sidprep.solver.equations.constraints import ANGLE, NO_COORDINATE, SLIDE
-from sidprep.solver.equations.curves import CONSTANT_SPEED, SMOOTH_START, TABULATED
-from sidprep.solver.equations.forces import (FE_FORCE, FE_FRICTION, FE_JOINT_FORCE, FE_MOVING_MASS, FE_SPRING,
-                                             FE_TORQUE)
+from sidprep.solver.core.body import (CR0, CR1, CT0, CT1, DE, F_CORIOLIS, F_CR1, F_CT1, F_DAMPING, F_GRAVITY, F_INERTIA,
+                                     F_OE0, F_OE1, F_PRELOAD, F_SECOND, GE, GR0, I0, I1, KE, KS0, KS1, MD0, MD1, ME,
+                                     N_FLAGS, N_TERMS, OE0, OE1, P2)
+from sidprep.solver.core.body import body_matrices as packed_body_matrices
+from sidprep.solver.core.constraints import ANGLE, NO_COORDINATE, SLIDE
+from sidprep.solver.core.curves import CONSTANT_SPEED, SMOOTH_START, TABULATED
+from sidprep.solver.core.forces import (FE_FORCE, FE_FRICTION, FE_INT_COLUMNS, FE_INT_JOINT, FE_INT_KIND,
+                                        FE_INT_MARKER1, FE_INT_MARKER2, FE_INT_TABLE, FE_INT_TABLE_COLUMNS,
+                                        FE_JOINT_FORCE, FE_MOVING_MASS, FE_PAR_CLEARANCE, FE_PAR_COLUMNS,
+                                        FE_PAR_CONSTANT, FE_PAR_DAMPING, FE_PAR_DIRECTION, FE_PAR_HAS_DIRECTION,
+                                        FE_PAR_HAS_STOP, FE_PAR_LENGTH, FE_PAR_LEVER, FE_PAR_MARKER_FRAME, FE_PAR_MASS,
+                                        FE_PAR_MU, FE_PAR_PRELOAD, FE_PAR_REFERENCE, FE_PAR_REGULARISATION,
+                                        FE_PAR_STIFFNESS, FE_PAR_STOP_DAMPING, FE_PAR_STOP_EXPONENT,
+                                        FE_PAR_STOP_STIFFNESS, FE_PAR_VALUE, FE_SPRING, FE_TORQUE)
+from sidprep.solver.core.records import layout_record
 from sidprep.solver.model.forces import (JointForce, JointFriction, MarkerLoad, MovingMass, PointTorque, SpringDamper,
                                          Table)
 from sidprep.solver.model.bodies import PathMarker
 from sidprep.solver.model.joints import ConstantSpeed, SmoothStart
-
-#: columns of the force-element tables
-FE_INT_COLUMNS, FE_PAR_COLUMNS = 6, 10
 
 Layout = namedtuple("Layout", [
     "qoff", "uoff", "gravity",
@@ -232,32 +237,38 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
     for i, fe in enumerate(system.forces):
         row, par = fe_int[i], fe_par[i]
         if isinstance(fe, MarkerLoad):
-            row[0] = FE_TORQUE if isinstance(fe, PointTorque) else FE_FORCE
-            row[1] = mindex[id(fe.marker)]
-            row[3] = -1 if fe.argument is None else jindex[id(fe.argument)]
+            row[FE_INT_KIND] = FE_TORQUE if isinstance(fe, PointTorque) else FE_FORCE
+            row[FE_INT_MARKER1] = mindex[id(fe.marker)]
+            row[FE_INT_JOINT] = -1 if fe.argument is None else jindex[id(fe.argument)]
             if isinstance(fe.value, Table):
-                row[4], row[5] = curves.add_table(fe.value), fe.value.columns
+                row[FE_INT_TABLE], row[FE_INT_TABLE_COLUMNS] = curves.add_table(fe.value), fe.value.columns
             else:
-                row[5] = 0
-                par[:fe.value.size] = fe.value.ravel()
+                row[FE_INT_TABLE_COLUMNS] = 0
+                par[FE_PAR_VALUE:FE_PAR_VALUE + fe.value.size] = fe.value.ravel()
             if fe.direction is not None:
-                par[3:6], par[6] = fe.direction, 1.0
-            par[7] = fe.frame == "marker"
+                par[FE_PAR_DIRECTION:FE_PAR_DIRECTION + 3], par[FE_PAR_HAS_DIRECTION] = fe.direction, 1.0
+            par[FE_PAR_MARKER_FRAME] = fe.frame == "marker"
         elif isinstance(fe, SpringDamper):
-            row[0], row[1], row[2] = FE_SPRING, mindex[id(fe.marker1)], mindex[id(fe.marker2)]
-            par[:3] = fe.stiffness, fe.damping, np.nan if fe.length is None else fe.length
+            row[FE_INT_KIND], row[FE_INT_MARKER1], row[FE_INT_MARKER2] = \
+                FE_SPRING, mindex[id(fe.marker1)], mindex[id(fe.marker2)]
+            par[FE_PAR_STIFFNESS], par[FE_PAR_DAMPING] = fe.stiffness, fe.damping
+            par[FE_PAR_LENGTH] = np.nan if fe.length is None else fe.length
             if fe.law is not None:
-                par[3:8] = 1.0, fe.law.clearance, fe.law.stiffness, fe.law.exponent, fe.law.damping
+                par[FE_PAR_HAS_STOP], par[FE_PAR_CLEARANCE], par[FE_PAR_STOP_STIFFNESS] = \
+                    1.0, fe.law.clearance, fe.law.stiffness
+                par[FE_PAR_STOP_EXPONENT], par[FE_PAR_STOP_DAMPING] = fe.law.exponent, fe.law.damping
         elif isinstance(fe, JointForce):
-            row[0], row[3] = FE_JOINT_FORCE, jindex[id(fe.joint)]
+            row[FE_INT_KIND], row[FE_INT_JOINT] = FE_JOINT_FORCE, jindex[id(fe.joint)]
             if fe.table is not None:
-                row[4] = curves.add_table(fe.table)
-            par[:4] = fe.stiffness, fe.damping, fe.reference, fe.constant
+                row[FE_INT_TABLE] = curves.add_table(fe.table)
+            par[FE_PAR_STIFFNESS], par[FE_PAR_DAMPING] = fe.stiffness, fe.damping
+            par[FE_PAR_REFERENCE], par[FE_PAR_CONSTANT] = fe.reference, fe.constant
         elif isinstance(fe, MovingMass):
-            row[0], row[1], par[0] = FE_MOVING_MASS, mindex[id(fe.marker)], fe.mass
+            row[FE_INT_KIND], row[FE_INT_MARKER1], par[FE_PAR_MASS] = FE_MOVING_MASS, mindex[id(fe.marker)], fe.mass
         elif isinstance(fe, JointFriction):
-            row[0], row[3] = FE_FRICTION, jindex[id(fe.joint)]
-            par[:4] = fe.mu, 1.0 if fe.joint.kind in ("prismatic", "on_path") else fe.radius, fe.preload, fe.regularisation
+            row[FE_INT_KIND], row[FE_INT_JOINT] = FE_FRICTION, jindex[id(fe.joint)]
+            par[FE_PAR_MU], par[FE_PAR_PRELOAD], par[FE_PAR_REGULARISATION] = fe.mu, fe.preload, fe.regularisation
+            par[FE_PAR_LEVER] = 1.0 if fe.joint.kind in ("prismatic", "on_path") else fe.radius
     cx, cc, cmeta, cper = curves.arrays()
     return Layout(qoff, uoff, np.asarray(system.gravity, float), body_F, body_off, body_flags, body_mass,
                   mk_body, mk_pos, mk_rot, mk_shape, mk_k0, mk_active, mk_path, mk_motion,
@@ -266,13 +277,18 @@ def build_layout(system, terms: list, load_stiffening: list[bool]) -> Layout:
                   cx, cc, cmeta, cper, fe_int, fe_par)
 
 
+def compiled_layout(system, terms: list, load_stiffening: list[bool]):
+    """The compiled core's Layout record (sidprep/solver/core/records.pxd) of ``build_layout``."""
+    return layout_record(build_layout(system, terms, load_stiffening))
+
+
 def constraint_count(system) -> int:
     """Number of constraint rows (joints, then drivers)."""
     return sum(len(j.rows) for j in system.joints) + len(system.drivers)
 
 
 def body_matrices(terms, q, qd, w, g_k):
-    """(M_K (6+nq, 6+nq), h_K (6+nq,)) of one body's BodyTerms at a state (body.body_equations)."""
+    """(M_K (6+nq, 6+nq), h_K (6+nq,)) of one body's BodyTerms at a state (core body.body_equations)."""
     F, off, flags = pack_terms(terms)
     c = np.ascontiguousarray
-    return body_equations(F, off, flags, float(terms.mass), c(q, float), c(qd, float), c(w, float), c(g_k, float))
+    return packed_body_matrices(F, off, flags, float(terms.mass), c(q, float), c(qd, float), c(w, float), c(g_k, float))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.curves import motion_state
+from sidprep.solver.core.curves import motion_profile
 from sidprep.solver.compile.layout import Curves, motion_row
 from sidprep.solver.model.bodies import PathMarker
 
@@ -45,10 +45,11 @@ def _motion_on_path(m: PathMarker, t_end: float, errors: list, notes: list) -> N
     """s(0) on the path (else an error); the first sampled time s(t) leaves it (a note)."""
     curves = Curves()
     kind, params, curve = motion_row(m.motion, curves)
-    x, c = (m.motion.x, m.motion.c) if curve >= 0 else (np.zeros(2), np.zeros((4, 1)))
+    x, c = ((np.ascontiguousarray(m.motion.x, dtype=float), np.ascontiguousarray(m.motion.c, dtype=float))
+            if curve >= 0 else (np.zeros(2), np.zeros((4, 1))))
     s0, s1, tol = _span(m)
     times = np.linspace(0.0, t_end, MOTION_SAMPLES)
-    s = np.array([motion_state(kind, params, x, c, t)[0] for t in times])
+    s = np.array([motion_profile(kind, params, x, c, t)[0] for t in times])
     off = (s < s0 - tol) | (s > s1 + tol)
     if off[0]:
         errors.append(f"path marker {m.name} starts at s = {s[0]:g} m, off its path (s = {s0:g} .. {s1:g} m); "

@@ -17,9 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from sidprep.solver.equations.forces import FE_FORCE, FE_TORQUE, has_stops, stop_states
-from sidprep.solver.integrators.base import CHUNK, Samples, constraint_rows, evaluate
-from sidprep.solver.integrators.explicit import ExplicitStepper, index1_rhs, non_finite_message, sample, unpack
+from sidprep.solver.core.assemble import evaluate_into
+from sidprep.solver.core.explicit import unpack
+from sidprep.solver.core.forces import (FE_FORCE, FE_INT_JOINT, FE_INT_KIND, FE_INT_TABLE, FE_INT_TABLE_COLUMNS,
+                                        FE_TORQUE, has_stops, stop_states)
+from sidprep.solver.core.records import evaluation_arrays
+from sidprep.solver.integrators.base import CHUNK, Samples
+from sidprep.solver.integrators.explicit import ExplicitStepper, non_finite_message
 
 #: a stop counts as reached when a step bounded by its approach closed its gap to this fraction;
 #: the method then restarts with this fraction of the last step
@@ -28,12 +32,13 @@ ARRIVAL = 1e-3
 
 def time_kinks(L, t_end: float) -> np.ndarray:
     """Sorted breakpoints in (0, t_end] s of the tables over time (point forces and torques
-    without an argument joint), periods unrolled: where their piecewise-linear loads kink."""
+    without an argument joint), periods unrolled: where their piecewise-linear loads kink; L the
+    layout's namedtuple of arrays."""
     kinks = []
     for row in L.fe_int:
-        if row[0] not in (FE_FORCE, FE_TORQUE) or row[3] >= 0 or row[5] == 0:
+        if row[FE_INT_KIND] not in (FE_FORCE, FE_TORQUE) or row[FE_INT_JOINT] >= 0 or row[FE_INT_TABLE_COLUMNS] == 0:
             continue
-        for curve in range(row[4], row[4] + row[5]):
+        for curve in range(row[FE_INT_TABLE], row[FE_INT_TABLE] + row[FE_INT_TABLE_COLUMNS]):
             start, n = L.curve_meta[curve, 0], L.curve_meta[curve, 1]
             x, period = L.curve_x[start:start + n], L.curve_period[curve]
             if period > 0.0:
@@ -50,16 +55,21 @@ class StopEvents:
     markers."""
 
     def __init__(self, L, refs):
+        """L: the run's Layout record, refs (nj,) its angle references."""
         self.L, self.refs = L, refs
-        self.lam = np.zeros(constraint_rows(L))
+        self.e = evaluation_arrays(L)  # the evaluation at the event's state, zero multipliers
+        self.lam = np.zeros(self.e.g.shape[0])
+        nb = L.qoff.shape[0] - 1  # the unpacked state
+        self.R, self.A = np.empty((nb, 3)), np.empty((nb, 3, 3))
+        self.Q, self.u = np.empty(L.qoff[nb]), np.empty(L.uoff[nb])
 
     def pen_rate(self, t: float, y: np.ndarray):
         """(penetrations, rates) (nfe,) at (t, y); -inf for elements without a stop."""
-        R, A, Q, u = unpack(self.L, y)
-        kin = evaluate(self.L, R, A, Q, u, t, self.lam, self.refs).kin
+        unpack(self.L, np.ascontiguousarray(y, dtype=float), self.R, self.A, self.Q, self.u)
+        evaluate_into(self.L, self.e, self.R, self.A, self.Q, self.u, t, self.lam, self.refs)
         nfe = self.L.fe_int.shape[0]
         pen, rate = np.empty(nfe), np.empty(nfe)
-        stop_states(self.L, kin, pen, rate)
+        stop_states(self.L, self.e.kin, pen, rate)
         return pen, rate
 
     @staticmethod
@@ -106,15 +116,13 @@ class ScipyRungeKutta(ExplicitStepper):
 
         self.cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
         self.name = settings.method
-        params = self.params
-
         def fun(t, y):
             self.stats["rhs_evaluations"] += 1
-            return index1_rhs(t, y, params)
+            return self.rhs(t, y)
 
         self.fun = fun
-        L = problem.L
-        self.kinks = time_kinks(L, problem.t_end)
+        L = self.L
+        self.kinks = time_kinks(L.arrays, problem.t_end)
         self.events = StopEvents(L, problem.refs) if has_stops(L) else None
         self.max_step = np.inf
         if self.events is not None:
@@ -216,10 +224,9 @@ class ScipyRungeKutta(ExplicitStepper):
                 dense = solver.dense_output()
             for tk in times:
                 y = y_new if tk == t_new else dense(min(tk, t_new))
-                rows.append((tk, sample(self.problem.L, tk, y, self.params, self.problem.refs),
-                             self.problem.refs.copy()))
+                rows.append((tk, self.sample(tk, y), self.problem.refs.copy()))
             if not times:  # keep the angle references current between samples
-                sample(self.problem.L, t_new, y_new, self.params, self.problem.refs)
+                self.sample(t_new, y_new)
         if rows:
             self._set_state(rows[-1][0], rows[-1][1])
         self.state.t = self.solver.t

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.solver.integrators.base import (advance_pose, constraint_rows, evaluate, kkt_solve, restrict,
-                                             state_equations)
+from sidprep.solver.core import assemble, records, steps
+from sidprep.solver.integrators.base import constraint_rows, contiguous, core_layout, evaluate, moved_pose
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -23,6 +23,15 @@ POSITION_TOL = 1e-12
 REDUNDANT_MISMATCH = 1e-4
 #: assembly: maximum damped Gauss-Newton iterations
 ASSEMBLY_ITERATIONS = 100
+#: the rigid-body pass of the assembly ends when its linearised step would lower the residual by
+#: less than this fraction: the rest of g is outside what the rigid coordinates move (a modal
+#: change of a body jointed at its nodes), and damping the step more cannot help
+RIGID_STALL = 1e-3
+#: quasi-static start: finite-difference step of the Jacobian of the modal accelerations, as the
+#: fraction of the system length a modal coordinate moves the body's nodes by; the reassembly's
+#: response is nonlinear beyond ~1e-7 (examples/slider_crank: with 1e-6 the Newton iteration did
+#: not converge, |q_ddot| 8.8 -> 46 after 10 iterations; with 1e-8 it falls to 4e-12 in 5)
+QUASI_STATIC_STEP = 1e-8
 #: a constraint row is redundant when its component independent of the rows kept before it is
 #: below this fraction of its norm (Gram-Schmidt at the assembled state)
 REDUNDANCY_TOL = 1e-8
@@ -77,10 +86,20 @@ def rigid_columns(L) -> np.ndarray:
     return rigid
 
 
-def constraints_at(L, R, A, Q, t, refs):
-    """(g, B) of all rows at a pose (zero velocities)."""
-    e = evaluate(L, R, A, Q, np.zeros(int(L.uoff[-1])), t, np.zeros(constraint_rows(L)), refs)
-    return e.g, e.B
+class PoseConstraints:
+    """(g, B) of all rows of the layout L at poses (zero velocities) at time t (s) with the angle
+    references refs, evaluated into one workspace (core assemble.evaluate_into): the assembly's
+    evaluations."""
+
+    def __init__(self, L, t, refs):
+        self.L, self.t, self.refs = core_layout(L), float(t), contiguous(refs)[0]
+        self.W = records.evaluation_arrays(self.L)
+        self.u, self.lam = np.zeros(int(self.L.uoff[-1])), np.zeros(constraint_rows(self.L))
+
+    def __call__(self, R, A, Q):
+        """(g (m_all,), B (m_all, n)) at the pose R, A, Q (new arrays)."""
+        assemble.evaluate_into(self.L, self.W, *contiguous(R, A, Q), self.u, self.t, self.lam, self.refs)
+        return np.array(self.W.g), np.array(self.W.B)
 
 
 def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, length):
@@ -88,27 +107,30 @@ def assemble_positions(L, R, A, Q, t, refs, kept, weights, names, length):
     on their subset independent at the placed pose, provided the dropped redundant rows then miss
     by less than REDUNDANT_MISMATCH ``length`` (m, the system length; e.g. the pins of a rigid
     loop micrometres out of plane); otherwise InputError naming the worst joint."""
+    constraints_at = PoseConstraints(L, t, refs)
     try:
-        return damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names)
+        return damped_gauss_newton(constraints_at, R, A, Q, kept, weights, names)
     except InputError as failure:
-        independent = kept[independent_rows(constraints_at(L, R, A, Q, t, refs)[1][kept])]
+        independent = kept[independent_rows(constraints_at(R, A, Q)[1][kept])]
         if independent.size == kept.size:
             raise
         try:
-            R2, A2, Q2 = damped_gauss_newton(L, R, A, Q, t, refs, independent, weights, names)
+            R2, A2, Q2 = damped_gauss_newton(constraints_at, R, A, Q, independent, weights, names)
         except InputError:
             raise failure from None
-        if np.max(np.abs(constraints_at(L, R2, A2, Q2, t, refs)[0][kept])) >= REDUNDANT_MISMATCH * length:
+        if np.max(np.abs(constraints_at(R2, A2, Q2)[0][kept])) >= REDUNDANT_MISMATCH * length:
             raise failure from None
         return R2, A2, Q2
 
 
-def damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=True):
-    """(R, A, Q) with g = 0 on the ``kept`` rows: Levenberg-Marquardt over the rigid-body
-    coordinates, then over all (module doc); InputError naming the worst joint."""
+def damped_gauss_newton(constraints_at, R, A, Q, kept, weights, names, rigid_only=True):
+    """(R, A, Q) with g = 0 on the ``kept`` rows (constraints_at: the PoseConstraints of the
+    layout): Levenberg-Marquardt over the rigid-body coordinates, then over all (module doc);
+    InputError naming the worst joint."""
+    L = constraints_at.L
     cols = rigid_columns(L) if rigid_only else np.ones(int(L.uoff[-1]), bool)
     scale = 1.0 / weights[cols]
-    g, B = constraints_at(L, R, A, Q, t, refs)
+    g, B = constraints_at(R, A, Q)
     res = np.linalg.norm(g[kept])
     mu = 1e-12
     for _ in range(ASSEMBLY_ITERATIONS):
@@ -118,10 +140,13 @@ def damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=Tr
         JJ = J @ J.T
         while True:
             step = -J.T @ np.linalg.solve(JJ + mu * (np.trace(JJ) / len(JJ) + 1e-300) * np.eye(len(JJ)), g[kept])
+            if rigid_only and np.linalg.norm(g[kept] + J @ step) > (1.0 - RIGID_STALL) * res:
+                res2 = res
+                break
             delta = np.zeros(int(L.uoff[-1]))
             delta[cols] = scale * step
-            R2, A2, Q2 = advance_pose(L, R, A, Q, delta)
-            g2, B2 = constraints_at(L, R2, A2, Q2, t, refs)
+            R2, A2, Q2 = moved_pose(L, R, A, Q, delta)
+            g2, B2 = constraints_at(R2, A2, Q2)
             res2 = np.linalg.norm(g2[kept])
             if res2 < res or mu > 1e6:
                 break
@@ -131,7 +156,7 @@ def damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=Tr
         R, A, Q, g, B, res = R2, A2, Q2, g2, B2, res2
         mu = max(mu / 10.0, 1e-12)
     if rigid_only:
-        return damped_gauss_newton(L, R, A, Q, t, refs, kept, weights, names, rigid_only=False)
+        return damped_gauss_newton(constraints_at, R, A, Q, kept, weights, names, rigid_only=False)
     worst = int(kept[np.argmax(np.abs(g[kept]))])
     raise InputError(f"joint '{names[worst]}': the initial positions cannot satisfy it (residual "
                      f"{np.max(np.abs(g[kept])):.3g} m or rad); place its markers so that they coincide and their "
@@ -166,6 +191,7 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     """
     if kept.size == 0:
         return u
+    L = core_layout(L)
     m_all = constraint_rows(L)
 
     def error(v):
@@ -180,19 +206,28 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     du[rigid] = scale * np.linalg.lstsq(B[:, rigid] * scale, -err, rcond=None)[0]
     if np.max(np.abs(error(u + du)[0]), initial=0.0) <= POSITION_TOL * (1.0 + np.max(np.abs(u))):
         return u + du
-    everything = np.arange(u.size)
-    Mf, _, Bk, BFk = restrict(e.M, e.f, e.B, e.BF, everything, kept)
-    return u + kkt_solve(Mf, np.zeros(u.size), Bk, Bk, -err)[0]
+    return u + kkt_solution(e.M, np.zeros(u.size), e.B[kept], -err)[:u.size]
+
+
+def kkt_solution(M, f, B, rhs) -> np.ndarray:
+    """[x; lambda] of [M B^T; B 0] [x; lambda] = [f; rhs] (core steps.kkt_solve)."""
+    M, f, B, rhs = contiguous(M, f, B, rhs)
+    k = M.shape[0] + B.shape[0]
+    z = np.empty(k)
+    steps.kkt_solve(M, f, B, B, rhs, np.empty((k, k)), np.empty(k, np.intc), z)
+    return z
 
 
 def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
     """Index-1 accelerations (n,) and kept multipliers at a consistent state (no Baumgarte;
-    base.index1_accelerations through base.state_equations, lam the first guess of the kept
-    multipliers, default zero)."""
+    core steps.index1_accelerations through steps.state_equations, lam the first guess of the
+    kept multipliers, default zero)."""
     guess = np.zeros(constraint_rows(L))
     if lam is not None:
         guess[kept] = lam
-    return state_equations(L, R, A, Q, u, float(t), guess, refs, free, kept, True)[1:]
+    R, A, Q, u, refs = contiguous(R, A, Q, u, refs)
+    free, kept = (np.ascontiguousarray(x, dtype=np.int64) for x in (free, kept))
+    return steps.state_equations(core_layout(L), R, A, Q, u, float(t), guess, refs, free, kept, True)[1:]
 
 
 def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):
@@ -205,6 +240,7 @@ def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names
     reduced system (D^T dF) c = -D^T F, solved in the least-squares sense.
     """
     R, A, Q = pose
+    L = core_layout(L)
     modal = ~rigid_columns(L)
     if not modal.any():
         return R, A, Q
@@ -223,7 +259,7 @@ def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names
         dfun = np.empty((Q.size, Q.size))
         for k in range(Q.size):
             trial = Q.copy()
-            trial[k] += 1e-6 * max(scale[k], abs(Q[k]))
+            trial[k] += QUASI_STATIC_STEP * max(scale[k], abs(Q[k]))
             Rk, Ak, Qk = with_q(trial)
             dmat[:, k] = Qk - Q
             dfun[:, k] = qdd(Rk, Ak, Qk) - f0

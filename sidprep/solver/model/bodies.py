@@ -3,7 +3,7 @@
 Coordinates of one body (sid-spec 5.1): position r_O (inertial), rotation matrix A (body K ->
 inertial), modal coordinates q.  Velocities u = [v_O (inertial components), omega (K
 components), qd].  The equations of motion of a body are written once, compiled, in
-``sidprep/solver/equations/body.py``; this module only describes a body: ``BodyTerms`` holds the SID
+``sidprep/solver/core/body.pyx``; this module only describes a body: ``BodyTerms`` holds the SID
 arrays of the switched-on effects (sid-spec 5.4, 5.5).
 """
 
@@ -18,7 +18,7 @@ from sidprep.errors import InputError
 from sidprep.sid.checks import physical_problems
 from sidprep.sid.io import read_sid
 from sidprep.sid.model import ge_tensor, gr_tensor, inertia_matrix
-from sidprep.solver.equations.rotations import as_rotation
+from sidprep.solver.core.rotations import as_rotation
 from sidprep.solver.model.effects import MASS_MATRIX_EFFECTS
 
 #: relative size below which a split-off part of a SID member counts as round-off (zero)

@@ -1,7 +1,7 @@
 """Force elements (descriptions): point forces / torques on markers, spring-dampers with bump
 stops, joint forces, regularised Coulomb friction in joints.  Gravity is a body effect
 (effects.py).  Every element is evaluated compiled, with its power and potential energy, in
-``sidprep/solver/equations/forces.py``: no element takes a slow path.
+``sidprep/solver/core/forces.pyx``: no element takes a slow path.
 
 Signals (magnitudes over time or over a joint coordinate) are a number or 3-vector (constant)
 or a :class:`Table`.

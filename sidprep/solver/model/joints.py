@@ -19,7 +19,7 @@ planar normal).  Markers must coincide/align initially up to what the joint cons
 the run assembles the initial state onto the constraints.
 
 This module describes joints, drivers and motion profiles; the rows are evaluated (compiled)
-in ``sidprep/solver/equations/constraints.py`` and the profiles in ``sidprep/solver/equations/curves.py``.
+in ``sidprep/solver/core/constraints.pyx`` and the profiles in ``sidprep/solver/core/curves.pyx``.
 """
 
 from __future__ import annotations
@@ -154,7 +154,7 @@ class SmoothStart:
 
 class TabulatedMotion:
     """x(t) from a table, interpolated with a C2 cubic spline (scipy CubicSpline, not-a-knot);
-    kept as its piecewise-polynomial coefficients, evaluated compiled (equations/curves.py)."""
+    kept as its piecewise-polynomial coefficients, evaluated compiled (core/curves.pyx)."""
 
     def __init__(self, times, values):
         from scipy.interpolate import CubicSpline  # deferred: 0.42 CPU-s of import (paths, tables)

@@ -12,7 +12,7 @@ Usage::
 A System holds no per-run state: ``solver.run.simulate`` builds a ``Run`` that owns the
 compiled layout, the kept constraint rows, the angle references and the recorder, so that
 simulating the same System twice gives identical results.  Equations: docs/solver.md and
-``sidprep/solver/equations``.
+``sidprep/solver/core``.
 """
 
 from __future__ import annotations
