@@ -1018,3 +1018,26 @@ def test_a_singular_system_gives_nan_not_an_internal_error():
     regular = np.array([[4.0, 1.0], [2.0, 3.0]])
     np.testing.assert_allclose(solve(regular, [1.0, 2.0]), np.linalg.solve(regular, [1.0, 2.0]),
                                rtol=1e-14)
+
+
+#: the work integral against scipy's cumulative_simpson (the same composite Simpson rule: round-off)
+WORK_INTEGRAL_RTOL = 1e-13
+
+
+def test_work_integral_is_simpsons_rule_exact_for_parabolas():
+    """energy.work_integral integrates a quadratic power exactly on irregular samples (closed
+    form), agrees with scipy's cumulative_simpson, and is the trapezoid for two samples."""
+    from scipy.integrate import cumulative_simpson
+
+    from sidprep.solver.energy import work_integral
+
+    rng = np.random.default_rng(7)
+    for n in (3, 4, 7, 100):
+        t = np.cumsum(rng.uniform(0.01, 0.2, n))
+        power = 2.0 - 3.0 * t + 5.0 * t**2                              # W
+        exact = 2.0 * (t - t[0]) - 1.5 * (t**2 - t[0] ** 2) + 5.0 / 3.0 * (t**3 - t[0] ** 3)
+        assert np.max(np.abs(work_integral(t, power) - exact)) <= WORK_INTEGRAL_RTOL * np.max(np.abs(exact))
+        noisy = rng.normal(size=n)
+        reference = cumulative_simpson(noisy, x=t, initial=0.0)
+        assert np.max(np.abs(work_integral(t, noisy) - reference)) <= WORK_INTEGRAL_RTOL * np.max(np.abs(reference))
+    assert work_integral(np.array([0.0, 0.5]), np.array([1.0, 3.0])) == pytest.approx([0.0, 1.0], abs=0)
