@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """What a warm `sidprep simulate` process spends, split up: imports, scene
-building, the start (consistent initial state), the kernel cache loading, the integration and the
+building, the start (consistent initial state), the first-call costs, the integration and the
 post-processing, each in CPU seconds, medians of ``--repeat`` fresh processes; with ``--before``
 the same for another checkout (e.g. /work/main), the two alternating, so that the pairs share the
 machine's load.
 
 Every child process runs the scene twice: the second run has every kernel loaded, so the first
-run's excess over it is the kernel cache loading (and first-call overheads) of that stage.  Per
+run's excess over it is the first-call costs of that stage (for a checkout on numba kernels: their
+loading from numba's cache).  Per
 step and per sample (second run): the compiled samples' outputs (``sample_outputs`` called once
 more from Python on the second run's samples, timed) per output sample, and the steps' CPU per
 step (the integration less those outputs where the compiled loop computes them: a checkout from
@@ -27,7 +28,8 @@ install's compiled kernels are what is measured:
 
     python benchmarks/process_cost.py examples/flexible_pendulum/scene.toml --cli --installed /tmp/a/bin/python /tmp/b/bin/python
 
-One process per checkout first fills the kernel cache (not counted); the load average is printed.
+One process per checkout runs first, not counted (a numba checkout fills its kernel cache there); the
+load average is printed.
 """
 
 from __future__ import annotations
@@ -173,7 +175,7 @@ def main() -> None:
             {"before": (sys.executable, args.before.resolve())} if args.before else {})
     rows: dict[str, list[dict]] = {name: [] for name in roots}
     run, stages = (command_run, ("process",)) if args.cli else (child_run, STAGES)
-    for python, root in roots.values():  # warm-up: the kernel cache filled
+    for python, root in roots.values():  # warm-up (a numba checkout's kernel cache filled)
         run(python, root, scene, args.output_dt, args.h)
     loads = [os.getloadavg()[0]]
     for _ in range(args.repeat):
