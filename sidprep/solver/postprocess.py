@@ -107,4 +107,4 @@ def postprocess(run, s, setup, out=None) -> Result:
                    "gravity": system.gravity, "settings": run.settings}
         estimates[name] = estimate_changes(b, chosen, history)
     report = build_report(run.choices, estimates, run.notes)
-    return Result(s.t.copy(), bodies, joints, positions, energy, out.cerr, report, {})
+    return Result(s.t.copy(), bodies, joints, positions, energy, out.cerr, report)

@@ -35,6 +35,7 @@ from sidprep.solver.model.bodies import RigidBody
 from sidprep.solver.model.effects import EFFECTS, parse_effects
 from sidprep.solver.model.joints import ConstantSpeed, Driver
 from sidprep.solver.postprocess import post_setup, postprocess
+from sidprep.solver.statistics import RunStatistics
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
 #: the start reports bodies moved by more than this (m or rad) from their placed positions
@@ -260,6 +261,15 @@ class Run:
                 f"{sizes[b]:.3g} m (deformation_limit {self.settings.deformation_limit:g}); likely {cause}, "
                 "a too large step or a stiff contact")
 
+    def failure_message(self, stepper, sizes, balance: dict) -> str:
+        """Why the run failed: the stepper's cause, or the integration's when the energy balance names one."""
+        cause = numerical_cause(balance, self.settings)
+        failure = self.failure_cause(stepper, sizes)
+        if cause:  # the integration, not the scene: the stepper's advice to check the scene does not apply
+            failure = failure.split("; check the scene")[0]
+        named = failure if failure.startswith(f"{stepper.name}: ") else f"{stepper.name}: {failure}"
+        return named + cause
+
     # ------------------------------------------------------------------ run
     def execute(self):
         """Integrate and return the Result (sidprep/solver/results.py)."""
@@ -283,30 +293,22 @@ class Run:
         result = postprocess(self, samples, problem.post, outputs)
         dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
                    np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
-        result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,
-                            rho_inf=self.settings.rho_inf if stepper.name == "genalpha" else None,
-                            rtol=self.settings.tolerance, cpu_time=time.process_time() - cpu0, cpu_setup=cpu_setup,
-                            cpu_integration=cpu_integration, dropped_constraint_rows=dropped,
-                            n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
-                            n_constraints=int(self.kept.size))
+        cpu_time = time.process_time() - cpu0
         st = self.settings
         balance = energy_balance(result.energy, st.energy_tol)
         stops = tuple(f.name for f in self.system.forces if getattr(f, "law", None) is not None)
         balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops)
-        result.stats["energy_balance"] = balance
-        if stepper.status == "failed":
-            cause = numerical_cause(balance, st)
-            failure = self.failure_cause(stepper, problem.sizes)
-            if cause:  # the integration, not the scene: the stepper's advice to check the scene does not apply
-                failure = failure.split("; check the scene")[0]
-            named = failure if failure.startswith(f"{stepper.name}: ") else f"{stepper.name}: {failure}"
-            message = named + cause
-            result.stats["failed"] = message
-            raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
-        gone = left_path(self.system, result)
-        if gone:
-            result.stats["failed"] = gone
-            raise SimulationFailed(gone + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
+        failed = self.failure_message(stepper, problem.sizes, balance) if stepper.status == "failed" else None
+        gone = None if failed else left_path(self.system, result)
+        result.stats = RunStatistics(
+            **stepper.stats, method=stepper.name, h=st.h, rho_inf=st.rho_inf if stepper.name == "genalpha" else None,
+            rtol=st.tolerance, cpu_time=cpu_time, cpu_setup=cpu_setup, cpu_integration=cpu_integration,
+            dropped_constraint_rows=tuple(dropped), n_coordinates=int(self.free.size),
+            planar=bool(self.free.size < self.L.uoff[-1]), n_constraints=int(self.kept.size), energy_balance=balance,
+            failed=failed or gone)
+        if result.stats.failed:
+            raise SimulationFailed(result.stats.failed + f"; the results up to t = {result.t[-1]:.6g} s are kept",
+                                   result)
         return result
 
 

@@ -16,6 +16,7 @@ from sidprep.solver.absolute_nodal.results import beam_result
 from sidprep.solver.core.absolute_nodal import BeamSystem, RK4Progress, rk4_loop
 from sidprep.solver.integrators.base import CHUNK, Stepper
 from sidprep.solver.integrators.settings import SolverSettings, check_run_size
+from sidprep.solver.statistics import RunStatistics
 
 #: largest h * omega_max accepted for RK4 (its stability limit on the imaginary axis is 2 sqrt 2)
 RK4_STABILITY = 2.6
@@ -131,7 +132,7 @@ def simulate_absolute_nodal(model: AbsoluteNodalModel, t_end: float, settings: S
     """Simulate ``model`` to t_end (s) -> ``solver.results.Result`` (write it with solver.results.write_results)."""
     asm = assemble(model)
     t, Y, cpu = integrate(asm, t_end, settings)
-    stats = {"method": "rk4", "cpu_time": cpu, "steps": int(round(t_end / settings.h)), "rejected": 0,
-             "h_min": settings.h, "h_max": settings.h, "formulation": "absolute nodal (Kisu Lee)",
-             "nodes": int(len(asm.X0)), "dof": int(2 * len(asm.free))}
+    stats = RunStatistics(method="rk4", cpu_time=cpu, steps=int(round(t_end / settings.h)), rejected=0,
+                          h_min=settings.h, h_max=settings.h, formulation="absolute nodal (Kisu Lee)",
+                          nodes=int(len(asm.X0)), dof=int(2 * len(asm.free)))
     return beam_result(model, asm, t, Y, stats)
