@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 
 import numpy as np
 
@@ -285,7 +285,7 @@ class Run:
         while stepper.status == "running":
             chunks.append(stepper.advance(self.t_end))
             if self.settings.progress:
-                self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
+                self.settings.progress(float(stepper.state.t), self.t_end, stepper.stats.steps)
         cpu_integration = time.process_time() - cpu0 - cpu_setup
         samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
         outputs = None if stepper.outputs is None else SampledOutputs(
@@ -301,7 +301,7 @@ class Run:
         failed = self.failure_message(stepper, problem.sizes, balance) if stepper.status == "failed" else None
         gone = None if failed else left_path(self.system, result)
         result.stats = RunStatistics(
-            **stepper.stats, method=stepper.name, h=st.h, rho_inf=st.rho_inf if stepper.name == "genalpha" else None,
+            **asdict(stepper.stats), method=stepper.name, h=st.h, rho_inf=st.rho_inf if stepper.name == "genalpha" else None,
             rtol=st.tolerance, cpu_time=cpu_time, cpu_setup=cpu_setup, cpu_integration=cpu_integration,
             dropped_constraint_rows=tuple(dropped), n_coordinates=int(self.free.size),
             planar=bool(self.free.size < self.L.uoff[-1]), n_constraints=int(self.kept.size), energy_balance=balance,

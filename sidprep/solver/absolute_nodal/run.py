@@ -5,7 +5,7 @@ stability limit for the highest frequency of the beams."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -61,7 +61,7 @@ class BeamRK4(Stepper):
         st, p = self.settings, self.progress
         ts, Ys = rk4_loop(self.problem.system, p, t_stop, st.h, st.output_dt or 0.0, CHUNK)
         self.state = BeamState(p.t, np.array(p.y))
-        self.stats.update(steps=int(p.steps), rhs_evaluations=4 * int(p.steps), h_min=st.h, h_max=st.h)
+        self.stats = replace(self.stats, steps=int(p.steps), rhs_evaluations=4 * int(p.steps), h_min=st.h, h_max=st.h)
         if p.t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
             self.status = "finished"
         return BeamSamples(ts, Ys)

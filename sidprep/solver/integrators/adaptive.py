@@ -15,6 +15,8 @@ t_bound), so a piecewise-linear load is never stepped across either.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sidprep.solver.core.assemble import evaluate_into
@@ -116,8 +118,11 @@ class ScipyRungeKutta(ExplicitStepper):
 
         self.cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
         self.name = settings.method
+        #: right-hand-side evaluations so far (into ``stats`` at the end of each advance)
+        self.evaluations = 0
+
         def fun(t, y):
-            self.stats["rhs_evaluations"] += 1
+            self.evaluations += 1
             return self.rhs(t, y)
 
         self.fun = fun
@@ -192,7 +197,7 @@ class ScipyRungeKutta(ExplicitStepper):
         dt = st.output_dt
         end_tol = 1e-12 * max(1.0, self.problem.t_end)
         while self.solver.t < min(t_stop, self.problem.t_end) - end_tol and len(rows) < CHUNK:
-            if self.stats["steps"] >= st.max_steps:
+            if self.stats.steps >= st.max_steps:
                 self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {self.solver.t:.6g} s"
                 break
             if self.events is not None:
@@ -207,10 +212,9 @@ class ScipyRungeKutta(ExplicitStepper):
                 self.status, self.message = "failed", f"{self.name}: {message}; use method = 'genalpha' for stiff scenes"
                 break
             t_new, y_new, dense = self.end_of_step(t_old)
-            self.stats["steps"] += 1
             h = t_new - t_old
-            self.stats["h_min"] = min(self.stats["h_min"], h)
-            self.stats["h_max"] = max(self.stats["h_max"], h)
+            self.stats = replace(self.stats, steps=self.stats.steps + 1, h_min=min(self.stats.h_min, h),
+                                 h_max=max(self.stats.h_max, h))
             final = t_new >= self.problem.t_end - end_tol
             times = [t_new] if dt is None else []
             if dt is not None:
@@ -227,6 +231,7 @@ class ScipyRungeKutta(ExplicitStepper):
                 rows.append((tk, self.sample(tk, y), self.problem.refs.copy()))
             if not times:  # keep the angle references current between samples
                 self.sample(t_new, y_new)
+        self.stats = replace(self.stats, rhs_evaluations=self.evaluations)
         if rows:
             self._set_state(rows[-1][0], rows[-1][1])
         self.state.t = self.solver.t

@@ -86,6 +86,21 @@ class Samples:
     work: np.ndarray
 
 
+@dataclass(frozen=True)
+class StepCounts:
+    """What a stepper did so far: accepted and rejected steps, right-hand-side evaluations, Newton
+    iterations, Jacobian factorisations, and the smallest and largest accepted step h_min, h_max (s;
+    inf and 0 before the first step)."""
+
+    steps: int = 0
+    rejected: int = 0
+    rhs_evaluations: int = 0
+    newton_iterations: int = 0
+    jacobians: int = 0
+    h_min: float = np.inf
+    h_max: float = 0.0
+
+
 class Stepper:
     """Base of the integrators (module doc).  Subclasses set ``name`` and implement advance."""
 
@@ -98,8 +113,8 @@ class Stepper:
         self.large_deformation = None
         #: the SampledOutputs of each stretch when the compiled loop computes them (module doc)
         self.outputs: list | None = None
-        self.stats = {"steps": 0, "rejected": 0, "rhs_evaluations": 0, "newton_iterations": 0, "jacobians": 0,
-                      "h_min": np.inf, "h_max": 0.0}
+        #: the counts so far (a StepCounts the stepper replaces as it goes)
+        self.stats = StepCounts()
 
     @property
     def t(self) -> float:

@@ -12,6 +12,8 @@ For non-stiff scenes: the step must resolve the highest kept frequency.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sidprep.solver.core import explicit as core
@@ -87,15 +89,13 @@ class RungeKutta4(ExplicitStepper):
 
     def advance(self, t_stop: float) -> Samples:
         st = self.settings
-        steps = np.array([self.stats["steps"], st.max_steps], dtype=np.int64)
+        steps = np.array([self.stats.steps, st.max_steps], dtype=np.int64)
         t, self.y, self.next_index, buf, out = core.rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
                                                              self.next_index, self.params, CHUNK, steps,
                                                              self.first_rows(), self.problem.post)
         self.outputs.append(out)
         arrays = tuple(buf)
-        self.stats["steps"] = int(steps[0])
-        self.stats["rhs_evaluations"] = 4 * int(steps[0])
-        self.stats["h_min"] = self.stats["h_max"] = st.h
+        self.stats = replace(self.stats, steps=int(steps[0]), rhs_evaluations=4 * int(steps[0]), h_min=st.h, h_max=st.h)
         if len(arrays[0]):
             self.state = type(self.state)(t, arrays[1][-1], arrays[2][-1], arrays[3][-1], arrays[4][-1],
                                           arrays[5][-1], arrays[6][-1])

@@ -4,6 +4,8 @@ module doc states the method, its Newton iteration, contacts, dense output and e
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sidprep.solver.core import genalpha as core
@@ -77,6 +79,7 @@ class GeneralizedAlpha(Stepper):
                                                    "check the scene (joint axes, loads, units) or raise newton_tol")
         elif record.code == FINISHED and s.t >= p.t_end - 1e-12 * max(1.0, p.t_end):
             self.status = "finished"
-        for key in ("steps", "rejected", "newton_iterations", "jacobians", "h_min", "h_max"):
-            self.stats[key] = float(getattr(record, key)) if key.startswith("h_") else int(getattr(record, key))
+        self.stats = replace(self.stats, steps=int(record.steps), rejected=int(record.rejected),
+                             newton_iterations=int(record.newton_iterations), jacobians=int(record.jacobians),
+                             h_min=float(record.h_min), h_max=float(record.h_max))
         return Samples(*samples)
