@@ -23,7 +23,8 @@ from sidprep.solver.effects import choose_effects
 from sidprep.solver.energy import balance_beyond, balance_warning, energy_balance
 from sidprep.solver.core.forces import FE_INT_KIND, FE_INT_MARKER1, FE_INT_MARKER2, FE_PAR_LENGTH, FE_SPRING
 from sidprep.solver.core.outputs import SampledOutputs
-from sidprep.solver.integrators.base import Problem, Samples, State, evaluate, marker_kinematics
+from sidprep.solver.core.steps import SampleArrays
+from sidprep.solver.integrators.base import Problem, State, evaluate, marker_kinematics
 from sidprep.solver.integrators.adaptive import ScipyRungeKutta
 from sidprep.solver.integrators.explicit import RungeKutta4
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
@@ -277,7 +278,7 @@ class Run:
         state = self.consistent_start()
         problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
                           body_sizes(self.system, self.terms), post_setup(self))
-        first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
+        first = SampleArrays(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
                         state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
         stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
         cpu_setup = time.process_time() - cpu0
@@ -287,7 +288,7 @@ class Run:
             if self.settings.progress:
                 self.settings.progress(float(stepper.state.t), self.t_end, stepper.stats.steps)
         cpu_integration = time.process_time() - cpu0 - cpu_setup
-        samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
+        samples = SampleArrays(*(np.concatenate(column) for column in zip(*chunks)))
         outputs = None if stepper.outputs is None else SampledOutputs(
             *(np.concatenate([getattr(o, f) for o in stepper.outputs]) for f in SampledOutputs._fields))
         result = postprocess(self, samples, problem.post, outputs)

@@ -24,7 +24,8 @@ from sidprep.solver.core.explicit import unpack
 from sidprep.solver.core.forces import (FE_FORCE, FE_INT_JOINT, FE_INT_KIND, FE_INT_TABLE, FE_INT_TABLE_COLUMNS,
                                         FE_TORQUE, has_stops, stop_states)
 from sidprep.solver.core.records import evaluation_arrays
-from sidprep.solver.integrators.base import CHUNK, Samples
+from sidprep.solver.core.steps import SampleArrays
+from sidprep.solver.integrators.base import CHUNK
 from sidprep.solver.integrators.explicit import ExplicitStepper, non_finite_message
 
 #: a stop counts as reached when a step bounded by its approach closed its gap to this fraction;
@@ -191,7 +192,7 @@ class ScipyRungeKutta(ExplicitStepper):
             self.closing_acc = np.where(np.isfinite(pen), (rate - self.rate) / h, 0.0)
         self.pen, self.rate = pen, rate
 
-    def advance(self, t_stop: float) -> Samples:
+    def advance(self, t_stop: float) -> SampleArrays:
         st = self.settings
         rows = []
         dt = st.output_dt
@@ -241,13 +242,13 @@ class ScipyRungeKutta(ExplicitStepper):
             return empty_samples(self.problem, self.state)
         stack = [np.array([r[1][k] for r in rows]) for k in range(7)]
         refs = np.array([r[2] for r in rows])
-        return Samples(np.array([r[0] for r in rows]), stack[0], stack[1], stack[2], stack[3], stack[4], stack[5],
-                       refs, stack[6])
+        return SampleArrays(np.array([r[0] for r in rows]), stack[0], stack[1], stack[2], stack[3], stack[4], stack[5],
+                            refs, stack[6])
 
 
-def empty_samples(problem, state) -> Samples:
-    """Samples with no rows."""
+def empty_samples(problem, state) -> SampleArrays:
+    """SampleArrays with no rows."""
     z = np.zeros
-    return Samples(z(0), z((0,) + state.R.shape), z((0,) + state.A.shape), z((0, state.Q.size)),
+    return SampleArrays(z(0), z((0,) + state.R.shape), z((0,) + state.A.shape), z((0, state.Q.size)),
                    z((0, state.u.size)), z((0, state.u.size)), z((0, state.lam.size)), z((0, problem.refs.size)),
                    z((0, 3)))

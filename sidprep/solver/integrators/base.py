@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.solver.core import steps as core_steps
+from sidprep.solver.core.steps import SampleArrays
 from sidprep.solver.core.records import Layout, layout_record
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
@@ -69,23 +70,6 @@ class State:
                      self.lam.copy())
 
 
-@dataclass
-class Samples:
-    """Output samples of one stretch: t (k,), R, A, Q, u, ud, lam (kept rows), refs (k, nj) the
-    angle references, work (k, 3) = [work of applied loads, dissipated energy, work of drivers]
-    since t = 0, J."""
-
-    t: np.ndarray
-    R: np.ndarray
-    A: np.ndarray
-    Q: np.ndarray
-    u: np.ndarray
-    ud: np.ndarray
-    lam: np.ndarray
-    refs: np.ndarray
-    work: np.ndarray
-
-
 @dataclass(frozen=True)
 class StepCounts:
     """What a stepper did so far: accepted and rejected steps, right-hand-side evaluations, Newton
@@ -120,7 +104,7 @@ class Stepper:
     def t(self) -> float:
         return self.state.t
 
-    def advance(self, t_stop: float) -> Samples:  # pragma: no cover - interface
+    def advance(self, t_stop: float) -> SampleArrays:  # pragma: no cover - interface
         raise NotImplementedError
 
 

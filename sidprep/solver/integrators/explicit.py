@@ -20,7 +20,7 @@ from sidprep.solver.core import explicit as core
 from sidprep.solver.core.records import layout_record
 from sidprep.solver.core.rotations import matrix_to_quaternion
 from sidprep.solver.core.steps import SampleArrays
-from sidprep.solver.integrators.base import CHUNK, Samples, Stepper
+from sidprep.solver.integrators.base import CHUNK, Stepper
 
 
 def pack(L, R, A, Q, u, work) -> np.ndarray:
@@ -87,7 +87,7 @@ class RungeKutta4(ExplicitStepper):
                             np.repeat(s.ud[None], rows, 0), np.repeat(s.lam[None], rows, 0),
                             np.repeat(self.problem.refs[None], rows, 0), np.zeros((rows, 3)))
 
-    def advance(self, t_stop: float) -> Samples:
+    def advance(self, t_stop: float) -> SampleArrays:
         st = self.settings
         steps = np.array([self.stats.steps, st.max_steps], dtype=np.int64)
         t, self.y, self.next_index, buf, out = core.rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
@@ -106,4 +106,4 @@ class RungeKutta4(ExplicitStepper):
             self.status = "finished"
         elif steps[0] >= st.max_steps:
             self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {t:.6g} s"
-        return Samples(*arrays)
+        return buf
