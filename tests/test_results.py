@@ -6,6 +6,7 @@ deformed surface points x = r + A (c + S q) for a 90-degree rotation (sid-spec 5
 
 import csv
 import json
+from dataclasses import replace
 import xml.etree.ElementTree as ET
 
 import h5py
@@ -18,6 +19,7 @@ from sidprep.sid.io.obj import read_obj
 from sidprep.sid.surface import Surface, rigid_surface
 from sidprep.solver.animation import write_animation
 from sidprep.solver.effects import EffectEntry, EffectsReport
+from sidprep.solver.energy import balance_beyond
 from sidprep.solver.results import BodySource, energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
 from sidprep.solver.statistics import FLOATING_FRAME_STATISTICS, RunStatistics
 from sidprep.solver import BodyHistory, JointHistory, Result
@@ -78,8 +80,14 @@ def test_statistics_of_a_file_written_as_a_dict_read_into_the_record(tmp_path):
     assert list(written) == list(FLOATING_FRAME_STATISTICS) and written["dropped_constraint_rows"] == ["hinge row 5"]
     with h5py.File(path, "r+") as f:
         f["stats"].attrs["json"] = json.dumps({"steps": 30, "rejected": 0, "method": "genalpha", "cpu_time": 0.5,
-                                               "dropped_constraint_rows": ["hinge row 5"], "retired_counter": 7})
-    assert read_results(path).result.stats == make_result().stats
+                                               "dropped_constraint_rows": ["hinge row 5"], "retired_counter": 7,
+                                               "energy_balance": {"balance_error": 1e-4, "exchanged": 2.0,
+                                                                  "change": -2e-4, "tolerance": 1e-3}})
+    stats = read_results(path).result.stats
+    assert replace(stats, energy_balance=None) == make_result().stats
+    balance = stats.energy_balance                 # books without excursion, worst and floor
+    assert (balance.balance_error, balance.exchanged, balance.tolerance, balance.warning) == (1e-4, 2.0, 1e-3, None)
+    assert balance_beyond(balance, 0.5e-4) and not balance_beyond(balance, 1e-3)
 
 
 def test_energy_summary_scales_by_the_largest_energy_range_when_total_starts_at_zero():

@@ -20,7 +20,7 @@ from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import left_path, path_marker_problems
 from sidprep.solver.effects import choose_effects
-from sidprep.solver.energy import balance_beyond, balance_warning, energy_balance
+from sidprep.solver.energy import EnergyBalance, balance_beyond, balance_warning, energy_balance
 from sidprep.solver.core.forces import FE_INT_KIND, FE_INT_MARKER1, FE_INT_MARKER2, FE_PAR_LENGTH, FE_SPRING
 from sidprep.solver.core.outputs import SampledOutputs
 from sidprep.solver.core.steps import SampleArrays
@@ -85,15 +85,15 @@ def numerical_fix(settings) -> str:
     return "halve h or use method = \"genalpha\""
 
 
-def numerical_cause(balance: dict, settings) -> str:
+def numerical_cause(balance: EnergyBalance, settings) -> str:
     """'; before it ...' naming the integration as the cause of a failure when the energy
     balance was off by more than BALANCE_BEFORE_FAILURE of the energy exchanged (else '')."""
     if not balance_beyond(balance, BALANCE_BEFORE_FAILURE):
         return ""
-    how = "grew" if balance["change"] > 0 else "fell"
+    how = "grew" if balance.change > 0 else "fell"
     step = f"h = {settings.h:g} s" + (f", rho_inf = {settings.rho_inf:g}" if settings.method == "genalpha" else "")
-    return (f"; before it the energy {how} by {abs(balance['change']):.3g} J that no work or dissipation accounts for "
-            f"({balance['balance_error']:.2g} of the {balance['exchanged']:.3g} J exchanged): a numerical "
+    return (f"; before it the energy {how} by {abs(balance.change):.3g} J that no work or dissipation accounts for "
+            f"({balance.balance_error:.2g} of the {balance.exchanged:.3g} J exchanged): a numerical "
             f"instability of the integration ({settings.method}, {step}), not the scene; fix: {numerical_fix(settings)}")
 
 
@@ -262,7 +262,7 @@ class Run:
                 f"{sizes[b]:.3g} m (deformation_limit {self.settings.deformation_limit:g}); likely {cause}, "
                 "a too large step or a stiff contact")
 
-    def failure_message(self, stepper, sizes, balance: dict) -> str:
+    def failure_message(self, stepper, sizes, balance: EnergyBalance) -> str:
         """Why the run failed: the stepper's cause, or the integration's when the energy balance names one."""
         cause = numerical_cause(balance, self.settings)
         failure = self.failure_cause(stepper, sizes)
@@ -298,7 +298,7 @@ class Run:
         st = self.settings
         balance = energy_balance(result.energy, st.energy_tol)
         stops = tuple(f.name for f in self.system.forces if getattr(f, "law", None) is not None)
-        balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops)
+        balance = replace(balance, warning=balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops))
         failed = self.failure_message(stepper, problem.sizes, balance) if stepper.status == "failed" else None
         gone = None if failed else left_path(self.system, result)
         result.stats = RunStatistics(

@@ -13,7 +13,7 @@ wrote is reported in ``SceneRun.notes``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import h5py
@@ -44,7 +44,7 @@ class SceneRun:
         """The JSON summary of the run (docs/scenes.md, "Output"): steps, CPU s, energy (J),
         effects, final body states, largest constraint error, statistics, files."""
         result, stats = self.result, self.result.stats
-        balance = stats.energy_balance or {}
+        balance = {} if stats.energy_balance is None else asdict(stats.energy_balance)
         return {
             "scene": str(self.scene.path),
             "t_end": float(result.t[-1]),

@@ -8,8 +8,10 @@ record existed read unchanged.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import asdict, dataclass, fields
 from typing import Mapping
+
+from sidprep.solver.energy import EnergyBalance
 
 
 @dataclass(frozen=True)
@@ -20,8 +22,7 @@ class RunStatistics:
     accepted and rejected steps; h_min, h_max : s, the step sizes used.  A floating-frame run adds
     rhs_evaluations, newton_iterations, jacobians, the settings h (s), rho_inf, rtol, cpu_setup and
     cpu_integration (s), dropped_constraint_rows (names of the redundant rows left out),
-    n_coordinates, planar, n_constraints and energy_balance (solver/energy.py ``energy_balance``
-    with its "warning"); an absolute-nodal run adds formulation, nodes and dof.  failed : why the
+    n_coordinates, planar, n_constraints and energy_balance (an EnergyBalance with its warning); an absolute-nodal run adds formulation, nodes and dof.  failed : why the
     run stopped early, None when it did not.
     """
 
@@ -43,7 +44,7 @@ class RunStatistics:
     n_coordinates: int | None = None
     planar: bool | None = None
     n_constraints: int | None = None
-    energy_balance: Mapping | None = None
+    energy_balance: EnergyBalance | None = None
     formulation: str | None = None
     nodes: int | None = None
     dof: int | None = None
@@ -56,6 +57,8 @@ class RunStatistics:
         out = {key: getattr(self, key) for key in keys}
         if "dropped_constraint_rows" in out:
             out["dropped_constraint_rows"] = list(self.dropped_constraint_rows)
+        if self.energy_balance is not None:
+            out["energy_balance"] = asdict(self.energy_balance)
         if self.failed is not None:
             out["failed"] = self.failed
         return out
@@ -64,9 +67,14 @@ class RunStatistics:
     def from_dict(cls, stats: Mapping) -> RunStatistics:
         """The record of its dict form (:meth:`as_dict`), as read back from a results file; keys
         this version does not know are left out."""
-        known = {f.name for f in fields(cls)}
-        return cls(**{key: tuple(value) if key == "dropped_constraint_rows" else value
-                      for key, value in stats.items() if key in known})
+        stats = {key: value for key, value in stats.items() if key in {f.name for f in fields(cls)}}
+        if "dropped_constraint_rows" in stats:
+            stats["dropped_constraint_rows"] = tuple(stats["dropped_constraint_rows"])
+        if stats.get("energy_balance") is not None:
+            booked = {f.name for f in fields(EnergyBalance)}
+            stats["energy_balance"] = EnergyBalance(**{key: value for key, value in stats["energy_balance"].items()
+                                                       if key in booked})
+        return cls(**stats)
 
 
 #: the statistics of a floating-frame run and of an absolute-nodal run, in file order
