@@ -80,7 +80,8 @@ SOLVER_LAYERS = (
                           "sidprep/solver/results.py")),
     Layer("run", ("sidprep/solver/run.py", "sidprep/solver/postprocess.py", "sidprep/solver/linear.py", "sidprep/solver/stiffening_work.py")),
     Layer("scenes", ("sidprep/solver/scene_tables.py", "sidprep/solver/scene.py", "sidprep/solver/absolute_nodal/", "sidprep/solver/animation.py",
-                     "sidprep/solver/stress.py", "sidprep/solver/fatigue.py", "sidprep/solver/simulate_scene.py")),
+                     "sidprep/solver/stress.py", "sidprep/solver/fatigue.py", "sidprep/solver/simulate_scene.py",
+                     "sidprep/solver/scene_modes.py")),
     Layer("studies", ("sidprep/solver/converge.py",)),
     Layer("solver api", ("sidprep/solver/__init__.py",)),
 )

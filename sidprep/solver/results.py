@@ -386,3 +386,27 @@ def plot_signals(result: Result, names: list[str], path: str | os.PathLike, titl
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
     return path
+
+
+@dataclass(frozen=True)
+class ResultsPlot:
+    """A plot of a results file: path (the PNG written), signals (those plotted) and available
+    (every signal name of the file, ``signal_names``)."""
+
+    path: Path
+    signals: tuple[str, ...]
+    available: tuple[str, ...]
+
+
+def plot_results(results_path: str | os.PathLike, signals: list[str], output: str | os.PathLike) -> ResultsPlot:
+    """Plot the named signals of a results file (``default_signals`` when none are named) into the PNG
+    ``output``, titled with the file's name and its scene (what ``sidprep plot`` runs)."""
+    output = Path(output)
+    if output.suffix.lower() != ".png":
+        raise InputError(f"{output}: plot writes PNG images; name the output OUT.png")
+    results = read_results(results_path)
+    signals = list(signals) or default_signals(results.result)
+    scene = results.scene.get("path")
+    title = Path(results_path).name + (f" ({scene})" if scene else "")
+    path = plot_signals(results.result, signals, output, title=title)
+    return ResultsPlot(path, tuple(signals), tuple(signal_names(results.result)))
