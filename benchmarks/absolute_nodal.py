@@ -4,7 +4,7 @@
 examples/two_link_manipulator/scene.toml (2 links x 4 elements, 16 DOF), classic RK4 at the
 paper's step 2.5e-4 s, 2 s simulated; also 8 and 16 elements per link at the steps their axial
 modes allow (RK4 stability).  CPU = process time of the compiled integration loop only
-(``stats["cpu_time"]``; set-up and the post-processing of the samples excluded), median
+(``stats.cpu_time``; set-up and the post-processing of the samples excluded), median
 of ``--repeat`` runs after a warm-up run.  Target: <= 0.1 CPU-s per simulated second;
 the paper took ~15 s for its run on a 100 MHz Pentium.
 

@@ -261,7 +261,7 @@ def pendulum_run(sid, h, *, rtol=None, newton_tol=1e-8, effects="auto", rho_inf=
     res = simulate(pendulum(sid, planar=False), T_END, h=h, rtol=rtol, newton_tol=newton_tol, output_dt=OUTPUT_DT,
                                                static_start=True, effects=effects, rho_inf=rho_inf)
     deflection = res.bodies["bar"].q @ sid.nodes[1].phi.M0.T
-    return res.t, res.joints["hinge"].coordinate, deflection, res.stats["cpu_integration"] / T_END, res.stats
+    return res.t, res.joints["hinge"].coordinate, deflection, res.stats.cpu_integration / T_END, res.stats
 
 
 def solve_specs(quick: bool) -> list[tuple[str, str, dict]]:
@@ -304,7 +304,7 @@ def solve_study(repeat: int, quick: bool) -> list[dict]:
         if t.shape != ref[0].shape or not np.allclose(t, ref[0], rtol=0, atol=1e-9):
             print(f"| {study} | {label} | output times differ from the reference |")
             continue
-        row = dict(study=study, label=label, steps=stats["steps"],
+        row = dict(study=study, label=label, steps=stats.steps,
                    angle=float(np.degrees(np.abs(angle - ref[1]).max())),
                    tip=float(np.linalg.norm(defl - ref[2], axis=1).max() / scale),
                    d_angle=float(np.degrees(np.abs(ref[1] - auto_ref[1]).max())),
@@ -423,7 +423,7 @@ def timed_runs(run, kw: dict, repeat: int):
         except SimulationFailed as exc:
             return str(exc).splitlines()[0][:90], np.nan, np.nan
         total.append(time.process_time() - t0)
-        integ.append(result.stats["cpu_integration"])
+        integ.append(result.stats.cpu_integration)
         if not all(np.all(np.isfinite(b.q)) and np.all(np.isfinite(b.position)) for b in result.bodies.values()):
             return "diverged (non-finite state, no error raised)", np.nan, np.nan
     return result, float(np.median(integ)), float(np.median(total))
@@ -509,7 +509,7 @@ def method_reference(case: MethodCase, run):
     def describe(kw):
         return ", ".join(f"{k} = {v:g}" if not isinstance(v, str) else v for k, v in kw.items())
 
-    line = (f"reference {describe(case.reference)} ({ref.stats['cpu_integration']:.1f} CPU-s); the same method at "
+    line = (f"reference {describe(case.reference)} ({ref.stats.cpu_integration:.1f} CPU-s); the same method at "
             f"{describe(case.looser)} differs from it by {relative_error(looser, ref, case, modes):.1e} (joints "
             f"{relative_error(looser, ref, case, modes, True):.1e}); independent {describe(case.independent)}: "
             f"{relative_error(independent, ref, case, modes):.1e} (joints "
@@ -550,7 +550,7 @@ def method_table(case: MethodCase, run, every_step, repeat: int) -> list[dict]:
         except Exception as exc:          # a failed run is a finding, not a crash of the benchmark
             print(f"| {method} | {kw} | failed: {str(exc)[:80]} |")
             continue
-        print(f"| {method} | rtol = {kw['rtol']:g} | {result.stats['steps']} | {result.stats.get('rejected', 0)} | "
+        print(f"| {method} | rtol = {kw['rtol']:g} | {result.stats.steps} | {result.stats.rejected} | "
               f"{step_history(result)} |", flush=True)
     return rows
 

@@ -64,7 +64,7 @@ def main() -> None:
             for h in STEPS:
                 run(h)
                 results = [run(h) for _ in range(args.repeat)]
-                cpu = float(np.median([r.stats["cpu_integration"] for r in results])) / scene.t_end
+                cpu = float(np.median([r.stats.cpu_integration for r in results])) / scene.t_end
                 r = results[-1]
                 w, w_ref = r.joints["crank_joint"].rate, np.interp(r.t, ref.t, ref.joints["crank_joint"].rate)
                 err_w = np.max(np.abs(w - w_ref)) / np.max(np.abs(w_ref))

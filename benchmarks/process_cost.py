@@ -87,9 +87,9 @@ for _ in range(2):
     result = simulate(scene, **kwargs)
     t3 = time.process_time()
     s = result.stats
-    runs.append({"scene": t2 - t1, "start": s["cpu_setup"], "integration": s["cpu_integration"],
-                 "post": t3 - t2 - s["cpu_setup"] - s["cpu_integration"], "samples": int(result.t.size),
-                 "steps": int(s["steps"])})
+    runs.append({"scene": t2 - t1, "start": s.cpu_setup, "integration": s.cpu_integration,
+                 "post": t3 - t2 - s.cpu_setup - s.cpu_integration, "samples": int(result.t.size),
+                 "steps": int(s.steps)})
 first, second = runs
 # sample_outputs alone on the second run's samples, called from Python (twice: the second call timed)
 run, samples = captured[-1]

@@ -117,7 +117,7 @@ def run_sidprep(sid, h: float, planar=None) -> tuple[np.ndarray, np.ndarray, flo
     result = simulate(system, T_END, h=h, rho_inf=RHO_INF, output_dt=OUTPUT_DT)
     assert np.allclose(result.t, np.arange(0.0, T_END + 1e-9, OUTPUT_DT)), "output times off the grid"
     return (pendulum_angle(result.bodies["bar"].rotation), result.markers["tip"],
-            float(result.stats["cpu_integration"]))
+            float(result.stats.cpu_integration))
 
 
 def run_exudyn(body: Body, h: float, on_nodes: bool = False) -> tuple[np.ndarray, np.ndarray, float]:

@@ -44,7 +44,7 @@ def median_cpu(make_and_run, repeat: int):
     for _ in range(repeat):
         t0 = time.process_time()
         r = make_and_run()
-        runs.append((r.stats["cpu_integration"], time.process_time() - t0, r))
+        runs.append((r.stats.cpu_integration, time.process_time() - t0, r))
     integ = float(np.median([x[0] for x in runs]))
     total = float(np.median([x[1] for x in runs]))
     return integ, total, runs[-1][2]
@@ -59,7 +59,7 @@ def pendulum(repeat: int) -> None:
     print("\n### Flexible pendulum (examples/flexible_pendulum, h = 1 ms)\n")
     print("| coordinates | steps | CPU s / simulated s (integration) | total CPU s | target |")
     print("|---|---|---|---|---|")
-    print(f"| {r.stats['n_coordinates']} | {r.stats['steps']} | {integ / t_end:.4f} | {total:.3f} | "
+    print(f"| {r.stats.n_coordinates} | {r.stats.steps} | {integ / t_end:.4f} | {total:.3f} | "
           f"<= {PENDULUM_TARGET} |")
 
 
@@ -95,7 +95,7 @@ def engine(repeat: int) -> None:
     for h in (1e-4, 1e-3):
         integ, _, r = median_cpu(lambda: simulate(engine_system(), t_end, h=h, output_dt=0.01), repeat)
         err = np.max(np.abs(r.joints["main"].rate - ref))
-        print(f"| {h:g} | {r.stats['n_coordinates']} | {integ / t_end:.4f} | {err:.2e} | <= {ENGINE_TARGET} |")
+        print(f"| {h:g} | {r.stats.n_coordinates} | {integ / t_end:.4f} | {err:.2e} | <= {ENGINE_TARGET} |")
 
 
 def slider_crank(repeat: int) -> None:
@@ -118,7 +118,7 @@ def slider_crank(repeat: int) -> None:
         integ, total, r = median_cpu(lambda: run(**kw), repeat)
         err = max(np.max(np.abs(a - b)) / np.max(np.abs(b)) for a, b in zip(signals(r), reference))
         label = ", ".join(f"{k} = {v:g}" for k, v in kw.items())
-        print(f"| genalpha {label} | {r.stats['steps']} | {err:.2e} | {integ:.3f} | {total:.3f} | "
+        print(f"| genalpha {label} | {r.stats.steps} | {err:.2e} | {integ:.3f} | {total:.3f} | "
               f"<= {SLIDER_CRANK_TARGET} s at <= {SLIDER_CRANK_ERROR:g} |")
 
 

@@ -14,7 +14,7 @@ Errors against a reference run of the same solver (h = H_REF, Newton tolerance 1
 * tip: max over the output times of |tip deflection - reference| / max |reference deflection|,
   with the tip deflection = elastic displacement of the tip node, Phi_tip q (body frame).
 
-CPU = ``stats["cpu_integration"]`` (process time of the time integration only) per simulated
+CPU = ``stats.cpu_integration`` (process time of the time integration only) per simulated
 second, median of ``--repeat`` runs, after a warm-up run.  The last column
 flags runs meeting both targets (ANGLE_TARGET_DEG, TIP_TARGET).
 
@@ -78,7 +78,7 @@ def run(sid, h, *, rtol=None, newton_tol=1e-8, planar=None):
     res = simulate(system, T_END, h=h, rtol=rtol, newton_tol=newton_tol, output_dt=OUTPUT_DT, static_start=True)
     phi_tip = sid.nodes[1].phi.M0
     deflection = res.bodies["bar"].q @ phi_tip.T
-    return res.joints["hinge"].coordinate, deflection, res.stats["cpu_integration"] / T_END, res.stats
+    return res.joints["hinge"].coordinate, deflection, res.stats.cpu_integration / T_END, res.stats
 
 
 def table(sid, runs, ref, repeat):
@@ -95,8 +95,8 @@ def table(sid, runs, ref, repeat):
         e_angle = float(np.degrees(np.max(np.abs(angle - ref[0]))))
         e_tip = float(np.max(np.linalg.norm(defl - ref[1], axis=1)) / scale)
         ok = e_angle <= ANGLE_TARGET_DEG and e_tip <= TIP_TARGET
-        iters = stats["newton_iterations"] / max(stats["steps"], 1)
-        print(f"| {label} | {h:g} | {stats['steps']} | {iters:.2f} | {e_angle:.2e} | {e_tip:.2e} | {cpu:.4f} | "
+        iters = stats.newton_iterations / max(stats.steps, 1)
+        print(f"| {label} | {h:g} | {stats.steps} | {iters:.2f} | {e_angle:.2e} | {e_tip:.2e} | {cpu:.4f} | "
               f"{cpu / EXUDYN_CPU_H1E3:.2f} | {'yes' if ok else 'no'} |", flush=True)
         rows.append((label, h, e_angle, e_tip, cpu, ok))
     return rows

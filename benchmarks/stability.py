@@ -73,9 +73,9 @@ def measure(case: str, method: str, t_end: float, workdir: Path) -> dict:
     except SimulationFailed as exc:
         r, failed = exc.result, str(exc)[:90]
     e = r.energy["total"]
-    cpu = r.stats["cpu_integration"]
-    return {"t": float(r.t[-1]), "balance": r.stats["energy_balance"]["balance_error"],
-            "drift": abs(e[-1] - e[0]) / abs(e[0]), "steps": r.stats["steps"], "cpu": cpu,
+    cpu = r.stats.cpu_integration
+    return {"t": float(r.t[-1]), "balance": r.stats.energy_balance.balance_error,
+            "drift": abs(e[-1] - e[0]) / abs(e[0]), "steps": r.stats.steps, "cpu": cpu,
             "cpu_per_s": cpu / max(float(r.t[-1]), 1e-12), "failed": failed}
 
 

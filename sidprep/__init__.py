@@ -15,10 +15,13 @@ Python API (all lengths m, masses kg, times s, frequencies Hz)::
     reduce_assembly(read_job("assembly.toml")) -> ReductionResult   (components joined: docs/scale.md)
     read_sid(path) -> SID;  write_sid(sid, path)           (.sid.h5, .SID_FEM, .obj by suffix)
     sid_info(path) -> dict  (mass, CM, inertia, modes, nodes, model checks {name: Check}: ``sidprep info``)
+    check_sid(path) -> {name: Check}                       (the model checks re-run: ``sidprep check``)
     run_batch(jobs, BatchOptions(...)) -> BatchReport
     beam(BeamOptions(...)) -> SID                           (analytical Euler-Bernoulli beam)
     load_scene(path) -> Scene;  simulate(scene) -> Result  (the solver: docs/scenes.md)
     simulate_scene(path, output=None, plot=..., csv=...) -> SceneRun   (what ``sidprep simulate`` runs)
+    linearize_scene(path) -> SceneModes  (eigenmodes of the mechanism at its start: ``sidprep linearize``)
+    plot_results(results, signals, output) -> ResultsPlot   (signals of a results file: ``sidprep plot``)
     recover_stress(results, body=None, at=None) -> StressRecovery (hot spots, envelope, histories, Pa)
 """
 
@@ -27,7 +30,8 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "read_mesh", "modal_analysis", "reduce_model", "reduce", "read_sid", "write_sid",
-           "sid_info", "run_batch", "beam", "load_scene", "simulate", "simulate_scene", "recover_stress",
+           "sid_info", "check_sid", "run_batch", "beam", "load_scene", "simulate", "simulate_scene", "linearize_scene",
+           "plot_results", "recover_stress",
            "ModalOptions", "ReduceOptions", "OutputOptions", "BatchOptions", "BeamOptions", "Job",
            "read_job", "reduce_assembly"]
 
@@ -41,11 +45,14 @@ _LAZY = {
     "read_job": ("sidprep.jobs.jobfile", "read_job"),                 # job file (one mesh or an assembly) -> Job
     "reduce_assembly": ("sidprep.jobs.assembly", "reduce_assembly"),  # assembly Job -> ReductionResult
     "sid_info": ("sidprep.sid.summary", "sid_info"),
+    "check_sid": ("sidprep.sid.summary", "check_sid"),
     "BeamOptions": ("sidprep.reduction.beam", "BeamOptions"),
     "beam": ("sidprep.reduction.beam", "beam_sid"),                   # BeamOptions -> SID (analytical beam)
     "load_scene": ("sidprep.solver.scene", "load_scene"),   # scene TOML -> Scene (system, settings)
     "simulate": ("sidprep.solver.scene", "simulate"),       # Scene -> solver Result
     "simulate_scene": ("sidprep.solver.simulate_scene", "simulate_scene"),   # scene file -> SceneRun + files
+    "linearize_scene": ("sidprep.solver.scene_modes", "linearize_scene"),    # scene file -> SceneModes
+    "plot_results": ("sidprep.solver.results", "plot_results"),              # results file -> PNG
     "recover_stress": ("sidprep.solver.stress", "recover_stress"),  # results file -> StressRecovery
 }
 

@@ -40,7 +40,7 @@ def ascii_line(text: str) -> str:
 
 class SimulationFailed(InputError):
     """A simulation stopped before t_end (Newton failure, divergence, max_steps); ``result``
-    holds everything computed up to the last accepted step (``result.stats["failed"]`` says
+    holds everything computed up to the last accepted step (``result.stats.failed`` says
     why), so that it can be written and inspected."""
 
     def __init__(self, message: str, result=None):

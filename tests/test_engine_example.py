@@ -143,7 +143,7 @@ def test_engine_planar_runs_give_the_3d_answer(engine_dir):
         scene = load_scene(engine_dir / "scene_rigid.toml")
         scene.system.planar = planar
         runs[planar] = simulate(scene.system, 0.2, scene.settings)
-    assert runs[None].stats["planar"] and not runs[False].stats["planar"]
+    assert runs[None].stats.planar and not runs[False].stats.planar
     for name, joint in runs[False].joints.items():
         for field in ("coordinate", "rate", "force"):
             ref, got = getattr(joint, field), getattr(runs[None].joints[name], field)
@@ -153,4 +153,4 @@ def test_engine_planar_runs_give_the_3d_answer(engine_dir):
             assert np.max(np.abs(got - ref)) <= tol * max(np.max(np.abs(ref)), 1e-9), (name, field)
     flexible = load_scene(engine_dir / "scene.toml")
     r = simulate(flexible.system, 0.01, flexible.settings)
-    assert not r.stats["planar"] and any("run in 3D" in n and "rod" in n for n in r.effects.notes)
+    assert not r.stats.planar and any("run in 3D" in n and "rod" in n for n in r.effects.notes)

@@ -88,6 +88,6 @@ def test_a_ball_on_a_hertz_stop_rebounds_as_the_closed_form(method):
     rise = (leave - v_up) / G                                          # floor -> gate
     assert t_up - t_down - fall - rise == pytest.approx(hertz_contact_time(v), rel=CONTACT_TIME_RTOL)
     assert leave / v == pytest.approx(1.0, abs=RESTITUTION_TOL)
-    balance = r.stats["energy_balance"]
-    assert balance["balance_error"] <= BALANCE_TOL[method]
-    assert balance["warning"] is None or "bump stop of 'floor'" in balance["warning"]     # the cause, named
+    balance = r.stats.energy_balance
+    assert balance.balance_error <= BALANCE_TOL[method]
+    assert balance.warning is None or "bump stop of 'floor'" in balance.warning     # the cause, named

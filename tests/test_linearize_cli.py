@@ -46,3 +46,11 @@ def test_bad_input_is_one_line(capsys, tmp_path):
     assert code == 2 and "not a scene file" in err
     code, _, err = run(capsys, "linearize", SCENE, "--count", "0")
     assert code == 2 and "--count 0" in err
+
+
+def test_the_library_function_a_script_calls_gives_the_closed_form():
+    import sidprep
+
+    linearized = sidprep.linearize_scene(SCENE)
+    assert linearized.modes.n_rigid == 0 and linearized.scene.path == SCENE
+    assert abs(linearized.modes.frequencies_hz[0] / F_CLOSED_FORM_HZ - 1) < FREQUENCY_RTOL

@@ -5,8 +5,11 @@ deformed surface points x = r + A (c + S q) for a 90-degree rotation (sid-spec 5
 """
 
 import csv
+import json
+from dataclasses import replace
 import xml.etree.ElementTree as ET
 
+import h5py
 import meshio
 import numpy as np
 import pytest
@@ -16,7 +19,9 @@ from sidprep.sid.io.obj import read_obj
 from sidprep.sid.surface import Surface, rigid_surface
 from sidprep.solver.animation import write_animation
 from sidprep.solver.effects import EffectEntry, EffectsReport
+from sidprep.solver.energy import balance_beyond
 from sidprep.solver.results import BodySource, energy_summary, plot_signals, read_results, signal, signal_names, write_csv, write_results
+from sidprep.solver.statistics import FLOATING_FRAME_STATISTICS, RunStatistics
 from sidprep.solver import BodyHistory, JointHistory, Result
 
 NT = 4
@@ -41,7 +46,9 @@ def make_result():
     return Result(t=t, bodies={"bar": body("bar", 2, ROT_Z90), "box": body("box", 0, np.eye(3))},
                   joints={"hinge": hinge}, markers={"tip": rng.normal(size=(NT, 3))},
                   energy={"kinetic": kinetic, "gravity": -kinetic + 0.01 * t, "total": 0.01 * t},
-                  constraint_error=np.full(NT, 1e-12), effects=effects, stats={"steps": 30, "cpu_time": 0.5})
+                  constraint_error=np.full(NT, 1e-12), effects=effects,
+                  stats=RunStatistics(method="genalpha", cpu_time=0.5, steps=30, rejected=0,
+                                      dropped_constraint_rows=("hinge row 5",)))
 
 
 def test_hdf5_round_trip_is_exact(tmp_path):
@@ -62,6 +69,25 @@ def test_hdf5_round_trip_is_exact(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.h5"]          # no temporary left behind
     with pytest.raises(InputError, match="no such results file"):
         read_results(tmp_path / "missing.h5")
+
+
+def test_statistics_of_a_file_written_as_a_dict_read_into_the_record(tmp_path):
+    """/stats holds the record's dict (its keys in file order); a file whose /stats is the plain dict an
+    older writer stored, with a key this version does not know, reads into the same record."""
+    path = write_results(make_result(), tmp_path / "r.h5")
+    with h5py.File(path, "r") as f:
+        written = json.loads(f["stats"].attrs["json"])
+    assert list(written) == list(FLOATING_FRAME_STATISTICS) and written["dropped_constraint_rows"] == ["hinge row 5"]
+    with h5py.File(path, "r+") as f:
+        f["stats"].attrs["json"] = json.dumps({"steps": 30, "rejected": 0, "method": "genalpha", "cpu_time": 0.5,
+                                               "dropped_constraint_rows": ["hinge row 5"], "retired_counter": 7,
+                                               "energy_balance": {"balance_error": 1e-4, "exchanged": 2.0,
+                                                                  "change": -2e-4, "tolerance": 1e-3}})
+    stats = read_results(path).result.stats
+    assert replace(stats, energy_balance=None) == make_result().stats
+    balance = stats.energy_balance                 # books without excursion, worst and floor
+    assert (balance.balance_error, balance.exchanged, balance.tolerance, balance.warning) == (1e-4, 2.0, 1e-3, None)
+    assert balance_beyond(balance, 0.5e-4) and not balance_beyond(balance, 1e-3)
 
 
 def test_energy_summary_scales_by_the_largest_energy_range_when_total_starts_at_zero():

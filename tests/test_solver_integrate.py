@@ -98,7 +98,7 @@ def test_rigid_pendulum_with_step_size_control():
     r = simulate(s, 1.0, h=1e-3, rtol=1e-7, atol=1e-9)
     ref = rigid_pendulum_angle(m, xc, icm + m * xc**2, 1.0)
     assert abs(r.joints[joint.name].coordinate[-1] - ref) < 1e-4
-    assert r.stats["steps"] < 1000 and r.stats["h_max"] > 2e-3
+    assert r.stats.steps < 1000 and r.stats.h_max > 2e-3
     # reaction at the pivot balances gravity + the CM acceleration (Newton's law)
     h = r.bodies["rod"]
     k = len(r.t) // 2
@@ -202,14 +202,14 @@ def test_planar_scene_integrates_the_in_plane_coordinates_only():
         return simulate(s, 0.3, h=1e-3, output_dt=0.01)
 
     flat, full = run(None), run(False)
-    assert flat.stats["planar"] and not full.stats["planar"]
-    assert flat.stats["n_coordinates"] < full.stats["n_coordinates"] and "planar scene" in flat.effects.text()
+    assert flat.stats.planar and not full.stats.planar
+    assert flat.stats.n_coordinates < full.stats.n_coordinates and "planar scene" in flat.effects.text()
     assert np.max(np.abs(flat.joints["pivot"].coordinate - full.joints["pivot"].coordinate)) <= PLANAR_ANGLE_ATOL
     force_flat, force_full = flat.joints["pivot"].force, full.joints["pivot"].force
     assert np.max(np.abs(force_flat - force_full)) <= PLANAR_RTOL * np.max(np.abs(force_full))
     assert np.ptp(full.joints["pivot"].coordinate) > 0.5  # it swings
     flexible = run(None, flexible=True)
-    assert not flexible.stats["planar"] and "run in 3D" in flexible.effects.text()
+    assert not flexible.stats.planar and "run in 3D" in flexible.effects.text()
     with pytest.raises(InputError, match="not planar"):
         run(True, gravity=(0, -9.81, -9.81))
 
@@ -238,9 +238,9 @@ def test_out_of_plane_load_decides_the_planar_form():
         return b, b.node_marker(0, rotation=AXIS_Y), b.node_marker(1)
 
     hinged = pendulum_with_force(rigid)
-    assert hinged.stats["planar"]
+    assert hinged.stats.planar
     assert abs(hinged.joints["pivot"].force[-1][1] + 5.0) < 1e-6   # the joint takes the axial load
-    assert not pendulum_with_force(flexible).stats["planar"]
+    assert not pendulum_with_force(flexible).stats.planar
 
 
 #: the out-of-plane reactions' minimum-norm solution against LAPACK's lstsq (gelsd), relative to
@@ -315,7 +315,7 @@ def test_flexible_loop_under_gravity_conserves_energy():
         r = simulate(s, 3.0, h=h, rho_inf=1.0, output_dt=0.01, deformation_limit=1.0,   # the 1 Hz conrod sags
                        effects=["coupling", "coriolis", "centrifugal", "inertia_change", "damping", "gravity"])
         exchanged = np.ptp(r.energy["gravity"])
-        assert exchanged > 10.0 and not r.stats["planar"]
+        assert exchanged > 10.0 and not r.stats.planar
         drift[h] = np.max(np.abs(r.energy["total"] - r.energy["total"][0])) / exchanged
     assert drift[1e-3] < GRAVITY_LOOP_ENERGY_RTOL, drift
     assert drift[2e-3] > GRAVITY_LOOP_CONVERGENCE * drift[1e-3], drift
@@ -338,7 +338,7 @@ def test_a_diverging_body_stops_early_and_keeps_its_results():
     with pytest.raises(SimulationFailed, match="body 'bar' left the small-deformation range") as failure:
         simulate(s, 1.0, h=1e-4)
     result = failure.value.result
-    assert 0.0 < result.t[-1] < 0.1 and "small-deformation" in result.stats["failed"]
+    assert 0.0 < result.t[-1] < 0.1 and "small-deformation" in result.stats.failed
     assert "\n" not in str(failure.value)
     assert np.all(np.isfinite(result.bodies["bar"].q))
 

@@ -71,13 +71,13 @@ def test_the_output_rate_never_limits_the_step():
     dense output, rtol 1e-3 and 1e-4 gave identical runs capped at the output interval)."""
     k = np.arange(round(T_END * RATE) + 1)
     for method in ("genalpha", "rk4"):
-        assert run(dict(h=3e-4, method=method))[0].stats["steps"] == math.ceil(T_END / 3e-4)
+        assert run(dict(h=3e-4, method=method))[0].stats.steps == math.ceil(T_END / 3e-4)
     steps = {}
     for method, rtol in (("genalpha", 1e-3), ("genalpha", 1e-4), ("rk45", 1e-3), ("dop853", 1e-3)):
         r, _ = run(dict(h=1e-3, method=method, rtol=rtol))
-        assert r.stats["h_max"] > 2 / RATE, (method, r.stats["h_max"])
+        assert r.stats.h_max > 2 / RATE, (method, r.stats.h_max)
         assert np.max(np.abs(r.t - k / RATE)) <= OUTPUT_TIME_TOL
-        steps[method, rtol] = r.stats["steps"]
+        steps[method, rtol] = r.stats.steps
     assert steps["genalpha", 1e-4] > steps["genalpha", 1e-3]
 
 

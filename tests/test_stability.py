@@ -548,9 +548,9 @@ def test_energy_books_close_with_geometric_stiffening(example):
     from sidprep.solver.scene import load_scene, simulate
 
     r = simulate(load_scene(ROOT / "examples" / example / "scene.toml"))
-    balance = r.stats["energy_balance"]
-    assert balance["balance_error"] <= STIFFENED_BALANCE_TOL and balance["warning"] is None
-    assert np.ptp(r.energy["stiffening"]) > 10 * STIFFENED_BALANCE_TOL * balance["exchanged"]
+    balance = r.stats.energy_balance
+    assert balance.balance_error <= STIFFENED_BALANCE_TOL and balance.warning is None
+    assert np.ptp(r.energy["stiffening"]) > 10 * STIFFENED_BALANCE_TOL * balance.exchanged
 
 
 def test_beam_buckling_books_do_not_depend_on_the_newton_round_off():
@@ -560,8 +560,8 @@ def test_beam_buckling_books_do_not_depend_on_the_newton_round_off():
     from sidprep.solver.scene import load_scene, simulate
 
     scene = load_scene(ROOT / "examples" / "beam_buckling" / "scene.toml")
-    at_scene = simulate(scene).stats["energy_balance"]["balance_error"]
-    tight = simulate(scene, newton_tol=scene.settings.newton_tol / 100).stats["energy_balance"]["balance_error"]
+    at_scene = simulate(scene).stats.energy_balance.balance_error
+    tight = simulate(scene, newton_tol=scene.settings.newton_tol / 100).stats.energy_balance.balance_error
     assert at_scene == pytest.approx(tight, rel=NEWTON_CONVERGED_RTOL)
     assert at_scene <= STIFFENED_BALANCE_TOL / 5
 
@@ -577,12 +577,12 @@ def test_energy_watchdog_is_silent_when_almost_nothing_is_exchanged():
     at_rest = {"kinetic": 1.3e-11 * np.sin(np.pi * t) ** 2, "gravity": 10.0 + 1.3e-11 * np.cos(np.pi * t) ** 2}
     at_rest["total"] = at_rest["kinetic"] + at_rest["gravity"] + 2.4e-11 * t
     quiet = energy_balance(at_rest)
-    assert quiet["balance_error"] > 0.5 and balance_warning(quiet, "genalpha", 1e-3, 0.9, None) is None
+    assert quiet.balance_error > 0.5 and balance_warning(quiet, "genalpha", 1e-3, 0.9, None) is None
     swinging = {k: v * 1e10 if k == "kinetic" else v for k, v in at_rest.items()}
     swinging["total"] = swinging["kinetic"] + swinging["gravity"] + 0.1 * np.sin(np.pi * t)  # rises, ends at 0
     loud = energy_balance(swinging)
     warning = balance_warning(loud, "genalpha", 1e-3, 0.9, None)
-    assert loud["change"] == pytest.approx(0.0, abs=1e-12) and "energy grew" in warning
+    assert loud.change == pytest.approx(0.0, abs=1e-12) and "energy grew" in warning
 
 
 def test_energy_watchdog_warns_with_cause_and_fix_on_a_coarse_step():
@@ -600,12 +600,12 @@ def test_energy_watchdog_warns_with_cause_and_fix_on_a_coarse_step():
         body, marker = hinged_flexible(sid)(s)
         body.omega0 = np.zeros(3)
         s.add(Revolute(s.ground.marker(rotation=_Z_TO_Y), marker, name="hinge"))
-        return simulate(s, 1.0, h=h, rho_inf=0.5).stats["energy_balance"]
+        return simulate(s, 1.0, h=h, rho_inf=0.5).stats.energy_balance
 
     coarse, fine = swing(5e-2), swing(1e-3)
-    assert coarse["balance_error"] > coarse["tolerance"] and "\n" not in coarse["warning"]
-    assert all(word in coarse["warning"] for word in ("rho_inf = 0.5", "h = 0.05 s", "fix:"))
-    assert fine["balance_error"] <= fine["tolerance"] and fine["warning"] is None
+    assert coarse.balance_error > coarse.tolerance and "\n" not in coarse.warning
+    assert all(word in coarse.warning for word in ("rho_inf = 0.5", "h = 0.05 s", "fix:"))
+    assert fine.balance_error <= fine.tolerance and fine.warning is None
 
 
 #: rho_inf = 1 whirl blew up at 0.30 s before): energy law over 3 s
@@ -640,7 +640,7 @@ def test_an_explicit_run_that_blows_up_stops_and_says_so():
     message, r = str(exc.value), exc.value.result
     assert "\n" not in message and "non-finite state" in message and "h = 0.001 s" in message
     assert "genalpha" in message and "smaller step" in message
-    assert 0 < r.t[-1] < 0.2 and r.stats["failed"] in message
+    assert 0 < r.t[-1] < 0.2 and r.stats.failed in message
     assert all(np.all(np.isfinite(a)) for a in (r.t, r.energy["total"], r.bodies["bar"].q))
 
 
@@ -684,9 +684,9 @@ def test_a_failure_after_the_energy_went_astray_names_the_integration_and_the_fi
     assert "\n" not in message and "Newton did not converge" in message
     assert "numerical instability of the integration (genalpha, h = 0.005 s, rho_inf = 1), not the scene" in message
     assert "fix: halve h or lower rho_inf to 0.9" in message
-    assert exc.value.result.stats["energy_balance"]["balance_error"] > 0.1
-    fixed = whirl(bar, h=FAST_WHIRL_H / 2, t_end=FAST_WHIRL_T, rho_inf=1.0).stats["energy_balance"]
-    assert fixed["balance_error"] <= fixed["tolerance"] and fixed["warning"] is None
+    assert exc.value.result.stats.energy_balance.balance_error > 0.1
+    fixed = whirl(bar, h=FAST_WHIRL_H / 2, t_end=FAST_WHIRL_T, rho_inf=1.0).stats.energy_balance
+    assert fixed.balance_error <= fixed.tolerance and fixed.warning is None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -929,7 +929,7 @@ def test_suite_stiff_body_with_many_high_modes_at_a_large_step(method, bar_many_
         return
     r = run_on(method, s, 0.01, rtol=1e-6)
     e = r.energy["total"]
-    assert r.t[-1] == pytest.approx(0.01) and r.stats["h_max"] * omega_max < MANY_MODES_H_OMEGA
+    assert r.t[-1] == pytest.approx(0.01) and r.stats.h_max * omega_max < MANY_MODES_H_OMEGA
     assert np.max(np.abs(e - e[0])) < MANY_MODES_ENERGY * mgl
 
 

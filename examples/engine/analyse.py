@@ -116,9 +116,9 @@ def main(t_end=None, plot=True, folder=HERE) -> dict:
         "modal_amplitudes": {int(j + 1): float(np.max(np.abs(q[:, j]))) for j in largest},
         "oscillation_hz": {int(j + 1): spectrum_peak(t[late], q[late, j]) for j in largest},
         "mechanism_hz": [float(f) for f in elastic[:4]],
-        "cpu_per_second": flexible.stats["cpu_integration"] / float(t[-1]),
-        "rigid_cpu_per_second": rigid.stats["cpu_integration"] / float(t[-1]),
-        "steps": flexible.stats["steps"],
+        "cpu_per_second": flexible.stats.cpu_integration / float(t[-1]),
+        "rigid_cpu_per_second": rigid.stats.cpu_integration / float(t[-1]),
+        "steps": flexible.stats.steps,
     }
     if plot:
         write_plot(flexible, rigid, q, largest, shortening, compression / k)

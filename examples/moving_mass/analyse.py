@@ -34,7 +34,7 @@ def main(t_end=None, plot=True, folder=HERE) -> dict:
            "x_range_m": (float(x.min()), float(x.max())),
            "sliding_period_s": float(np.median(np.diff(up))) if up.size > 1 else float("nan"),
            "energy_drift": float(np.max(np.abs(e["total"] - e["total"][0])) / scale),
-           "dissipated_J": float(e["dissipated"][-1]), "cpu_s": r.stats["cpu_integration"]}
+           "dissipated_J": float(e["dissipated"][-1]), "cpu_s": r.stats.cpu_integration}
     if plot:
         import matplotlib
 

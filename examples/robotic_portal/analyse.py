@@ -65,9 +65,9 @@ def main(t_end=None, plot=True, folder=HERE) -> dict:
            "r1_dwell_deflection_mm": float((r.markers["r1"][k, 2] - 7.0) * 1e3),
            "r1_dwell_closed_form_mm": float(static(s1[k]) * 1e3),
            "r1_tool_x_closed_form_mm": float(lever * slope * 1e3),
-           "coordinates": r.stats["n_coordinates"], "constraints": r.stats["n_constraints"],
-           "states": 2 * (r.stats["n_coordinates"] - r.stats["n_constraints"]),
-           "cpu_s": r.stats["cpu_integration"], "steps": r.stats["steps"]}
+           "coordinates": r.stats.n_coordinates, "constraints": r.stats.n_constraints,
+           "states": 2 * (r.stats.n_coordinates - r.stats.n_constraints),
+           "cpu_s": r.stats.cpu_integration, "steps": r.stats.steps}
     if plot:
         import matplotlib
 

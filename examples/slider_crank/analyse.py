@@ -69,7 +69,7 @@ def main(t_end=None, plot=True, folder=HERE) -> dict:
            "slider_deviation_m": float(np.max(np.abs(deviation))),
            "conrod_q_max": float(np.max(np.abs(r.bodies["conrod"].q))),
            "crank_q_max": float(np.max(np.abs(r.bodies["crank"].q))),
-           "cpu_s": r.stats["cpu_integration"], "steps": r.stats["steps"],
+           "cpu_s": r.stats.cpu_integration, "steps": r.stats.steps,
            "warnings": r.effects.warnings}
     if plot:
         write_plot(r, deviation)

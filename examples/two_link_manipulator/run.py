@@ -77,7 +77,7 @@ def main(argv=None):
     figures(result, args.out / "two_link_figures.png")
     total = result.energy["total"]
     drift = np.max(np.abs(total - total[0])) / abs(total[0])
-    print(f"t_end {result.t[-1]:g} s, {result.stats['steps']} RK4 steps, CPU {result.stats['cpu_time']:.3f} s; "
+    print(f"t_end {result.t[-1]:g} s, {result.stats.steps} RK4 steps, CPU {result.stats.cpu_time:.3f} s; "
           f"E0 = {total[0]:.6f} J, max |E - E0| / E0 = {drift:.2e}")
     for name, (x, unit) in {"phi1": (result.joints["pin"].coordinate, "rad"),
                             "phi2 - phi1": (result.joints["elbow"].coordinate, "rad"),

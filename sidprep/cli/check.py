@@ -20,10 +20,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from sidprep.sid.checks import checks_summary, failed_checks, format_checks, sid_checks
-    from sidprep.sid.io import read_sid
+    from sidprep.sid.checks import checks_summary, failed_checks, format_checks
+    from sidprep.sid.summary import check_sid
 
-    checks = sid_checks(read_sid(args.file, physical="off"))
+    checks = check_sid(args.file)
     if not args.quiet:
         print(format_checks(checks))
     print(f"{args.file}: {checks_summary(checks)}")

@@ -1,5 +1,5 @@
 """``sidprep linearize SCENE``: eigenfrequencies and mode shapes of the mechanism at its assembled
-start (sidprep.solver.linear.mechanism_modes), as a table or JSON."""
+start (sidprep.solver.scene_modes.linearize_scene), as a table or JSON."""
 
 from __future__ import annotations
 
@@ -36,18 +36,12 @@ def run(args) -> int:
     import json
 
     from sidprep.errors import InputError
-    from sidprep.solver.linear import mechanism_modes
-    from sidprep.solver.scene import load_scene
-    from sidprep.tables import require_toml
+    from sidprep.solver.scene_modes import linearize_scene
 
-    require_toml(args.scene, "scene file", "linearize takes a scene (docs/scenes.md)")
     if args.count < 1:
         raise InputError(f"--count {args.count}: must be >= 1")
-    scene = load_scene(args.scene)
-    if not hasattr(scene.system, "bodies") or not hasattr(scene.system, "joints"):
-        raise InputError(f"{args.scene}: linearize needs a floating-frame scene (bodies and joints), "
-                         "not an absolute-nodal one")
-    modes = mechanism_modes(scene.system)
+    linearized = linearize_scene(args.scene)
+    scene, modes = linearized.scene, linearized.modes
     n = min(modes.n_rigid + args.count, len(modes.frequencies_hz))
     if args.json:
         print(json.dumps({"scene": str(args.scene), "n_rigid": modes.n_rigid,

@@ -22,22 +22,13 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     import sys
-    from pathlib import Path
 
     from sidprep.cli.options import default_output
-    from sidprep.errors import InputError
-    from sidprep.solver.results import default_signals, plot_signals, read_results, signal_names
+    from sidprep.solver.results import plot_results
 
-    out = default_output(args.results, ".png", args.output)
-    if out.suffix.lower() != ".png":
-        raise InputError(f"{out}: plot writes PNG images; name the output OUT.png")
-    results = read_results(args.results)
-    signals = list(args.signals) or default_signals(results.result)
+    plot = plot_results(args.results, args.signals, default_output(args.results, ".png", args.output))
     if not args.signals and not args.quiet:
         print(f"{args.results}: signals (plot any of them: sidprep plot {args.results} SIGNAL...):\n  "
-              + "\n  ".join(signal_names(results.result)), file=sys.stderr)
-    scene = results.scene.get("path")
-    title = Path(args.results).name + (f" ({scene})" if scene else "")
-    path = plot_signals(results.result, signals, out, title=title)
-    print(path if args.quiet else f"wrote {path}")
+              + "\n  ".join(plot.available), file=sys.stderr)
+    print(plot.path if args.quiet else f"wrote {plot.path}")
     return 0

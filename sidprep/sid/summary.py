@@ -19,6 +19,12 @@ def sid_info(path) -> dict:
     return body_summary(sid, sid_checks(sid))
 
 
+def check_sid(path) -> dict:
+    """Read a SID file (.sid.h5 / .SID_FEM) as it is (its physical checks not enforced on reading)
+    and re-run its model checks: {name: Check} (what ``sidprep check`` prints)."""
+    return sid_checks(read_sid(path, physical="off"))
+
+
 def body_summary(sid, checks: dict) -> dict:
     """Summary of a SID: mass, CM, inertia about O and about the CM, modes, nodes, and ``checks``
     ({name: Check}); :func:`strict_json` makes it JSON."""

@@ -264,8 +264,8 @@ def run_setting(path: str, sha256: str, setting: Setting, t_end: float, output_d
     inside = (result.t >= window[0] - 1e-9 * t_end) & (result.t <= window[1] + 1e-9 * t_end)
     values = np.array([signal(result, name)[0][inside] for name in signals])
     failed = None if np.all(np.isfinite(values)) else "non-finite signal values"
-    return Outcome(result.t[inside], values, float(result.stats["cpu_time"]), warm,
-                   result.stats["energy_balance"].get("balance_error"), failed)
+    return Outcome(result.t[inside], values, float(result.stats.cpu_time), warm,
+                   result.stats.energy_balance.balance_error, failed)
 
 
 def execute(tasks: list[tuple], pool=None, progress=None) -> list[Outcome]:

@@ -25,6 +25,8 @@ nothing).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from sidprep.solver.integrators.settings import ENERGY_TOL
@@ -71,45 +73,64 @@ def work_integral(t: np.ndarray, power: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(pieces)])
 
 
-def energy_balance(energy: dict, tolerance: float = ENERGY_TOL) -> dict:
-    """{"balance_error", "exchanged" (J), "change" (J, E(end) - E(0)), "excursion" (J, the
-    largest change E - E(0) with its sign), "worst" (J, its size), "floor" (J, module doc),
-    "tolerance"} of the energy histories ``energy``
-    ({kind: (nt,) J} with "total"); balance_error is NaN for a run that exchanged no energy."""
+@dataclass(frozen=True)
+class EnergyBalance:
+    """How well a run's energy books close (module doc).
+
+    balance_error : the largest change of the total energy over the energy exchanged (NaN for a run
+    that exchanged none); exchanged : J; change : J, E(end) - E(0); excursion : J, the largest change
+    E - E(0) with its sign; worst : J, its size; floor : J, what the books resolve; tolerance : the
+    run's energy_tol; warning : the one line naming cause and fix when the error passes the
+    tolerance (``balance_warning``), else None.  A results file written before excursion, worst and
+    floor were booked reads them as NaN, inf and 0 (no floor).
+    """
+
+    balance_error: float
+    exchanged: float
+    change: float
+    excursion: float = float("nan")
+    worst: float = float("inf")
+    floor: float = 0.0
+    tolerance: float = ENERGY_TOL
+    warning: str | None = None
+
+
+def energy_balance(energy: dict, tolerance: float = ENERGY_TOL) -> EnergyBalance:
+    """The EnergyBalance of the energy histories ``energy`` ({kind: (nt,) J} with "total"), without
+    its warning."""
     total = np.asarray(energy["total"], float)
     if total.size == 0:
-        return {"balance_error": 0.0, "exchanged": 0.0, "change": 0.0, "excursion": 0.0, "worst": 0.0,
-                "floor": ENERGY_FLOOR_J, "tolerance": tolerance}
+        return EnergyBalance(0.0, 0.0, 0.0, 0.0, 0.0, ENERGY_FLOOR_J, tolerance)
     if not np.all(np.isfinite(total)):  # the run blew up (an explicit method beyond its stability limit)
-        return {"balance_error": float("inf"), "exchanged": float("nan"), "change": float("inf"),
-                "excursion": float("inf"), "worst": float("inf"), "floor": ENERGY_FLOOR_J, "tolerance": tolerance}
+        return EnergyBalance(float("inf"), float("nan"), float("inf"), float("inf"), float("inf"), ENERGY_FLOOR_J,
+                             tolerance)
     terms = [np.asarray(energy[k], float) for k in BOOKED if k in energy]
     exchanged = max([float(np.ptp(e)) for e in terms] + [float(np.max(np.abs(energy["kinetic"])))])
     worst_at = int(np.argmax(np.abs(total - total[0])))
     worst = abs(float(total[worst_at] - total[0]))
     error = worst / exchanged if exchanged > 0 else (0.0 if worst == 0 else float("nan"))
     floor = max(ENERGY_FLOOR_J, ROUND_OFF_RTOL * max(float(np.max(np.abs(e))) for e in terms))
-    return {"balance_error": error, "exchanged": exchanged, "change": float(total[-1] - total[0]),
-            "excursion": float(total[worst_at] - total[0]), "worst": worst, "floor": floor, "tolerance": tolerance}
+    return EnergyBalance(error, exchanged, float(total[-1] - total[0]), float(total[worst_at] - total[0]), worst,
+                         floor, tolerance)
 
 
-def balance_beyond(balance: dict, level: float) -> bool:
+def balance_beyond(balance: EnergyBalance, level: float) -> bool:
     """Whether the balance error passes ``level`` (relative to the energy exchanged) by a change
     above the floor of what the books resolve (module doc)."""
-    return balance["balance_error"] > level and not balance.get("worst", np.inf) <= balance.get("floor", 0.0)
+    return balance.balance_error > level and not balance.worst <= balance.floor
 
 
-def balance_warning(balance: dict, method: str, h: float, rho_inf: float | None, rtol: float | None,
+def balance_warning(balance: EnergyBalance, method: str, h: float, rho_inf: float | None, rtol: float | None,
                     stops: tuple = ()) -> str | None:
     """One line naming the likely cause and the fix when the balance error passes its tolerance
     by more than the floor (None otherwise); ``stops``: the names of the force elements with a
     bump stop (an unresolved impact is then the first suspect)."""
-    error, tol = balance["balance_error"], balance["tolerance"]
+    error, tol = balance.balance_error, balance.tolerance
     if not balance_beyond(balance, tol):
         return None
-    change = balance["excursion"]  # the largest change, not the end's: an impact may gain what the end lost
+    change = balance.excursion  # the largest change, not the end's: an impact may gain what the end lost
     grew = change > 0
-    head = (f"energy balance error {error:.2g} of the energy exchanged ({balance['exchanged']:.4g} J) passes "
+    head = (f"energy balance error {error:.2g} of the energy exchanged ({balance.exchanged:.4g} J) passes "
             f"energy_tol = {tol:g}: the integration is not accurate" if np.isfinite(error) else
             "the energy became infinite or NaN: the integration blew up")
     if stops and np.isfinite(error):

@@ -70,12 +70,12 @@ def post_setup(run) -> PostSetup:
 
 
 def postprocess(run, s, setup, out=None) -> Result:
-    """The Result of ``run`` (solver.run.Run) from its Samples ``s``, its PostSetup ``setup`` and
+    """The Result of ``run`` (solver.run.Run) from its SampleArrays ``s``, its PostSetup ``setup`` and
     the SampledOutputs ``out`` of the samples (computed here when None)."""
     system, L = run.system, run.L
     c = setup.c
     if out is None:
-        samples = SampleArrays(*(np.ascontiguousarray(getattr(s, f)) for f in SampleArrays._fields))
+        samples = SampleArrays(*(np.ascontiguousarray(column) for column in s))
         out = sample_outputs(setup.L, setup.L0, samples, c)
     bodies = {}
     for i, b in enumerate(system.bodies):
@@ -107,4 +107,4 @@ def postprocess(run, s, setup, out=None) -> Result:
                    "gravity": system.gravity, "settings": run.settings}
         estimates[name] = estimate_changes(b, chosen, history)
     report = build_report(run.choices, estimates, run.notes)
-    return Result(s.t.copy(), bodies, joints, positions, energy, out.cerr, report, {})
+    return Result(s.t.copy(), bodies, joints, positions, energy, out.cerr, report)

@@ -20,7 +20,7 @@ its unit in the attribute ``units``)::
     /energy/<kind>         (nt,)           J      kinetic, strain, gravity, ..., total
     /constraint_error      (nt,)                  max |g|
     /effects               attrs: json (EffectsReport.as_dict()), text (the printed report)
-    /stats                 attrs: json (solver statistics)
+    /stats                 attrs: json (RunStatistics.as_dict(), sidprep/solver/statistics.py)
     /scene                 attrs: path, sha256, text (the scene file as read)
 
 Signal names for plots and CSV: see ``signal_names``.
@@ -44,6 +44,7 @@ from sidprep.errors import InputError
 from sidprep.sid.io.atomic import atomic_hdf5, atomic_path
 from sidprep.sid.io.hdf5 import open_hdf5
 from sidprep.solver.effects import EffectEntry, EffectsReport
+from sidprep.solver.statistics import RunStatistics
 
 
 @dataclass
@@ -95,8 +96,7 @@ class Result:
     markers {name: (nt, 3)} inertial marker positions; energy {kinetic, strain, gravity,
     spring, dissipated, external, total} (nt,) J (total = kinetic + strain + gravity + spring
     + dissipated - external: constant up to integration error); constraint_error (nt,) max |g|;
-    effects: EffectsReport; stats: method, cpu_time (s), steps, rejected, newton_iterations,
-    jacobians, dropped constraint rows, h_min/h_max used.
+    effects: EffectsReport; stats: the run's RunStatistics (sidprep/solver/statistics.py; None before a run).
     """
 
     t: np.ndarray
@@ -106,7 +106,7 @@ class Result:
     energy: dict
     constraint_error: np.ndarray
     effects: EffectsReport
-    stats: dict = field(default_factory=dict)
+    stats: RunStatistics | None = None
 
 
 FORMAT = "sidprep-results"
@@ -296,7 +296,8 @@ def write_results(result: Result, path: str | os.PathLike, *, scene: Mapping[str
         _put(f, "constraint_error", result.constraint_error, "m|rad")
         g = f.create_group("effects")
         g.attrs.update(json=json.dumps(json_safe(result.effects.as_dict())), text=result.effects.text())
-        f.create_group("stats").attrs["json"] = json.dumps(json_safe(result.stats))
+        stats = {} if result.stats is None else result.stats.as_dict()
+        f.create_group("stats").attrs["json"] = json.dumps(json_safe(stats))
         g = f.create_group("scene")
         for key, value in (scene or {}).items():
             g.attrs[key] = str(value)
@@ -310,6 +311,11 @@ def _effects_from_dict(d: Mapping) -> EffectsReport:
                                      nan if e["estimate"] is None else e["estimate"], e["measure"])
                          for e in entries) for b, entries in d["bodies"].items()},
         notes=tuple(d["notes"]))
+
+
+def _statistics_from_json(text: str) -> RunStatistics | None:
+    stats = json.loads(text)
+    return RunStatistics.from_dict(stats) if stats else None
 
 
 def read_results(path: str | os.PathLike) -> ResultsFile:
@@ -330,7 +336,7 @@ def read_results(path: str | os.PathLike) -> ResultsFile:
             energy={kind: d[()] for kind, d in f["energy"].items()},
             constraint_error=f["constraint_error"][()],
             effects=_effects_from_dict(json.loads(f["effects"].attrs["json"])),
-            stats=json.loads(f["stats"].attrs["json"]))
+            stats=_statistics_from_json(f["stats"].attrs["json"]))
         return ResultsFile(result, scene={key: str(v) for key, v in f["scene"].attrs.items()},
                            bodies={name: BodySource(str(g.attrs["kind"]), str(g.attrs["source"]))
                                    for name, g in f.get("bodies", {}).items()})
@@ -380,3 +386,27 @@ def plot_signals(result: Result, names: list[str], path: str | os.PathLike, titl
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
     return path
+
+
+@dataclass(frozen=True)
+class ResultsPlot:
+    """A plot of a results file: path (the PNG written), signals (those plotted) and available
+    (every signal name of the file, ``signal_names``)."""
+
+    path: Path
+    signals: tuple[str, ...]
+    available: tuple[str, ...]
+
+
+def plot_results(results_path: str | os.PathLike, signals: list[str], output: str | os.PathLike) -> ResultsPlot:
+    """Plot the named signals of a results file (``default_signals`` when none are named) into the PNG
+    ``output``, titled with the file's name and its scene (what ``sidprep plot`` runs)."""
+    output = Path(output)
+    if output.suffix.lower() != ".png":
+        raise InputError(f"{output}: plot writes PNG images; name the output OUT.png")
+    results = read_results(results_path)
+    signals = list(signals) or default_signals(results.result)
+    scene = results.scene.get("path")
+    title = Path(results_path).name + (f" ({scene})" if scene else "")
+    path = plot_signals(results.result, signals, output, title=title)
+    return ResultsPlot(path, tuple(signals), tuple(signal_names(results.result)))

@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 
 import numpy as np
 
@@ -20,10 +20,11 @@ from sidprep.errors import InputError, SimulationFailed
 from sidprep.solver.compile.layout import build_layout, constraint_count
 from sidprep.solver.compile.path_range import left_path, path_marker_problems
 from sidprep.solver.effects import choose_effects
-from sidprep.solver.energy import balance_beyond, balance_warning, energy_balance
+from sidprep.solver.energy import EnergyBalance, balance_beyond, balance_warning, energy_balance
 from sidprep.solver.core.forces import FE_INT_KIND, FE_INT_MARKER1, FE_INT_MARKER2, FE_PAR_LENGTH, FE_SPRING
 from sidprep.solver.core.outputs import SampledOutputs
-from sidprep.solver.integrators.base import Problem, Samples, State, evaluate, marker_kinematics
+from sidprep.solver.core.steps import SampleArrays
+from sidprep.solver.integrators.base import Problem, State, evaluate, marker_kinematics
 from sidprep.solver.integrators.adaptive import ScipyRungeKutta
 from sidprep.solver.integrators.explicit import RungeKutta4
 from sidprep.solver.integrators.genalpha import GeneralizedAlpha
@@ -35,6 +36,7 @@ from sidprep.solver.model.bodies import RigidBody
 from sidprep.solver.model.effects import EFFECTS, parse_effects
 from sidprep.solver.model.joints import ConstantSpeed, Driver
 from sidprep.solver.postprocess import post_setup, postprocess
+from sidprep.solver.statistics import RunStatistics
 
 STEPPERS = {"genalpha": GeneralizedAlpha, "rk4": RungeKutta4, "rk45": ScipyRungeKutta, "dop853": ScipyRungeKutta}
 #: the start reports bodies moved by more than this (m or rad) from their placed positions
@@ -83,15 +85,15 @@ def numerical_fix(settings) -> str:
     return "halve h or use method = \"genalpha\""
 
 
-def numerical_cause(balance: dict, settings) -> str:
+def numerical_cause(balance: EnergyBalance, settings) -> str:
     """'; before it ...' naming the integration as the cause of a failure when the energy
     balance was off by more than BALANCE_BEFORE_FAILURE of the energy exchanged (else '')."""
     if not balance_beyond(balance, BALANCE_BEFORE_FAILURE):
         return ""
-    how = "grew" if balance["change"] > 0 else "fell"
+    how = "grew" if balance.change > 0 else "fell"
     step = f"h = {settings.h:g} s" + (f", rho_inf = {settings.rho_inf:g}" if settings.method == "genalpha" else "")
-    return (f"; before it the energy {how} by {abs(balance['change']):.3g} J that no work or dissipation accounts for "
-            f"({balance['balance_error']:.2g} of the {balance['exchanged']:.3g} J exchanged): a numerical "
+    return (f"; before it the energy {how} by {abs(balance.change):.3g} J that no work or dissipation accounts for "
+            f"({balance.balance_error:.2g} of the {balance.exchanged:.3g} J exchanged): a numerical "
             f"instability of the integration ({settings.method}, {step}), not the scene; fix: {numerical_fix(settings)}")
 
 
@@ -260,6 +262,15 @@ class Run:
                 f"{sizes[b]:.3g} m (deformation_limit {self.settings.deformation_limit:g}); likely {cause}, "
                 "a too large step or a stiff contact")
 
+    def failure_message(self, stepper, sizes, balance: EnergyBalance) -> str:
+        """Why the run failed: the stepper's cause, or the integration's when the energy balance names one."""
+        cause = numerical_cause(balance, self.settings)
+        failure = self.failure_cause(stepper, sizes)
+        if cause:  # the integration, not the scene: the stepper's advice to check the scene does not apply
+            failure = failure.split("; check the scene")[0]
+        named = failure if failure.startswith(f"{stepper.name}: ") else f"{stepper.name}: {failure}"
+        return named + cause
+
     # ------------------------------------------------------------------ run
     def execute(self):
         """Integrate and return the Result (sidprep/solver/results.py)."""
@@ -267,7 +278,7 @@ class Run:
         state = self.consistent_start()
         problem = Problem(self.L, self.free, self.kept, self.weights, self.length, self.refs, self.t_end,
                           body_sizes(self.system, self.terms), post_setup(self))
-        first = Samples(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
+        first = SampleArrays(np.array([0.0]), state.R[None], state.A[None], state.Q[None], state.u[None],
                         state.ud[None], state.lam[None], self.refs[None].copy(), np.zeros((1, 3)))
         stepper = STEPPERS[self.settings.method](problem, state.copy(), self.settings)
         cpu_setup = time.process_time() - cpu0
@@ -275,38 +286,30 @@ class Run:
         while stepper.status == "running":
             chunks.append(stepper.advance(self.t_end))
             if self.settings.progress:
-                self.settings.progress(float(stepper.state.t), self.t_end, int(stepper.stats.get("steps", 0)))
+                self.settings.progress(float(stepper.state.t), self.t_end, stepper.stats.steps)
         cpu_integration = time.process_time() - cpu0 - cpu_setup
-        samples = Samples(*(np.concatenate([getattr(c, f) for c in chunks]) for f in Samples.__dataclass_fields__))
+        samples = SampleArrays(*(np.concatenate(column) for column in zip(*chunks)))
         outputs = None if stepper.outputs is None else SampledOutputs(
             *(np.concatenate([getattr(o, f) for o in stepper.outputs]) for f in SampledOutputs._fields))
         result = postprocess(self, samples, problem.post, outputs)
         dropped = [f"{self.names[r]} row {r - self.names.index(self.names[r])}" for r in
                    np.setdiff1d(np.arange(len(self.names)), self.kept_3d)]
-        result.stats.update(stepper.stats, method=stepper.name, h=self.settings.h,
-                            rho_inf=self.settings.rho_inf if stepper.name == "genalpha" else None,
-                            rtol=self.settings.tolerance, cpu_time=time.process_time() - cpu0, cpu_setup=cpu_setup,
-                            cpu_integration=cpu_integration, dropped_constraint_rows=dropped,
-                            n_coordinates=int(self.free.size), planar=bool(self.free.size < self.L.uoff[-1]),
-                            n_constraints=int(self.kept.size))
+        cpu_time = time.process_time() - cpu0
         st = self.settings
         balance = energy_balance(result.energy, st.energy_tol)
         stops = tuple(f.name for f in self.system.forces if getattr(f, "law", None) is not None)
-        balance["warning"] = balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops)
-        result.stats["energy_balance"] = balance
-        if stepper.status == "failed":
-            cause = numerical_cause(balance, st)
-            failure = self.failure_cause(stepper, problem.sizes)
-            if cause:  # the integration, not the scene: the stepper's advice to check the scene does not apply
-                failure = failure.split("; check the scene")[0]
-            named = failure if failure.startswith(f"{stepper.name}: ") else f"{stepper.name}: {failure}"
-            message = named + cause
-            result.stats["failed"] = message
-            raise SimulationFailed(message + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
-        gone = left_path(self.system, result)
-        if gone:
-            result.stats["failed"] = gone
-            raise SimulationFailed(gone + f"; the results up to t = {result.t[-1]:.6g} s are kept", result)
+        balance = replace(balance, warning=balance_warning(balance, stepper.name, st.h, st.rho_inf, st.tolerance, stops))
+        failed = self.failure_message(stepper, problem.sizes, balance) if stepper.status == "failed" else None
+        gone = None if failed else left_path(self.system, result)
+        result.stats = RunStatistics(
+            **asdict(stepper.stats), method=stepper.name, h=st.h, rho_inf=st.rho_inf if stepper.name == "genalpha" else None,
+            rtol=st.tolerance, cpu_time=cpu_time, cpu_setup=cpu_setup, cpu_integration=cpu_integration,
+            dropped_constraint_rows=tuple(dropped), n_coordinates=int(self.free.size),
+            planar=bool(self.free.size < self.L.uoff[-1]), n_constraints=int(self.kept.size), energy_balance=balance,
+            failed=failed or gone)
+        if result.stats.failed:
+            raise SimulationFailed(result.stats.failed + f"; the results up to t = {result.t[-1]:.6g} s are kept",
+                                   result)
         return result
 
 

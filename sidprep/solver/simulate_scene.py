@@ -13,7 +13,7 @@ wrote is reported in ``SceneRun.notes``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import h5py
@@ -44,19 +44,19 @@ class SceneRun:
         """The JSON summary of the run (docs/scenes.md, "Output"): steps, CPU s, energy (J),
         effects, final body states, largest constraint error, statistics, files."""
         result, stats = self.result, self.result.stats
-        balance = stats.get("energy_balance", {})
+        balance = {} if stats.energy_balance is None else asdict(stats.energy_balance)
         return {
             "scene": str(self.scene.path),
             "t_end": float(result.t[-1]),
-            "steps": int(stats.get("steps", 0)),
-            "cpu_s": float(stats.get("cpu_time", float("nan"))),
+            "steps": int(stats.steps),
+            "cpu_s": float(stats.cpu_time),
             "energy": {**energy_summary(result), **{k: balance[k] for k in ("balance_error", "tolerance", "warning")
                                                      if k in balance}},
             "effects": effects_summary(result.effects),
             "bodies": {name: {"position": b.position[-1].tolist(), "rotation": b.rotation[-1].tolist(),
                               "q": b.q[-1].tolist()} for name, b in result.bodies.items()},
             "max_constraint_error": float(result.constraint_error.max()) if len(result.constraint_error) else 0.0,
-            "stats": stats,
+            "stats": stats.as_dict(),
             "outputs": {kind: str(path) for kind, path in self.files.items()},
         }
 

@@ -13,6 +13,7 @@ from sidprep.solver.absolute_nodal.model import AbsoluteNodalModel
 from sidprep.solver.core.absolute_nodal import BeamSystem, driver_angle, wrapped_angle
 from sidprep.solver.effects import EffectsReport
 from sidprep.solver.results import BodyHistory, JointHistory, Result
+from sidprep.solver.statistics import RunStatistics
 
 
 def _samples(asm: Assembly, system: BeamSystem, t: np.ndarray, Y: np.ndarray):
@@ -30,10 +31,12 @@ def initial_result(model: AbsoluteNodalModel):
     """The ``Result`` of the initial state alone (one sample, no integration): its signal names
     are those of every run of ``model`` (``sidprep simulate --list-signals``)."""
     asm = assemble(model)
-    return beam_result(model, asm, np.zeros(1), initial_vector(asm)[None, :], {"method": "rk4", "steps": 0})
+    return beam_result(model, asm, np.zeros(1), initial_vector(asm)[None, :],
+                       RunStatistics(method="rk4", cpu_time=0.0, steps=0, rejected=0))
 
 
-def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.ndarray, stats: dict):
+def beam_result(model: AbsoluteNodalModel, asm: Assembly, t: np.ndarray, Y: np.ndarray,
+                stats: RunStatistics):
     """Signals, energies and reactions of the sampled states Y (nt, 4 nf) at times t."""
     system = beam_system(asm)
     X, V, A, lam, strain = _samples(asm, system, t, Y)

@@ -5,7 +5,7 @@ stability limit for the highest frequency of the beams."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -16,6 +16,7 @@ from sidprep.solver.absolute_nodal.results import beam_result
 from sidprep.solver.core.absolute_nodal import BeamSystem, RK4Progress, rk4_loop
 from sidprep.solver.integrators.base import CHUNK, Stepper
 from sidprep.solver.integrators.settings import SolverSettings, check_run_size
+from sidprep.solver.statistics import RunStatistics
 
 #: largest h * omega_max accepted for RK4 (its stability limit on the imaginary axis is 2 sqrt 2)
 RK4_STABILITY = 2.6
@@ -60,7 +61,7 @@ class BeamRK4(Stepper):
         st, p = self.settings, self.progress
         ts, Ys = rk4_loop(self.problem.system, p, t_stop, st.h, st.output_dt or 0.0, CHUNK)
         self.state = BeamState(p.t, np.array(p.y))
-        self.stats.update(steps=int(p.steps), rhs_evaluations=4 * int(p.steps), h_min=st.h, h_max=st.h)
+        self.stats = replace(self.stats, steps=int(p.steps), rhs_evaluations=4 * int(p.steps), h_min=st.h, h_max=st.h)
         if p.t >= self.problem.t_end - 1e-12 * max(1.0, self.problem.t_end):
             self.status = "finished"
         return BeamSamples(ts, Ys)
@@ -131,7 +132,7 @@ def simulate_absolute_nodal(model: AbsoluteNodalModel, t_end: float, settings: S
     """Simulate ``model`` to t_end (s) -> ``solver.results.Result`` (write it with solver.results.write_results)."""
     asm = assemble(model)
     t, Y, cpu = integrate(asm, t_end, settings)
-    stats = {"method": "rk4", "cpu_time": cpu, "steps": int(round(t_end / settings.h)), "rejected": 0,
-             "h_min": settings.h, "h_max": settings.h, "formulation": "absolute nodal (Kisu Lee)",
-             "nodes": int(len(asm.X0)), "dof": int(2 * len(asm.free))}
+    stats = RunStatistics(method="rk4", cpu_time=cpu, steps=int(round(t_end / settings.h)), rejected=0,
+                          h_min=settings.h, h_max=settings.h, formulation="absolute nodal (Kisu Lee)",
+                          nodes=int(len(asm.X0)), dof=int(2 * len(asm.free)))
     return beam_result(model, asm, t, Y, stats)

@@ -15,6 +15,8 @@ t_bound), so a piecewise-linear load is never stepped across either.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sidprep.solver.core.assemble import evaluate_into
@@ -22,7 +24,8 @@ from sidprep.solver.core.explicit import unpack
 from sidprep.solver.core.forces import (FE_FORCE, FE_INT_JOINT, FE_INT_KIND, FE_INT_TABLE, FE_INT_TABLE_COLUMNS,
                                         FE_TORQUE, has_stops, stop_states)
 from sidprep.solver.core.records import evaluation_arrays
-from sidprep.solver.integrators.base import CHUNK, Samples
+from sidprep.solver.core.steps import SampleArrays
+from sidprep.solver.integrators.base import CHUNK
 from sidprep.solver.integrators.explicit import ExplicitStepper, non_finite_message
 
 #: a stop counts as reached when a step bounded by its approach closed its gap to this fraction;
@@ -116,8 +119,11 @@ class ScipyRungeKutta(ExplicitStepper):
 
         self.cls = {"rk45": RK45, "dop853": DOP853}[settings.method]
         self.name = settings.method
+        #: right-hand-side evaluations so far (into ``stats`` at the end of each advance)
+        self.evaluations = 0
+
         def fun(t, y):
-            self.stats["rhs_evaluations"] += 1
+            self.evaluations += 1
             return self.rhs(t, y)
 
         self.fun = fun
@@ -186,13 +192,13 @@ class ScipyRungeKutta(ExplicitStepper):
             self.closing_acc = np.where(np.isfinite(pen), (rate - self.rate) / h, 0.0)
         self.pen, self.rate = pen, rate
 
-    def advance(self, t_stop: float) -> Samples:
+    def advance(self, t_stop: float) -> SampleArrays:
         st = self.settings
         rows = []
         dt = st.output_dt
         end_tol = 1e-12 * max(1.0, self.problem.t_end)
         while self.solver.t < min(t_stop, self.problem.t_end) - end_tol and len(rows) < CHUNK:
-            if self.stats["steps"] >= st.max_steps:
+            if self.stats.steps >= st.max_steps:
                 self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {self.solver.t:.6g} s"
                 break
             if self.events is not None:
@@ -207,10 +213,9 @@ class ScipyRungeKutta(ExplicitStepper):
                 self.status, self.message = "failed", f"{self.name}: {message}; use method = 'genalpha' for stiff scenes"
                 break
             t_new, y_new, dense = self.end_of_step(t_old)
-            self.stats["steps"] += 1
             h = t_new - t_old
-            self.stats["h_min"] = min(self.stats["h_min"], h)
-            self.stats["h_max"] = max(self.stats["h_max"], h)
+            self.stats = replace(self.stats, steps=self.stats.steps + 1, h_min=min(self.stats.h_min, h),
+                                 h_max=max(self.stats.h_max, h))
             final = t_new >= self.problem.t_end - end_tol
             times = [t_new] if dt is None else []
             if dt is not None:
@@ -227,6 +232,7 @@ class ScipyRungeKutta(ExplicitStepper):
                 rows.append((tk, self.sample(tk, y), self.problem.refs.copy()))
             if not times:  # keep the angle references current between samples
                 self.sample(t_new, y_new)
+        self.stats = replace(self.stats, rhs_evaluations=self.evaluations)
         if rows:
             self._set_state(rows[-1][0], rows[-1][1])
         self.state.t = self.solver.t
@@ -236,13 +242,13 @@ class ScipyRungeKutta(ExplicitStepper):
             return empty_samples(self.problem, self.state)
         stack = [np.array([r[1][k] for r in rows]) for k in range(7)]
         refs = np.array([r[2] for r in rows])
-        return Samples(np.array([r[0] for r in rows]), stack[0], stack[1], stack[2], stack[3], stack[4], stack[5],
-                       refs, stack[6])
+        return SampleArrays(np.array([r[0] for r in rows]), stack[0], stack[1], stack[2], stack[3], stack[4], stack[5],
+                            refs, stack[6])
 
 
-def empty_samples(problem, state) -> Samples:
-    """Samples with no rows."""
+def empty_samples(problem, state) -> SampleArrays:
+    """SampleArrays with no rows."""
     z = np.zeros
-    return Samples(z(0), z((0,) + state.R.shape), z((0,) + state.A.shape), z((0, state.Q.size)),
+    return SampleArrays(z(0), z((0,) + state.R.shape), z((0,) + state.A.shape), z((0, state.Q.size)),
                    z((0, state.u.size)), z((0, state.u.size)), z((0, state.lam.size)), z((0, problem.refs.size)),
                    z((0, 3)))

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sidprep.solver.core import steps as core_steps
+from sidprep.solver.core.steps import SampleArrays
 from sidprep.solver.core.records import Layout, layout_record
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
@@ -69,21 +70,19 @@ class State:
                      self.lam.copy())
 
 
-@dataclass
-class Samples:
-    """Output samples of one stretch: t (k,), R, A, Q, u, ud, lam (kept rows), refs (k, nj) the
-    angle references, work (k, 3) = [work of applied loads, dissipated energy, work of drivers]
-    since t = 0, J."""
+@dataclass(frozen=True)
+class StepCounts:
+    """What a stepper did so far: accepted and rejected steps, right-hand-side evaluations, Newton
+    iterations, Jacobian factorisations, and the smallest and largest accepted step h_min, h_max (s;
+    inf and 0 before the first step)."""
 
-    t: np.ndarray
-    R: np.ndarray
-    A: np.ndarray
-    Q: np.ndarray
-    u: np.ndarray
-    ud: np.ndarray
-    lam: np.ndarray
-    refs: np.ndarray
-    work: np.ndarray
+    steps: int = 0
+    rejected: int = 0
+    rhs_evaluations: int = 0
+    newton_iterations: int = 0
+    jacobians: int = 0
+    h_min: float = np.inf
+    h_max: float = 0.0
 
 
 class Stepper:
@@ -98,14 +97,14 @@ class Stepper:
         self.large_deformation = None
         #: the SampledOutputs of each stretch when the compiled loop computes them (module doc)
         self.outputs: list | None = None
-        self.stats = {"steps": 0, "rejected": 0, "rhs_evaluations": 0, "newton_iterations": 0, "jacobians": 0,
-                      "h_min": np.inf, "h_max": 0.0}
+        #: the counts so far (a StepCounts the stepper replaces as it goes)
+        self.stats = StepCounts()
 
     @property
     def t(self) -> float:
         return self.state.t
 
-    def advance(self, t_stop: float) -> Samples:  # pragma: no cover - interface
+    def advance(self, t_stop: float) -> SampleArrays:  # pragma: no cover - interface
         raise NotImplementedError
 
 

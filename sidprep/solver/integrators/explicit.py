@@ -12,13 +12,15 @@ For non-stiff scenes: the step must resolve the highest kept frequency.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sidprep.solver.core import explicit as core
 from sidprep.solver.core.records import layout_record
 from sidprep.solver.core.rotations import matrix_to_quaternion
 from sidprep.solver.core.steps import SampleArrays
-from sidprep.solver.integrators.base import CHUNK, Samples, Stepper
+from sidprep.solver.integrators.base import CHUNK, Stepper
 
 
 def pack(L, R, A, Q, u, work) -> np.ndarray:
@@ -85,17 +87,15 @@ class RungeKutta4(ExplicitStepper):
                             np.repeat(s.ud[None], rows, 0), np.repeat(s.lam[None], rows, 0),
                             np.repeat(self.problem.refs[None], rows, 0), np.zeros((rows, 3)))
 
-    def advance(self, t_stop: float) -> Samples:
+    def advance(self, t_stop: float) -> SampleArrays:
         st = self.settings
-        steps = np.array([self.stats["steps"], st.max_steps], dtype=np.int64)
+        steps = np.array([self.stats.steps, st.max_steps], dtype=np.int64)
         t, self.y, self.next_index, buf, out = core.rk4_loop(self.state.t, self.y, t_stop, st.h, st.output_dt or 0.0,
                                                              self.next_index, self.params, CHUNK, steps,
                                                              self.first_rows(), self.problem.post)
         self.outputs.append(out)
         arrays = tuple(buf)
-        self.stats["steps"] = int(steps[0])
-        self.stats["rhs_evaluations"] = 4 * int(steps[0])
-        self.stats["h_min"] = self.stats["h_max"] = st.h
+        self.stats = replace(self.stats, steps=int(steps[0]), rhs_evaluations=4 * int(steps[0]), h_min=st.h, h_max=st.h)
         if len(arrays[0]):
             self.state = type(self.state)(t, arrays[1][-1], arrays[2][-1], arrays[3][-1], arrays[4][-1],
                                           arrays[5][-1], arrays[6][-1])
@@ -106,4 +106,4 @@ class RungeKutta4(ExplicitStepper):
             self.status = "finished"
         elif steps[0] >= st.max_steps:
             self.status, self.message = "failed", f"max_steps = {st.max_steps} reached at t = {t:.6g} s"
-        return Samples(*arrays)
+        return buf

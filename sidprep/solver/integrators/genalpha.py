@@ -4,12 +4,15 @@ module doc states the method, its Newton iteration, contacts, dense output and e
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sidprep.solver.core import genalpha as core
 from sidprep.solver.core.records import layout_record
 from sidprep.solver.core.steps import FINISHED, LARGE_DEFORMATION, MAX_STEPS, NEWTON_FAILED
-from sidprep.solver.integrators.base import CHUNK, Samples, Stepper
+from sidprep.solver.core.steps import SampleArrays
+from sidprep.solver.integrators.base import CHUNK, Stepper
 
 
 def genalpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -57,7 +60,7 @@ class GeneralizedAlpha(Stepper):
                               np.full(state.u.size, np.nan), np.array(state.lam, dtype=float))
         self.outputs = []
 
-    def advance(self, t_stop: float) -> Samples:
+    def advance(self, t_stop: float) -> SampleArrays:
         p, s, st, loop = self.problem, self.state, self.settings, self.loop
         samples, out = core.ga_loop(loop, self.x, t_stop, CHUNK)
         self.outputs.append(out)
@@ -77,6 +80,7 @@ class GeneralizedAlpha(Stepper):
                                                    "check the scene (joint axes, loads, units) or raise newton_tol")
         elif record.code == FINISHED and s.t >= p.t_end - 1e-12 * max(1.0, p.t_end):
             self.status = "finished"
-        for key in ("steps", "rejected", "newton_iterations", "jacobians", "h_min", "h_max"):
-            self.stats[key] = float(getattr(record, key)) if key.startswith("h_") else int(getattr(record, key))
-        return Samples(*samples)
+        self.stats = replace(self.stats, steps=int(record.steps), rejected=int(record.rejected),
+                             newton_iterations=int(record.newton_iterations), jacobians=int(record.jacobians),
+                             h_min=float(record.h_min), h_max=float(record.h_max))
+        return samples
