@@ -374,6 +374,21 @@ cdef void to_inertial_state(Layout L, GaState x, GaState out) noexcept nogil:
     inertial_accelerations(L, x.A, x.u, x.ud, out.ud)
 
 
+
+cdef void trial_residual(GaRun run, GaState start, GaState trial, double t, double h) noexcept:
+    """The Newton residual run.ws.r of the iterate ``trial`` (its accelerations ud and multipliers
+    lam) of the step of h s from ``start`` at t s: its pose and velocities (ga_state), the system
+    evaluated there at t + h (run.ws.e) and turned into the body frame (se3.pyx to_body_frame)."""
+    cdef Layout L = run.L
+    cdef GaWorkspace ws = run.ws
+    ga_state(L, trial.ud, start, h, run.c, ws.dx, trial)
+    inertial_velocities(L, trial.A, trial.u, ws.u_o)
+    expand(trial.lam, run.c.kept, ws.lam_all)
+    evaluate_into(L, ws.e, trial.R, trial.A, trial.Q, ws.u_o, t + h, ws.lam_all, run.refs)
+    to_body_frame(L, trial.A, trial.u, ws.e, ws.conv)
+    newton_residual(ws.e, trial.ud, trial.lam, h, run.c, ws.r)
+
+
 def ga_loop(GaRun run, GaState x, double t_end, Py_ssize_t capacity):
     """Generalised-alpha steps of the GaState x (written in place) from run.t until t_end or
     until ``capacity`` output samples besides the start's (so that the stretches end at the same
@@ -459,12 +474,7 @@ def ga_loop(GaRun run, GaState x, double t_end, Py_ssize_t capacity):
         last = INFINITY
         it = 0
         converged = False
-        ga_state(L, trial.ud, xc, h, c, ws.dx, trial)
-        inertial_velocities(L, trial.A, trial.u, u_o)
-        expand(trial.lam, kept, lam_all)
-        evaluate_into(L, e, trial.R, trial.A, trial.Q, u_o, t + h, lam_all, refs)
-        to_body_frame(L, trial.A, trial.u, e, ws.conv)
-        newton_residual(e, trial.ud, trial.lam, h, c, r)
+        trial_residual(run, xc, trial, t, h)
         while True:
             if want_d:  # D = d r1 / d ud - M by forward differences at the current iterate
                 eps_pos = sqrt(DBL_EPSILON) / (h * h * c.beta_p)
@@ -507,12 +517,7 @@ def ga_loop(GaRun run, GaState x, double t_end, Py_ssize_t capacity):
             if err <= c.tol and drift <= c.tol * c.length:  # the update shrinks the drift further
                 converged = True
                 break
-            ga_state(L, trial.ud, xc, h, c, ws.dx, trial)
-            inertial_velocities(L, trial.A, trial.u, u_o)
-            expand(trial.lam, kept, lam_all)
-            evaluate_into(L, e, trial.R, trial.A, trial.Q, u_o, t + h, lam_all, refs)
-            to_body_frame(L, trial.A, trial.u, e, ws.conv)
-            newton_residual(e, trial.ud, trial.lam, h, c, r)
+            trial_residual(run, xc, trial, t, h)
             if it >= C_MAX_NEWTON or (it > 1 and err > C_SLOW * last):
                 if not refactored:  # first: the current M, B with the old D
                     refactored, factor_now, it, last = True, True, 0, INFINITY
