@@ -21,7 +21,7 @@ import numpy as np
 
 from sidprep.solver.core import steps as core_steps
 from sidprep.solver.core.steps import SampleArrays
-from sidprep.solver.core.records import Layout, layout_record
+from sidprep.solver.core.records import layout_record
 
 #: output samples per call of a compiled integration loop (the stepper resumes it)
 CHUNK = 4096
@@ -116,11 +116,6 @@ EvaluationArrays = namedtuple("EvaluationArrays", ["M", "f", "g", "B", "BF", "bt
                                                    "kin", "crows", "convective"])
 
 
-def core_layout(L) -> Layout:
-    """The compiled core's Layout record of L (compile/layout.py's Layout namedtuple, or a record)."""
-    return L if isinstance(L, Layout) else layout_record(L)
-
-
 def contiguous(*arrays) -> list[np.ndarray]:
     """The arrays as C-contiguous float64 (the core's kernels take them so; no copy when they are)."""
     return [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
@@ -137,7 +132,7 @@ def evaluate(L, R, A, Q, u, t, lam, refs) -> EvaluationArrays:
     arrays, for callers in Python (start, planar check, linearisation); compiled code passes its
     per-run workspace to evaluate_into."""
     R, A, Q, u, lam, refs = contiguous(R, A, Q, u, lam, refs)
-    W = core_steps.state_equations(core_layout(L), R, A, Q, u, float(t), lam, refs, NO_INDICES, NO_INDICES, False)[0]
+    W = core_steps.state_equations(layout_record(L), R, A, Q, u, float(t), lam, refs, NO_INDICES, NO_INDICES, False)[0]
     return evaluation_values(W)
 
 
@@ -146,7 +141,7 @@ def moved_pose(L, R, A, Q, dx, body_frame=False):
     callers in Python."""
     R, A, Q, dx = contiguous(R, A, Q, dx)
     R2, A2, Q2 = np.empty_like(R), np.empty_like(A), np.empty_like(Q)
-    core_steps.advance_pose(core_layout(L), R, A, Q, dx, body_frame, R2, A2, Q2)
+    core_steps.advance_pose(layout_record(L), R, A, Q, dx, body_frame, R2, A2, Q2)
     return R2, A2, Q2
 
 
@@ -157,6 +152,6 @@ def constraint_rows(L) -> int:
 
 def marker_kinematics(L, R, A, Q) -> MarkerArrays:
     """Every marker's MarkerKinematics (core assemble.markers_into) at the pose (R, A, Q), at rest at t = 0."""
-    L = core_layout(L)
+    L = layout_record(L)
     return evaluate(L.with_every_marker(), R, A, Q, np.zeros(int(L.uoff[L.uoff.shape[0] - 1])),
                     0.0, np.zeros(constraint_rows(L)), np.zeros(L.joint_mk.shape[0])).kin

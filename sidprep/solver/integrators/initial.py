@@ -14,7 +14,8 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.solver.core import assemble, records, steps
-from sidprep.solver.integrators.base import constraint_rows, contiguous, core_layout, evaluate, moved_pose
+from sidprep.solver.core.records import layout_record
+from sidprep.solver.integrators.base import constraint_rows, contiguous, evaluate, moved_pose
 
 #: assembly tolerance: constraint residual, m or rad
 POSITION_TOL = 1e-12
@@ -92,7 +93,7 @@ class PoseConstraints:
     evaluations."""
 
     def __init__(self, L, t, refs):
-        self.L, self.t, self.refs = core_layout(L), float(t), contiguous(refs)[0]
+        self.L, self.t, self.refs = layout_record(L), float(t), contiguous(refs)[0]
         self.W = records.evaluation_arrays(self.L)
         self.u, self.lam = np.zeros(int(self.L.uoff[-1])), np.zeros(constraint_rows(self.L))
 
@@ -191,7 +192,7 @@ def project_velocities(L, R, A, Q, u, t, refs, kept, weights):
     """
     if kept.size == 0:
         return u
-    L = core_layout(L)
+    L = layout_record(L)
     m_all = constraint_rows(L)
 
     def error(v):
@@ -227,7 +228,7 @@ def accelerations(L, R, A, Q, u, t, refs, free, kept, lam=None):
         guess[kept] = lam
     R, A, Q, u, refs = contiguous(R, A, Q, u, refs)
     free, kept = (np.ascontiguousarray(x, dtype=np.int64) for x in (free, kept))
-    return steps.state_equations(core_layout(L), R, A, Q, u, float(t), guess, refs, free, kept, True)[1:]
+    return steps.state_equations(layout_record(L), R, A, Q, u, float(t), guess, refs, free, kept, True)[1:]
 
 
 def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names, iterations=10):
@@ -240,7 +241,7 @@ def quasi_static_elastic(L, pose, u, t, refs, free, kept, weights, length, names
     reduced system (D^T dF) c = -D^T F, solved in the least-squares sense.
     """
     R, A, Q = pose
-    L = core_layout(L)
+    L = layout_record(L)
     modal = ~rigid_columns(L)
     if not modal.any():
         return R, A, Q
