@@ -584,3 +584,20 @@ def test_paraview_series_carries_von_mises(harmonic_run, tmp_path):
     expected = von_mises(sid.stress.at(result.bodies["bar"].q[i])[0])
     assert np.allclose(mesh.point_data["von_mises"], expected)
     assert isinstance(mesh, meshio.Mesh)
+
+
+def test_the_runs_sid_is_found_before_a_namesake_in_the_current_folder(tmp_path, monkeypatch):
+    """A results file names its body's SID: the recorded absolute path first, then beside the
+    results file; a file of the same name in the current folder (the README's set-up writes a
+    piston_rod.sid.h5 there) never stands in for the run's own."""
+    from sidprep.solver.stress import sid_path
+
+    run, elsewhere, here = tmp_path / "run", tmp_path / "elsewhere", tmp_path / "here"
+    for folder in (run, elsewhere, here):
+        folder.mkdir()
+        (folder / "rod.sid.h5").write_bytes(b"")
+    monkeypatch.chdir(here)
+    assert sid_path("rod.sid.h5", run / "engine.results.h5") == run / "rod.sid.h5"
+    assert sid_path(str(elsewhere / "rod.sid.h5"), run / "engine.results.h5") == elsewhere / "rod.sid.h5"
+    assert sid_path(str(tmp_path / "moved" / "rod.sid.h5"), run / "engine.results.h5") == run / "rod.sid.h5"
+    assert sid_path("rod.sid.h5", tmp_path / "nowhere" / "engine.results.h5") == Path("rod.sid.h5")

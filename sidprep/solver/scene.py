@@ -118,7 +118,7 @@ def _flexible_body(name: str, t: TomlTable, pose: dict):
     qd0 = t.array("qd0", None, shape=(sid.nq,))
     body = FlexibleBody(sid, name=name, q0=q0, qd0=qd0, effects=_effects(t, "effects", None), source=str(path),
                         **pose)
-    return body, BodySource("flexible", str(path))
+    return body, BodySource("flexible", str(path.resolve()))  # absolute: found from any folder later
 
 
 def _beam_body(name: str, t: TomlTable, pose: dict):

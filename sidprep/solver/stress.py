@@ -104,9 +104,13 @@ class StressRecovery:
 
 
 def sid_path(source: str, results_path: Path) -> Path:
-    """The SID file a results file names: as written (relative to the folder of the run), else
-    relative to the results file's folder."""
-    for candidate in (Path(source), results_path.parent / source, results_path.parent / Path(source).name):
+    """The SID file a results file names: the absolute path the run recorded; else (a moved folder,
+    or a path recorded relative to the run's folder) relative to the results file's folder, the
+    file of that name beside it, and last relative to the current folder - so that a file of the
+    same name in the current folder never stands in for the run's own."""
+    source_path = Path(source)
+    beside = (results_path.parent / source, results_path.parent / source_path.name)
+    for candidate in ((source_path,) if source_path.is_absolute() else ()) + beside + (source_path,):
         if candidate.is_file():
             return candidate
     raise InputError(f"{results_path}: the SID file {source} of the body is not found; run `sidprep stress` "
