@@ -1,6 +1,10 @@
 """User-facing errors: one line naming the file, the problem and the fix."""
 
+import os
 import signal
+import sys
+import threading
+import time
 
 
 class InputError(Exception):
@@ -57,7 +61,38 @@ def _raise_terminated(signum, frame):
     raise Terminated()
 
 
+#: seconds after which a dropped stop's signal is sent again (the hook has long returned)
+STOP_RESEND_S = 0.01
+#: the signal that raises each stop exception again when Python had to drop it
+_STOP_SIGNALS = ((Terminated, signal.SIGTERM), (KeyboardInterrupt, signal.SIGINT))
+
+
+def _signal_dropped_stop_again(unraisable) -> None:
+    """``sys.unraisablehook``: a stop (Terminated, KeyboardInterrupt) raised by a signal handler
+    while a weakref callback, ``__del__`` or the garbage collector ran cannot propagate, and Python
+    would print it and go on; a thread sends the process the signal again once this hook has
+    returned (sent from here, the handler would raise in the hook), and the handler raises the stop
+    at the main thread's next ordinary instruction.  Anything else goes to Python's default hook."""
+    for stop, signum in _STOP_SIGNALS:
+        if isinstance(unraisable.exc_value, stop):
+            threading.Thread(target=_signal_later, args=(signum,), daemon=True).start()
+            return
+    sys.__unraisablehook__(unraisable)
+
+
+def _signal_later(signum: int) -> None:
+    time.sleep(STOP_RESEND_S)
+    os.kill(os.getpid(), signum)
+
+
+def keep_stops_raisable() -> None:
+    """Install ``_signal_dropped_stop_again`` as ``sys.unraisablehook`` (the CLI and batch workers)."""
+    sys.unraisablehook = _signal_dropped_stop_again
+
+
 def terminate_on_sigterm() -> None:
-    """Turn SIGTERM into a ``Terminated`` exception in the main thread (the CLI installs it)."""
+    """Turn SIGTERM into a ``Terminated`` exception in the main thread (the CLI installs it); a stop
+    that lands where Python cannot raise it is raised again (``keep_stops_raisable``)."""
 
     signal.signal(signal.SIGTERM, _raise_terminated)
+    keep_stops_raisable()

@@ -791,3 +791,52 @@ def test_sigterm_during_a_process_end_is_not_a_traceback(tmp_path):
     assert proc.returncode == 143, proc.stderr
     assert "Traceback" not in proc.stderr and proc.stderr.strip().splitlines()[-1] == "sidprep: terminated"
     assert "mass" in proc.stdout
+
+
+#: a stop raised inside a weakref callback (Python drops it there): the process must still stop
+STOP_IN_A_WEAKREF_CALLBACK = """\
+import os, signal, sys, weakref
+{install}
+class Body: pass
+def callback(_):
+    os.kill(os.getpid(), signal.{sig})
+    for _ in range(10000): pass          # the handler runs here, inside the callback
+body = Body()
+ref = weakref.ref(body, callback)
+try:
+    del body
+    for _ in range(10**7): pass
+    print("went on")
+except {stop}:
+    print("stopped")
+"""
+
+
+@pytest.mark.parametrize("install, sig, stop", [
+    ("from sidprep.errors import terminate_on_sigterm\nterminate_on_sigterm()", "SIGTERM",
+     "__import__('sidprep.errors').errors.Terminated"),
+    ("from sidprep.errors import keep_stops_raisable\nkeep_stops_raisable()", "SIGINT", "KeyboardInterrupt"),
+], ids=["cli_sigterm", "sigint"])
+def test_a_stop_that_lands_in_a_weakref_callback_still_stops(install, sig, stop):
+    script = STOP_IN_A_WEAKREF_CALLBACK.format(install=install, sig=sig, stop=stop)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env(),
+                          timeout=TIMEOUT_S, preexec_fn=default_sigint)
+    assert proc.stdout == "stopped\n" and "Exception ignored" not in proc.stderr, proc.stdout + proc.stderr
+
+
+def test_a_batch_workers_sigterm_in_a_weakref_callback_still_ends_the_worker():
+    script = ("import os, signal, sys, weakref\n"
+              "from sidprep.jobs.guard import guarded, worker_setup\n"
+              "worker_setup(os.getppid())\n"
+              "class Body: pass\n"
+              "def callback(_):\n"
+              "    os.kill(os.getpid(), signal.SIGTERM)\n"
+              "    for _ in range(10000): pass\n"
+              "def job():\n"
+              "    body = Body(); ref = weakref.ref(body, callback); del body\n"
+              "    for _ in range(10**7): pass\n"
+              "    print('went on')\n"
+              "guarded(job)\n")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env(),
+                          timeout=TIMEOUT_S)
+    assert proc.returncode == 143 and proc.stdout == "" and "Exception ignored" not in proc.stderr, proc.stderr

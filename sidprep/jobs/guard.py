@@ -7,7 +7,8 @@
   folder (the folder was this batch's alone: a worker stopped mid-write leaves its temporary file).
 * ``worker_setup(parent_pid)``: the initializer of every worker process (spawned: a child of the
   batch process): ^C is the parent's to handle (no KeyboardInterrupt traceback per worker),
-  SIGTERM unwinds (temporary files removed), and the worker ends when the batch process is gone
+  SIGTERM unwinds (temporary files removed; also when it lands in a weakref callback or
+  ``__del__``, ``sidprep.errors.keep_stops_raisable``), and the worker ends when the batch process is gone
   (SIGKILL of the parent leaves no worker running): PR_SET_PDEATHSIG on Linux, and a watchdog
   thread polling the parent elsewhere and as a second guard.
 * ``stop_workers(processes)``: SIGTERM to each, then SIGKILL after STOP_GRACE_S.
@@ -31,7 +32,7 @@ import threading
 import time
 from pathlib import Path
 
-from sidprep.errors import InputError, Terminated
+from sidprep.errors import InputError, Terminated, keep_stops_raisable
 
 LOCK_NAME = ".sidprep-batch.lock"
 #: prctl option: signal to receive when the parent process dies (linux/prctl.h)
@@ -141,6 +142,7 @@ def worker_setup(parent_pid: int) -> None:
     """Initializer of a batch's worker process (module doc)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _on_sigterm)
+    keep_stops_raisable()
     if sys.platform.startswith("linux"):
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         if os.getppid() != parent_pid:                       # the parent died before prctl
