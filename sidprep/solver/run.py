@@ -75,9 +75,6 @@ BALANCE_BEFORE_FAILURE = 0.1
 
 def numerical_fix(settings) -> str:
     """The fix of an inaccurate or unstable integration with ``settings``."""
-    if settings.method == "genalpha" and settings.rho_inf == 1.0:  # nothing damps the index-3 velocity error
-        return ("halve h or lower rho_inf to 0.9 (at rho_inf = 1 nothing damps the constraints' velocity-level "
-                "error: a closed loop may need rho_inf <= 0.95 whatever h)")
     if settings.method == "genalpha":
         return "halve h" + (" or lower rho_inf to 0.9" if settings.rho_inf > 0.9 else "")
     if settings.tolerance:

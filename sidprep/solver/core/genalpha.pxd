@@ -19,8 +19,9 @@ cdef class GaConstants:
     the integrated coordinates free and kept rows; length weights w (n,) m per unit; the system
     length (m); the bodies' deflection limits (nb,) m; the Newton tolerance tol; rtol (<= 0:
     fixed step); atol (m); the nominal step h_nominal (s); the output interval out_dt (s; <= 0:
-    every step)."""
+    every step); projected: the velocities are projected after each step (rho_inf > RHO_PROJECTED)."""
     cdef readonly double alpha_m, alpha_f, gamma, beta, beta_p
+    cdef readonly bint projected
     cdef readonly const int64_t[::1] free, kept
     cdef readonly const double[::1] w, limits
     cdef readonly double length, tol, rtol, atol, h_nominal, out_dt
