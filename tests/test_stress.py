@@ -519,6 +519,21 @@ def test_engine_rod_stress_at_the_firing_peak(engine_run):
     assert f"{out['shank_axial_stress_MPa']:.2f} MPa" in readme and f"{out['F_over_A_MPa']:.2f} MPa" in readme
 
 
+def test_engine_stress_page_is_small_and_renders(engine_run, tmp_path):
+    """The engine's stress animation (the rod's 3726 surface points and 20 modes; 251 shown samples
+    of the 0.1 s run, 295 of the README's 1 s run): the whole page, plotly.js included, is at most
+    PAGE_BYTES, and it renders in headless Chromium at the firing peak (shown sample 81, 0.0324 s)."""
+    from test_view import assert_renders, browser
+    from test_view_pages import PAGE_BYTES
+
+    page = tmp_path / "engine.html"
+    r = cli("animate", "engine.results.h5", "-o", page, "--colour", "stress", cwd=engine_run)
+    assert r.returncode == 0, r.stderr
+    assert page.stat().st_size <= PAGE_BYTES
+    if browser():
+        assert_renders(page, tmp_path / "engine.png", "#t=81&stress")
+
+
 # ------------------------------------------------------------------------------------------------
 # seeing it: sidprep view (each mode's von Mises field), sidprep animate (colour by stress, MPa)
 # ------------------------------------------------------------------------------------------------
