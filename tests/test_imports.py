@@ -1,7 +1,8 @@
 """What a command's process imports: ``sidprep reduce`` on a mesh loads none of the modules that
 only other commands or other inputs need, and the parser (``sidprep --help``, ``sidprep reduce
---help``) none of numpy, scipy and h5py.  Guarded by module names in a fresh process, not by
-timing (the time it saves: docs/performance.md, "Reduction: `sidprep reduce`")."""
+--help``) none of numpy, scipy and h5py; and when ``sidprep reduce`` starts its BLAS with one
+thread.  Guarded by module names in a fresh process, not by timing (the time it saves:
+docs/performance.md, "Reduction: `sidprep reduce`")."""
 
 from __future__ import annotations
 
@@ -60,7 +61,8 @@ def under(modules: set[str], names) -> list[str]:
 
 
 def test_reduce_on_a_mesh_imports_nothing_it_does_not_use(tmp_path):
-    loaded = modules_after("from sidprep.cli.main import main\nassert main(sys.argv[1:]) == 0",
+    # own_process: as the `sidprep` command runs it, with the command's process_setup
+    loaded = modules_after("from sidprep.cli.main import main\nassert main(sys.argv[1:], own_process=True) == 0",
                            "reduce", str(BAR), "--modes", "3", "-o", str(tmp_path / "bar.sid.h5"), "-q")
     assert (tmp_path / "bar.sid.h5").is_file()
     assert {"sidprep.jobs.reduce", "scipy.sparse.linalg", "h5py"} <= loaded     # the reduction did run
@@ -80,3 +82,16 @@ def test_beam_imports_no_scipy_and_no_fe_side(tmp_path):
                            "-o", str(tmp_path / "beam.sid.h5"), "-q")
     assert (tmp_path / "beam.sid.h5").is_file()
     assert under(loaded, ["scipy", "meshio", "sidprep.fe.mesh", "sidprep.fe.linalg", "sidprep.jobs.reduce"]) == []
+
+
+def test_reduce_process_setup_one_blas_thread_only_without_parts():
+    """One BLAS thread from the start for a reduction in one process; --parts and job files keep
+    the pools' default (their driver uses every core between rounds, sidprep.fe.linalg.all_cores_blas)."""
+    code = ("import os, sys\nfrom sidprep.cli.main import build_parser\n"
+            "args = build_parser().parse_args(sys.argv[1:])\nargs.process_setup(args)\n"
+            "print(os.environ.get('OPENBLAS_NUM_THREADS'))")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | {"PYTHONPATH": str(ROOT)}
+    for argv, threads in ((["reduce", str(BAR)], "1"), (["reduce", str(BAR), "--parts", "2"], "None"),
+                          (["reduce", "job.toml"], "None")):
+        r = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=ROOT, env=env)
+        assert r.stdout.strip().splitlines()[-1] == threads, (argv, r.stdout + r.stderr)
