@@ -9,7 +9,7 @@
    factorised once and reused for the constraint modes and the shift-invert Lanczos) vs plain scipy
    (one SuperLU factorisation of K_ii reused the same way, ``eigsh``), same mesh, same 20 modes.
 
-Targets: piston rod end to end <= 2 s; CB >= 5x faster than plain scipy at 150k DOF.
+Targets: piston rod end to end <= 1 s (not met, docs/performance.md); CB >= 5x faster than plain scipy at 150k DOF.
 The machine is shared: the load average is printed with every row.
 """
 

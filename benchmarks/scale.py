@@ -11,11 +11,18 @@ The machine is shared: quote the ratios measured side by side, not the absolute 
 
     python benchmarks/scale.py --dof 100000 250000            # the table rows
     python benchmarks/scale.py --dof 100000 --ccx             # with CalculiX beside it
-    python benchmarks/scale.py --piston-rod 5                 # end-to-end median of the small case
+    python benchmarks/scale.py --dof --piston-rod 7           # the piston rod's whole process, medians of 7
+    python benchmarks/scale.py --dof --piston-rod 7 --before /work/main   # and another checkout alternately
     python benchmarks/scale.py --dof 1000000 --no-modes --mesh-first   # the 1M-DOF reduction alone
 
 ``--mesh-first`` writes the tet10 mesh to a binary .msh (gmsh, in this process) before the runs, so
 that the runs measure the model, not the meshing; ``--dof`` then targets the reduction's DOF (free).
+
+``--piston-rod N``: ``sidprep reduce data/meshes/piston_rod.msh`` (16k DOF, the defaults) as a user
+runs it, N fresh processes: wall and CPU s (user + system) of the whole process, the sum of its
+phases (the ``--json`` summary's timings) and the rest of the wall time (Python's start-up, the
+imports, the work between the phases, the exit); ``--before PATH`` runs another checkout's command
+alternately, so that both share the machine's load.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -133,16 +141,33 @@ def run_calculix(h: float, work: Path) -> dict | None:
     return mvc.run_ccx("cantilever", mvc.make_mesh(round(h, 5), work), work)
 
 
-def piston_rod(repeat: int) -> float:
-    walls = []
+def piston_rod_run(root: Path, output: Path) -> dict:
+    """One ``sidprep reduce`` process of the piston rod, the command of the checkout ``root``: wall,
+    CPU (user + system), the sum of its phases and the rest (start-up, imports, between the phases, exit), s."""
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(root / "data/meshes/piston_rod.msh"),
+                          "-q", "--json", "-o", str(output)], check=True, cwd=root, capture_output=True, text=True,
+                         env=dict(os.environ, PYTHONPATH=str(root))).stdout
+    wall = time.perf_counter() - t0
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    phases = sum(json.loads(out)["timings_s"].values())
+    return {"wall": wall, "cpu": (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime), "phases": phases,
+            "rest": wall - phases}
+
+
+def piston_rod(repeat: int, before: Path | None = None) -> tuple[dict, list[float]]:
+    """{checkout: median of each piston_rod_run figure}, this checkout and ``before`` alternately; the
+    load averages seen."""
+    roots = {"this": REPO} | ({"before": before.resolve()} if before else {})
+    rows: dict[str, list[dict]] = {name: [] for name in roots}
+    loads = [os.getloadavg()[0]]
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(repeat):
-            t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "sidprep.cli.main", "reduce", str(REPO / "data/meshes/piston_rod.msh"),
-                            "-q", "-o", str(Path(tmp) / "p.h5")], check=True, cwd=REPO,
-                           env=dict(os.environ, PYTHONPATH=str(REPO)))
-            walls.append(time.perf_counter() - t0)
-    return statistics.median(walls)
+            for name, root in roots.items():
+                rows[name].append(piston_rod_run(root, Path(tmp) / "piston_rod.sid.h5"))
+            loads.append(os.getloadavg()[0])
+    return {name: {key: statistics.median(r[key] for r in runs) for key in runs[0]} for name, runs in rows.items()}, loads
 
 
 def main(argv=None) -> int:
@@ -152,7 +177,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-reduce", action="store_true", help="modes only")
     ap.add_argument("--no-modes", action="store_true", help="reduce only")
     ap.add_argument("--mesh-first", action="store_true", help="mesh to .msh before the runs (module docstring)")
-    ap.add_argument("--piston-rod", type=int, default=0, metavar="N", help="end-to-end median of N runs")
+    ap.add_argument("--piston-rod", type=int, default=0, metavar="N", help="the piston rod's whole process, N runs")
+    ap.add_argument("--before", type=Path, metavar="PATH", help="with --piston-rod: another checkout alternately")
     args = ap.parse_args(argv)
     print(f"load {os.getloadavg()[0]:.1f}")
     print("| DOF | command | wall s | peak MB | estimate MB | est/peak | backend | ccx wall s | ccx MB | time ratio | memory ratio |")
@@ -179,7 +205,13 @@ def main(argv=None) -> int:
                       f"{r['wall_s']:.1f} | {r['rss_mb']:.0f} | {est:.0f} | {est / r['rss_mb']:.2f} | cholmod | - | - | - | - |",
                       flush=True)
     if args.piston_rod:
-        print(f"piston rod `sidprep reduce` end to end: median {piston_rod(args.piston_rod):.2f} s of {args.piston_rod}")
+        medians, loads = piston_rod(args.piston_rod, args.before)
+        print(f"\npiston rod `sidprep reduce`, whole process, medians of {args.piston_rod}, "
+              f"load {min(loads):.1f}-{max(loads):.1f}")
+        print("| checkout | wall s | CPU s | phases s | rest: start-up, imports, between the phases, exit s |")
+        print("|---|---|---|---|---|")
+        for name, m in medians.items():
+            print(f"| {name} | {m['wall']:.2f} | {m['cpu']:.2f} | {m['phases']:.2f} | {m['rest']:.2f} |")
     return 0
 
 

@@ -62,7 +62,7 @@ SIGNAL_EXITS = {signal.SIGINT: (130, "sidprep: interrupted"), signal.SIGTERM: (1
 
 def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
     """Run one sub-command; ``own_process``: the process is the command's own (``command``), so
-    the sub-command's ``process_setup`` (if its parser sets one) runs first."""
+    the sub-command's ``process_setup(args)`` (if its parser sets one) runs first."""
     terminate_on_sigterm()
     try:
         parser = build_parser()
@@ -74,10 +74,10 @@ def main(argv: list[str] | None = None, *, own_process: bool = False) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    if own_process and getattr(args, "process_setup", None):
-        args.process_setup()
     warnings.showwarning = one_line_warning
     try:
+        if own_process and getattr(args, "process_setup", None):
+            args.process_setup(args)          # may import the command's modules: a signal meanwhile ends it as above
         check_finite_options(args)
         return int(args.func(args) or 0)
     except InputError as exc:

@@ -21,7 +21,7 @@ from pathlib import Path
 SOLVER_THREADS = {"OPENBLAS_NUM_THREADS": "1"}
 
 
-def process_setup() -> None:
+def process_setup(args=None) -> None:
     """What a solver command (``simulate``, ``linearize``) changes about its process when it runs
     as one (not ``main`` called from Python), before the solver's imports: the BLAS thread limits
     of SOLVER_THREADS unless the environment sets them, and no cyclic garbage collection

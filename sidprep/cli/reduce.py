@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import gc
+import os
 import sys
 from dataclasses import fields, replace
 
-from sidprep.cli.options import add_json, add_model_arguments, add_output, add_quiet, add_sid_files
+from sidprep.cli.options import SOLVER_THREADS, add_json, add_model_arguments, add_output, add_quiet, add_sid_files
 
 
 def add_reduce_arguments(p) -> None:
@@ -70,7 +72,31 @@ def register(subparsers) -> None:
                    help="with --parts or an assembly: local worker processes (default: cores)")
     add_json(p)
     add_quiet(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, process_setup=process_setup)
+
+
+def process_setup(args) -> None:
+    """What ``sidprep reduce`` changes about its process when it runs as one (not ``main`` called
+    from Python), before its imports.  One BLAS thread from the start (SOLVER_THREADS, unless the
+    environment sets it): the reduction runs with one anyway (sidprep.fe.linalg.single_threaded_blas),
+    but OpenBLAS starts a pool per copy loaded (numpy's, scipy's) whose other thread spins while the
+    modules load; not with --parts or a job file, whose driver uses every core between rounds
+    (all_cores_blas).  And the reduction's modules imported with the cyclic garbage collector paused,
+    their objects then frozen out of its later collections (gc.freeze): it would scan them ~120
+    times while they load and once more in full during the run; it runs as always for the run's
+    own objects."""
+    if not (args.parts or args.mesh.lower().endswith(".toml")):
+        for name, value in SOLVER_THREADS.items():
+            os.environ.setdefault(name, value)
+    gc.disable()
+    try:
+        import sidprep.jobs.jobfile  # noqa: F401 - what run imports, loaded here with the collector paused
+        import sidprep.jobs.output  # noqa: F401
+        import sidprep.jobs.reduce  # noqa: F401
+        import sidprep.reduction.fe_checks  # noqa: F401
+    finally:
+        gc.freeze()
+        gc.enable()
 
 
 def job_from_args(args):

@@ -17,8 +17,6 @@ import numpy as np
 
 from sidprep.errors import InputError
 from sidprep.fe.material import UNIT_SYSTEMS, Material, UnitSystem
-from sidprep.fe.matrices.deck_sections import deck_materials
-from sidprep.fe.matrices.nastran_deck import is_nastran, nastran_materials
 from sidprep.fe.topology import cell_volumes
 
 #: largest bounding-box edge (m) of a machine part; beyond it the mesh was probably drawn in mm
@@ -135,6 +133,9 @@ def check_imported_units(mesh, M_file, units: UnitSystem, path) -> None:
     MODEL also gives its materials' E and rho, a Nastran deck those of its MAT1 cards; shell and
     beam models have no element volume, so only these are checked): M_file (3n', 3n') the mass in
     the file's unit."""
+    from sidprep.fe.matrices.deck_sections import deck_materials  # deferred: the decks' readers, imported K, M only
+    from sidprep.fe.matrices.nastran_deck import is_nastran, nastran_materials  # deferred: as above (meshio)
+
     n = 3 * mesh.n_nodes
     mass = float(M_file[:n, :n].sum()) / 3.0
     volume = float(np.abs(cell_volumes(mesh.points, mesh.cells)).sum()) / units.length_to_m ** 3 if len(mesh.cells) else 0.0

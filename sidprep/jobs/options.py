@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 
 from sidprep.errors import InputError
-from sidprep.reduction.modes import modal_damping
 from sidprep.sid.io import HDF5_SUFFIXES
 
 
@@ -104,6 +103,8 @@ def material_given(o: ModelOptions) -> bool:
 def check_damping(damping) -> None:
     """Damping ratios must lie in [0, 1): below 0 adds energy, 1 and above is no longer a vibration."""
     if isinstance(damping, dict):
+        from sidprep.reduction.modes import modal_damping  # deferred: 0.25 s import (scipy.linalg), Rayleigh only
+
         modal_damping(np.ones(1), damping)
         return
     values = np.atleast_1d(np.asarray(damping, dtype=float))

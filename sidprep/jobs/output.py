@@ -12,7 +12,6 @@ from pathlib import Path
 
 from sidprep.jobs.options import OutputOptions, check_output
 from sidprep.progress import Phases
-from sidprep.reduction.beam import BeamOptions, beam_sid
 from sidprep.sid.io import write_sid
 from sidprep.sid.io.atomic import output_set
 
@@ -40,10 +39,12 @@ def write_reduction(sid, paths: dict[str, Path], *, source: str = "", command: s
     return {k: str(v) for k, v in paths.items()}
 
 
-def write_beam_files(options: BeamOptions, output, sid_fem: bool = True, obj: bool = True) -> dict:
-    """Build the analytical beam's SID and write ``output`` (.sid.h5, checked before the work) and
-    its companions <stem>.SID_FEM and <stem>.obj, as ``sidprep reduce`` does; returns a summary dict
-    (files, mass kg, nq, labels, frequencies Hz)."""
+def write_beam_files(options, output, sid_fem: bool = True, obj: bool = True) -> dict:
+    """Build the analytical beam's SID (``options``: sidprep.reduction.beam.BeamOptions) and write
+    ``output`` (.sid.h5, checked before the work) and its companions <stem>.SID_FEM and <stem>.obj,
+    as ``sidprep reduce`` does; returns a summary dict (files, mass kg, nq, labels, frequencies Hz)."""
+    from sidprep.reduction.beam import beam_sid  # deferred: `sidprep beam` only, not the FE reduction
+
     paths = output_paths(output, OutputOptions(output=str(output), sid_fem=sid_fem, obj=obj))
     sid = beam_sid(options)
     files = write_reduction(sid, paths, command="beam")
@@ -64,12 +65,13 @@ def run_job(job, *, phases=None, scheduler=None, workers=None) -> JobRun:
     """Reduce ``job`` (sidprep.jobs.jobfile.Job: one mesh, or an assembly of components) and write
     its files (``job.output``; the paths are checked before the work).  ``scheduler``/``workers``:
     the executor of a reduction in parts or of an assembly's components."""
-    from sidprep.jobs.assembly import reduce_assembly  # deferred: the FE side, which `sidprep beam` never needs
-    from sidprep.jobs.reduce import reduce  # deferred: as above
+    from sidprep.jobs.reduce import reduce  # deferred: the FE side, which `sidprep beam` never needs
 
     phases = phases or Phases(verbose=False)
     paths = output_paths(job.mesh, job.output)
     if job.components:
+        from sidprep.jobs.assembly import reduce_assembly  # deferred: assemblies only (parts, imported K, M)
+
         result = reduce_assembly(job, phases=phases, scheduler=scheduler, workers=workers)
     else:
         result = reduce(job.mesh, job.options, phases=phases, scheduler=scheduler, workers=workers)

@@ -27,16 +27,11 @@ from sidprep.errors import InputError
 from sidprep.fe.assemble import block_pattern, scalar_mass_matrix, stiffness_matrix, vector_mass
 from sidprep.fe.linalg import single_threaded_blas
 from sidprep.fe.material import material_from_options, unit_system
-from sidprep.fe.matrices.deck import read_model
-from sidprep.fe.matrices.deck_sections import deck_stress
-from sidprep.fe.matrices.onto_model import imported_checks, imported_model
-from sidprep.reduction.grid_interfaces import six_dof_interface, with_rotations
 from sidprep.fe.mesh import FEMesh, read_mesh
 from sidprep.fe.topology import connected_parts
 from sidprep.fe.plausibility import unit_warnings
 from sidprep.jobs.options import (CB_MIN_MODES, DEFAULT_CUTOFF_FACTOR, DEFAULT_DAMPING, DEFAULT_MATERIAL,
     DEFAULT_MODES, ReduceOptions, check_reduce_options, material_given)
-from sidprep.jobs.parts import PartsSettings, parts_reducer
 from sidprep.progress import Phases, peak_memory_mb
 from sidprep.reduction.craig_bampton import craig_bampton
 from sidprep.reduction.fe_checks import STATIC_CHECK_TOL, fe_checks, structured_checks
@@ -146,6 +141,8 @@ def imported_interfaces(imported, specs, o: ReduceOptions, length_to_m: float):
     body's two nodes), which carries the frame (the options' frame set to it, first in the list
     unless a spec names it); default interfaces that hold dependent nodes are left out; interfaces on
     6-DOF nodes (beams, shells) use their rotations (sidprep.reduction.grid_interfaces)."""
+    from sidprep.reduction.grid_interfaces import six_dof_interface, with_rotations  # deferred: imported K, M only
+
     mesh = imported.mesh
     dependent = set() if mesh.ties is None else set(mesh.ties.slaves.tolist())
     clamp = None
@@ -324,7 +321,12 @@ def load_mesh(mesh, o, ph):
     if isinstance(mesh, FEMesh):
         return mesh, str(mesh.source)
     # a deck of any solid elements when K, M are imported (ReduceOptions.matrices; ModalOptions has none)
-    read = read_model if getattr(o, "matrices", None) else read_mesh
+    if getattr(o, "matrices", None):
+        from sidprep.fe.matrices.deck import read_model  # deferred: the deck readers (meshio), imported K, M only
+
+        read = read_model
+    else:
+        read = read_mesh
     with ph("mesh", str(mesh)):
         m = read(mesh, size=o.size, order=o.order).in_metres(units.length_to_m, units.name)
     return m, str(mesh)
@@ -375,6 +377,9 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
     specs = o.interfaces or default_interfaces(mesh)
     imported = None
     if o.matrices:                                        # K, M of another FE code (sidprep.fe.matrices)
+        from sidprep.fe.matrices.deck_sections import deck_stress  # deferred: imported K, M only
+        from sidprep.fe.matrices.onto_model import imported_model  # deferred: 0.1 s import with the decks' readers
+
         with ph("import", str(o.matrices)):
             imported = imported_model(mesh, o.matrices, units, len(specs))
             material = deck_stress(mesh, units) if o.stress else material   # the deck's elements and materials
@@ -395,7 +400,11 @@ def _reduce(mesh_in, o: ReduceOptions, phases, cluster=(None, None)) -> Reductio
             Ms = scalar_mass_matrix(mesh, material.rho, pattern)
             assembled["M"] = vector_mass(Ms)
             del pattern
-    reducer = parts_reducer(mesh, material, PartsSettings(o.parts, *cluster), notes) if o.parts else None
+    reducer = None
+    if o.parts:
+        from sidprep.jobs.parts import PartsSettings, parts_reducer  # deferred: --parts only (pool, pymetis)
+
+        reducer = parts_reducer(mesh, material, PartsSettings(o.parts, *cluster), notes)
     metadata = {"name": f"none: K and M from {o.matrices}"} if o.matrices else material.as_dict()
     model = FEModel(mesh, source, assembled, Ms, material, metadata, imported, notes, interfaces, paths)
     return reduce_fe_model(model, o, ph, reducer)
@@ -439,6 +448,8 @@ def reduce_fe_model(model: FEModel, o: ReduceOptions, ph, reducer=None) -> Reduc
         if sid.stress is not None:
             checks.update(stress_check(red, mesh, material, sid.stress))
         if imported is not None:
+            from sidprep.fe.matrices.onto_model import imported_checks  # deferred: imported K, M only
+
             checks.update(imported_checks(imported, red.basis))
     notes += rotation_warning(checks, red.basis, o.cutoff_factor)
     sid = replace(sid, metadata={**sid.metadata, "notes": notes, "checks": checks_as_dicts(
