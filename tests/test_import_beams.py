@@ -306,3 +306,56 @@ def test_boundary_faces_of_a_solid_deck_are_no_shells(tmp_path):
     model = read_model(tmp_path / "bar.inp")
     assert len(model.surface) == 2 * (4 * 4 + 2)                 # 18 outer quadrilaterals
     assert sorted(model.node_ids[model.node_sets["FACE"]]) == sorted(face)
+
+
+def split_deck(folder, bdf) -> tuple:
+    """The deck ``bdf`` cut into a main deck that INCLUDEs the rest: the grids from a sub-folder
+    (its name's quotes closing on the next line), whose file includes the first grids in turn
+    (relative to its own folder), and the elements by a bare file name.  Returns (main deck, its
+    lines' cards in the original order)."""
+    lines = bdf.read_text().splitlines()
+    head = lines[:lines.index("BEGIN BULK") + 1]
+    cards = [x for x in lines[len(head):] if x != "ENDDATA"]
+    grids = [x for x in cards if x.startswith("GRID")]
+    others = [x for x in cards if not x.startswith(("GRID", "CBAR"))]
+    bars = [x for x in cards if x.startswith("CBAR")]
+    (folder / "grids").mkdir()
+    (folder / "grids" / "first.bdf").write_text("\n".join(grids[:5]) + "\n")
+    (folder / "grids" / "all.bdf").write_text("$ the rest of the grids\nINCLUDE 'first.bdf'\n" + "\n".join(grids[5:]) + "\n")
+    (folder / "bars.bdf").write_text("BEGIN BULK\n" + "\n".join(bars) + "\nENDDATA\n")
+    main = folder / "main.bdf"
+    main.write_text("\n".join(head + others + ["INCLUDE 'grids/", "    all.bdf'", "include bars.bdf", "ENDDATA"]) + "\n")
+    return main
+
+
+def test_a_deck_in_included_files_reads_as_the_whole_deck(tmp_path):
+    """The beam's deck spread over INCLUDE files (nested, in a sub-folder, a quoted name over two
+    lines, a bare name): the same grids and elements as the deck in one file, and the SID's
+    frequencies those of the full model."""
+    from sidprep.fe.matrices.nastran_deck import nastran_mesh
+
+    points, elements = beam_points()
+    bdf, pch = write_beam_export(tmp_path, "beam", points, elements, SECTION)
+    main = split_deck(tmp_path, bdf)
+    (whole, whole_ids), (parts, parts_ids) = nastran_mesh(bdf), nastran_mesh(main)
+    np.testing.assert_array_equal(parts_ids, whole_ids)
+    np.testing.assert_array_equal(parts.points, whole.points)
+    assert [(c.type, c.data.tolist()) for c in parts.cells] == [(c.type, c.data.tolist()) for c in whole.cells]
+    result = reduce(main, ReduceOptions(matrices=str(pch), interfaces=("GRID1", f"GRID{ELEMENTS + 1}"), modes=10))
+    np.testing.assert_allclose(result.sid.frequencies_hz[:4], full_frequencies_hz(points, elements, SECTION)[:4],
+                               rtol=SID_VS_FULL_RTOL)
+
+
+@pytest.mark.parametrize("include, needle", [
+    ("INCLUDE 'missing.bdf'", "missing.bdf, which does not exist"),
+    ("INCLUDE 'loop.bdf'", "nest more than"),
+    ("INCLUDE 'open.bdf", "no closing quote"),
+    ("INCLUDE", "names no file"),
+], ids=["missing", "loop", "unclosed", "empty"])
+def test_bad_include_statements_are_one_line(tmp_path, include, needle):
+    points, elements = beam_points()
+    bdf, pch = write_beam_export(tmp_path, "beam", points, elements, SECTION, cards=(include,))
+    (tmp_path / "loop.bdf").write_text("INCLUDE 'loop.bdf'\n")
+    done = cli(bdf, "--matrices", pch, "--interface", "GRID1", "-o", tmp_path / "b.sid.h5")
+    assert done.returncode == 2 and needle in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not (tmp_path / "b.sid.h5").exists()

@@ -90,10 +90,19 @@ def nastran_real(text: str) -> float:
     return float(t)
 
 
-def cards(path, bulk_only: bool = False):
+#: how deep INCLUDE statements may nest (a deck that includes itself stops here)
+INCLUDE_DEPTH = 16
+
+
+def cards(path, bulk_only: bool = False, depth: int = 0):
     """Yield the fields (stripped strings) of each card: small, large (``*``) or free (``,``) field,
-    continuation lines (``+``, ``*`` or blank first field) appended; comments (``$``) skipped.
-    ``bulk_only``: a whole input deck, read from its ``BEGIN BULK`` line on (when it has one)."""
+    continuation lines (``+``, ``*`` or blank first field) appended; comments (``$``) skipped;
+    ``INCLUDE 'file'`` statements followed (the name may run over several lines inside its quotes;
+    a relative name is taken from the including file's folder; QRG, INCLUDE), the included file
+    read from its own ``BEGIN BULK`` line on when it has one.
+    ``bulk_only``: a whole input deck, read from its ``BEGIN BULK`` line on (when it has one);
+    ``depth``: how many INCLUDE statements led here."""
+    path = Path(path)
     card = None
     with open(path, errors="replace") as f:
         in_bulk = not (bulk_only and any(x.upper().startswith("BEGIN BULK") for x in f))
@@ -104,6 +113,15 @@ def cards(path, bulk_only: bool = False):
                 in_bulk = line.upper().startswith("BEGIN BULK")
                 continue
             if not line.strip() or line.startswith("$") or line.upper().startswith("ENDDATA"):
+                continue
+            if line.upper().startswith("INCLUDE"):
+                if card is not None:
+                    yield card
+                    card = None
+                if depth >= INCLUDE_DEPTH:
+                    raise InputError(f"{path}: INCLUDE statements nest more than {INCLUDE_DEPTH} deep (does a file "
+                                     "include itself?); remove the loop")
+                yield from cards(included_path(path, line, f), bulk_only, depth + 1)
                 continue
             head = line[:8].strip()
             continuation = head.startswith(("+", "*")) or not head
@@ -129,3 +147,28 @@ def cards(path, bulk_only: bool = False):
                 card = fields
     if card is not None:
         yield card
+
+
+def included_path(path: Path, line: str, rest) -> Path:
+    """The file an ``INCLUDE`` line of ``path`` names: quoted (its quotes may close on a later line of
+    the open file ``rest``, the name's pieces joined without their surrounding blanks) or a bare
+    word, relative to ``path``'s folder unless absolute."""
+    text = line[len("INCLUDE"):].strip()
+    if text[:1] in ("'", '"'):
+        quote, name = text[0], text[1:]
+        while quote not in name:
+            more = next(rest, None)
+            if more is None:
+                raise InputError(f"{path}: the file name of an INCLUDE statement has no closing quote; close it")
+            name = name.strip() + more.strip()
+        name = name[:name.index(quote)].strip()
+    else:
+        name = text.split()[0] if text else ""
+    if not name:
+        raise InputError(f"{path}: an INCLUDE statement names no file; write INCLUDE 'file.bdf'")
+    target = Path(name).expanduser()
+    target = target if target.is_absolute() else path.parent / target
+    if not target.is_file():
+        raise InputError(f"{path}: INCLUDE names {target}, which does not exist; give the included file beside the "
+                         "deck or its path")
+    return target

@@ -1,7 +1,7 @@
 """MODEL of a Nastran bulk deck (``.bdf``, ``.nas``, ``.dat``): grids and the element connectivity.
 
 Read card by card with the punch reader's field splitter (sidprep.fe.matrices.nastran.cards: small,
-large and free field, continuations), so that decks meshio cannot read (Femap ``.dat`` files with
+large and free field, continuations, INCLUDE files), so that decks meshio cannot read (Femap ``.dat`` files with
 free-field continuations, element cards it does not know) are read as Nastran reads them.  Only the
 geometry is taken: ``GRID`` (position in the basic system) and the grids of each element card
 (MSC/NX Nastran Quick Reference Guide, bulk data entries), grouped by meshio cell type:
