@@ -56,6 +56,9 @@ class FEMesh:
     ties : sidprep.fe.ties.Ties or None
         Multipoint constraints of tied surfaces (assemblies, sidprep.jobs.assembly): nodes whose
         displacement is interpolated from other nodes; None: no constraint.
+    rotational : (n_nodes,) bool or None
+        The rows that hold a 6-DOF node's rotations rx, ry, rz, not a point's displacement (imported
+        shells and beams, sidprep.fe.matrices.model_dofs); None: none.
     """
 
     points: np.ndarray
@@ -69,6 +72,7 @@ class FEMesh:
     length_unit: str = "m"
     surface: np.ndarray | None = None
     ties: object = None
+    rotational: np.ndarray | None = None
 
     @property
     def order(self) -> int:

@@ -206,7 +206,7 @@ def reduce_body(mesh, K_fe, M_fe, interfaces, *, frame="free", n_modes=None, fma
         im = tied_interface_model(interface_model(mesh.n_nodes, interfaces, mesh.points), mesh.ties)
         K_model, M_model = im.project(K_fe), im.project(M_fe)
         del K_fe, M_fe                            # freed here unless the caller keeps them (peak memory)
-        rigid = rigid_modes_model(im, mesh.points)
+        rigid = rigid_modes_model(im, mesh.points, mesh.rotational)
     boundary = im.master_dofs.ravel() if len(interfaces) else support_dofs(rigid, np.arange(im.n_model))
     with ph("craig-bampton", f"{len(boundary)} boundary DOF"):
         count = {"fmax": max(2.0, cutoff_factor) * fmax} if fmax is not None \

@@ -302,13 +302,18 @@ def _weights(itf: Interface) -> np.ndarray:
     return np.ones(len(itf.nodes)) if itf.weights is None else itf.weights
 
 
-def rigid_modes_model(im: InterfaceModel, points: np.ndarray) -> np.ndarray:
+def rigid_modes_model(im: InterfaceModel, points: np.ndarray, rotational: np.ndarray | None = None) -> np.ndarray:
     """(n_model, 6) rigid-body motions [t; theta] about the origin in model DOFs.
 
-    FE DOFs: u = t + theta x x; master DOFs: translation t + theta x x_m, rotation theta.
+    FE DOFs: u = t + theta x x, the rotation theta on the rows ``rotational`` (n_nodes,) bool (a
+    6-DOF node's rotations, FEMesh.rotational); master DOFs: translation t + theta x x_m, rotation theta.
     """
+    rows = rigid_rows(points)
+    if rotational is not None:
+        rows[rotational] = 0.0
+        rows[rotational, :, 3:] = np.eye(3)
     R = np.zeros((im.n_model, 6))
-    R[:len(im.retained)] = rigid_rows(points).reshape(-1, 6)[im.retained]
+    R[:len(im.retained)] = rows.reshape(-1, 6)[im.retained]
     for itf, m in zip(im.interfaces, im.master_dofs):
         R[m[:3]] = rigid_rows(itf.master_point[None])[0]
         R[m[3:], 3:] = np.eye(3)

@@ -127,7 +127,8 @@ def imported_model(mesh, path, units, n_interfaces: int = 1) -> ImportedModel:
                          "as MODEL")
     Ms = solid_mass(M, constraints, full.mesh.points, bodies, path)
     surface = glued_surface(full.mesh, deck, constraints)
-    mesh_out = replace(full.mesh, ties=constraints, surface=surface if surface is None else np.vstack([surface, tubes]))
+    mesh_out = replace(full.mesh, ties=constraints, surface=surface if surface is None else np.vstack([surface, tubes]),
+                       rotational=full.rotational if full.rotational.any() else None)
     names = {rb.name: (int(full.row_of(rb.ref)), int(full.dof(rb.rot, rb.rot_dof)) // 3) for rb in deck.rigid_bodies}
     notes = constraint_notes(deck, clamped, clamp_name, path)
     return ImportedModel(K, sp.kron(Ms, sp.identity(3), format="csr"), Ms, fe.eigenvalues, fe.fmt, ratio, mesh_out,
