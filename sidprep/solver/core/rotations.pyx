@@ -58,31 +58,31 @@ cdef void matmul(const double[:, :] a, const double[:, :] b, double[:, :] out) n
                 out[i, k] += aij * b[j, k]
 
 
-def rotation_matrix(theta) -> np.ndarray:
-    """Rotation matrix (3, 3) of the rotation vector theta (3,), rad (Rodrigues: exp_so3)."""
-    cdef double[::1] t = np.ascontiguousarray(theta, dtype=float).reshape(3)
+ctypedef void (*VectorToMatrix)(const double*, double*) noexcept nogil
+
+
+cdef object matrix_of(VectorToMatrix kernel, vector):
+    """The (3, 3) array that ``kernel`` writes for the (3,) ``vector``."""
+    cdef double[::1] v = np.ascontiguousarray(vector, dtype=float).reshape(3)
     out = np.empty((3, 3))
     cdef double[:, ::1] o = out
-    exp_so3(&t[0], &o[0, 0])
+    kernel(&v[0], &o[0, 0])
     return out
+
+
+def rotation_matrix(theta) -> np.ndarray:
+    """Rotation matrix (3, 3) of the rotation vector theta (3,), rad (Rodrigues: exp_so3)."""
+    return matrix_of(exp_so3, theta)
 
 
 def skew_matrix(a) -> np.ndarray:
     """The tilde operator, skew(a) @ b == cross(a, b); (3,) -> (3, 3)."""
-    cdef double[::1] v = np.ascontiguousarray(a, dtype=float).reshape(3)
-    out = np.empty((3, 3))
-    cdef double[:, ::1] o = out
-    skew3(&v[0], &o[0, 0])
-    return out
+    return matrix_of(skew3, a)
 
 
 def se3_jacobian_matrix(theta) -> np.ndarray:
     """V(theta) (3, 3) of the SE(3) exponential (se3_jacobian) of the rotation vector theta (3,), rad."""
-    cdef double[::1] t = np.ascontiguousarray(theta, dtype=float).reshape(3)
-    out = np.empty((3, 3))
-    cdef double[:, ::1] o = out
-    se3_jacobian(&t[0], &o[0, 0])
-    return out
+    return matrix_of(se3_jacobian, theta)
 
 
 def solve_se3_jacobian(theta, v) -> np.ndarray:
